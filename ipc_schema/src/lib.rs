@@ -1,0 +1,37 @@
+//! Everything of modbot that crosses a process boundary.
+//!
+//! Plain bytes with a documented layout: no pointers, little-endian integers, headers read in
+//! place with `zerocopy`. A frame that arrives from another process is untrusted: every decoder
+//! here returns a typed error on malformed input and never panics.
+//!
+//! # Layout
+//! - [`addr`]: 8-bit module addresses and the broadcast address.
+//! - [`rvmf`]: RVMF* frames (EXEC, REPLY, ACK, NAK, REPORT), the one encode/decode entry point
+//!   for messages between modules.
+//! - [`value`]: the typed values carried by frames (f64, i64, bool, text, bytes, f64 arrays),
+//!   encoded as MessagePack.
+//! - [`args`]: a decoded argument list with typed accessors, without allocating.
+//! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
+//!   readable in place.
+//! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set).
+//! - [`hex`]: hex helpers for the command line and the golden vectors.
+//!
+//! The byte layouts are written down in `ipc_schema/README.md`, with golden vectors that the
+//! tests check.
+
+#[cfg(target_endian = "big")]
+compile_error!("modbot's wire formats are little-endian and are read in place: big-endian hosts are not supported");
+
+pub mod addr;
+pub mod args;
+pub mod hex;
+pub mod rvmf;
+pub mod snapshot;
+pub mod sysmethod;
+pub mod value;
+
+pub use addr::Addr;
+pub use args::{ArgError, Args};
+pub use rvmf::{Frame, FrameError, FrameKind, FrameSpec, Kind, NakCode, Seq};
+pub use snapshot::{SnapshotError, SnapshotLayout, SnapshotView};
+pub use value::{F64s, OwnedValue, Value, ValueError, ValueKind};
