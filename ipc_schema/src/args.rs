@@ -13,7 +13,11 @@ pub enum ArgError {
     #[error("argument {index} is missing: expected {expected}")]
     Missing { index: usize, expected: ValueKind },
     #[error("argument {index} is {got}, expected {expected}")]
-    WrongKind { index: usize, expected: ValueKind, got: ValueKind },
+    WrongKind {
+        index: usize,
+        expected: ValueKind,
+        got: ValueKind,
+    },
     #[error("too many arguments: at most {MAX_ARGS}")]
     TooMany,
     #[error("{0}")]
@@ -32,7 +36,10 @@ pub struct Args<'a> {
 impl<'a> Args<'a> {
     /// Decodes every value of `values`.
     pub fn decode(values: Values<'a>) -> Result<Args<'a>, ArgError> {
-        let mut args = Args { values: [Value::Bool(false); MAX_ARGS], len: 0 };
+        let mut args = Args {
+            values: [Value::Bool(false); MAX_ARGS],
+            len: 0,
+        };
         for v in values {
             let v = v?;
             if args.len == MAX_ARGS {
@@ -49,7 +56,10 @@ impl<'a> Args<'a> {
         if values.len() > MAX_ARGS {
             return Err(ArgError::TooMany);
         }
-        let mut args = Args { values: [Value::Bool(false); MAX_ARGS], len: values.len() };
+        let mut args = Args {
+            values: [Value::Bool(false); MAX_ARGS],
+            len: values.len(),
+        };
         args.values[..values.len()].copy_from_slice(values);
         Ok(args)
     }
@@ -76,8 +86,14 @@ impl<'a> Args<'a> {
         expected: ValueKind,
         pick: impl Fn(Value<'a>) -> Option<T>,
     ) -> Result<T, ArgError> {
-        let v = self.get(index).ok_or(ArgError::Missing { index, expected })?;
-        pick(v).ok_or(ArgError::WrongKind { index, expected, got: v.kind() })
+        let v = self
+            .get(index)
+            .ok_or(ArgError::Missing { index, expected })?;
+        pick(v).ok_or(ArgError::WrongKind {
+            index,
+            expected,
+            got: v.kind(),
+        })
     }
 
     /// Argument `index` as an f64; integers are accepted.

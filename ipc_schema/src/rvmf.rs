@@ -273,7 +273,10 @@ impl FrameSpec {
         }
         let needed = self.encoded_len(payload_len);
         if out.len() < needed {
-            return Err(FrameError::BufferTooSmall { needed, available: out.len() });
+            return Err(FrameError::BufferTooSmall {
+                needed,
+                available: out.len(),
+            });
         }
         let header = Header {
             dst: self.dst.0,
@@ -340,8 +343,10 @@ impl<'a> Frame<'a> {
     /// The payload's values are checked lazily by [`Frame::values`]; use
     /// [`Frame::decode_strict`] to check them too.
     pub fn decode(bytes: &'a [u8]) -> Result<Frame<'a>, FrameError> {
-        let (header, rest) = Header::ref_from_prefix(bytes)
-            .map_err(|_| FrameError::Truncated { needed: ACK_LEN, got: bytes.len() })?;
+        let (header, rest) = Header::ref_from_prefix(bytes).map_err(|_| FrameError::Truncated {
+            needed: ACK_LEN,
+            got: bytes.len(),
+        })?;
         let raw_kind = header.ctl >> 5;
         let kind = Kind::from_bits(raw_kind).ok_or(FrameError::UnknownKind(raw_kind))?;
         if !Addr(header.src).is_module() {
@@ -354,14 +359,23 @@ impl<'a> Frame<'a> {
             if !rest.is_empty() {
                 return Err(FrameError::AckWithBody(bytes.len()));
             }
-            return Ok(Frame { header, kind: FrameKind::Ack, payload: rest, payload_offset: ACK_LEN, extended: false });
+            return Ok(Frame {
+                header,
+                kind: FrameKind::Ack,
+                payload: rest,
+                payload_offset: ACK_LEN,
+                extended: false,
+            });
         }
-        let (&len, rest) = rest
-            .split_first()
-            .ok_or(FrameError::Truncated { needed: SHORT_HEADER_LEN, got: bytes.len() })?;
+        let (&len, rest) = rest.split_first().ok_or(FrameError::Truncated {
+            needed: SHORT_HEADER_LEN,
+            got: bytes.len(),
+        })?;
         let (declared, body, body_offset, extended) = if len == EXT_MARKER {
-            let (ext, body) = ExtLen::ref_from_prefix(rest)
-                .map_err(|_| FrameError::Truncated { needed: EXT_HEADER_LEN, got: bytes.len() })?;
+            let (ext, body) = ExtLen::ref_from_prefix(rest).map_err(|_| FrameError::Truncated {
+                needed: EXT_HEADER_LEN,
+                got: bytes.len(),
+            })?;
             let declared = ext.len.get() as usize;
             if declared <= SHORT_MAX_BODY {
                 return Err(FrameError::NonCanonicalLength(declared));
@@ -371,10 +385,15 @@ impl<'a> Frame<'a> {
             (usize::from(len), rest, SHORT_HEADER_LEN, false)
         };
         if declared != body.len() {
-            return Err(FrameError::LengthMismatch { declared, actual: body.len() });
+            return Err(FrameError::LengthMismatch {
+                declared,
+                actual: body.len(),
+            });
         }
         let (kind, payload, payload_offset) = if kind.has_op() {
-            let (&op, payload) = body.split_first().ok_or(FrameError::MissingOperand { kind })?;
+            let (&op, payload) = body
+                .split_first()
+                .ok_or(FrameError::MissingOperand { kind })?;
             let kind = match kind {
                 Kind::Exec => FrameKind::Exec { method: op },
                 Kind::Nak => FrameKind::Nak { code: NakCode(op) },
@@ -384,7 +403,13 @@ impl<'a> Frame<'a> {
         } else {
             (FrameKind::Reply, body, body_offset)
         };
-        Ok(Frame { header, kind, payload, payload_offset, extended })
+        Ok(Frame {
+            header,
+            kind,
+            payload,
+            payload_offset,
+            extended,
+        })
     }
 
     /// Decodes `bytes` and checks that the payload is a valid sequence of values.
@@ -434,7 +459,12 @@ impl<'a> Frame<'a> {
 
     /// The header fields, to answer or re-encode the frame.
     pub fn spec(&self) -> FrameSpec {
-        FrameSpec { dst: self.dst(), src: self.src(), seq: self.seq(), kind: self.kind }
+        FrameSpec {
+            dst: self.dst(),
+            src: self.src(),
+            seq: self.seq(),
+            kind: self.kind,
+        }
     }
 
     /// The frame's length in bytes.
@@ -453,7 +483,12 @@ mod tests {
     use crate::hex;
 
     fn spec(kind: FrameKind) -> FrameSpec {
-        FrameSpec { dst: Addr(3), src: Addr(1), seq: Seq::new(5).unwrap(), kind }
+        FrameSpec {
+            dst: Addr(3),
+            src: Addr(1),
+            seq: Seq::new(5).unwrap(),
+            kind,
+        }
     }
 
     #[test]
@@ -462,23 +497,47 @@ mod tests {
         assert_eq!(hex::encode(&bytes), "030105");
         let frame = Frame::decode(&bytes).unwrap();
         assert_eq!(frame.kind(), FrameKind::Ack);
-        assert_eq!((frame.dst(), frame.src(), frame.seq().get()), (Addr(3), Addr(1), 5));
+        assert_eq!(
+            (frame.dst(), frame.src(), frame.seq().get()),
+            (Addr(3), Addr(1), 5)
+        );
     }
 
     #[test]
     fn an_exec_without_arguments_is_exactly_five_bytes() {
         let bytes = spec(FrameKind::Exec { method: 7 }).to_vec(&[]).unwrap();
         assert_eq!(hex::encode(&bytes), "0301250107");
-        assert_eq!(Frame::decode(&bytes).unwrap().kind(), FrameKind::Exec { method: 7 });
+        assert_eq!(
+            Frame::decode(&bytes).unwrap().kind(),
+            FrameKind::Exec { method: 7 }
+        );
     }
 
     #[test]
     fn frames_encode_to_the_documented_golden_bytes() {
         let golden: &[(FrameKind, &[Value<'_>], &str)] = &[
-            (FrameKind::Exec { method: 2 }, &[Value::F64(0.61)], "0301250a02cb3fe3851eb851eb85"),
-            (FrameKind::Reply, &[Value::I64(42), Value::Text("ok")], "030145042aa26f6b"),
-            (FrameKind::Nak { code: NakCode::UNKNOWN_METHOD }, &[], "0301650101"),
-            (FrameKind::Report { topic: 9 }, &[Value::Bool(true)], "03018502 09c3"),
+            (
+                FrameKind::Exec { method: 2 },
+                &[Value::F64(0.61)],
+                "0301250a02cb3fe3851eb851eb85",
+            ),
+            (
+                FrameKind::Reply,
+                &[Value::I64(42), Value::Text("ok")],
+                "030145042aa26f6b",
+            ),
+            (
+                FrameKind::Nak {
+                    code: NakCode::UNKNOWN_METHOD,
+                },
+                &[],
+                "0301650101",
+            ),
+            (
+                FrameKind::Report { topic: 9 },
+                &[Value::Bool(true)],
+                "03018502 09c3",
+            ),
         ];
         for (kind, values, want) in golden {
             let bytes = spec(*kind).to_vec(values).unwrap();
@@ -493,7 +552,9 @@ mod tests {
     #[test]
     fn a_large_payload_uses_the_extended_length_form() {
         let blob = vec![0xab_u8; 64 * 1024];
-        let bytes = spec(FrameKind::Reply).to_vec(&[Value::Bytes(&blob)]).unwrap();
+        let bytes = spec(FrameKind::Reply)
+            .to_vec(&[Value::Bytes(&blob)])
+            .unwrap();
         assert_eq!(&bytes[..8], &[3, 1, 0x45, 0xff, 0x05, 0x00, 0x01, 0x00]);
         let frame = Frame::decode_strict(&bytes).unwrap();
         assert!(frame.is_extended());
@@ -508,7 +569,13 @@ mod tests {
             ("0301e5", FrameError::UnknownKind(7)),
             ("030105ff", FrameError::AckWithBody(4)),
             ("030125", FrameError::Truncated { needed: 4, got: 3 }),
-            ("0301250207", FrameError::LengthMismatch { declared: 2, actual: 1 }),
+            (
+                "0301250207",
+                FrameError::LengthMismatch {
+                    declared: 2,
+                    actual: 1,
+                },
+            ),
             ("03012500", FrameError::MissingOperand { kind: Kind::Exec }),
             ("030145ff0100000000", FrameError::NonCanonicalLength(1)),
             ("030145ff01", FrameError::Truncated { needed: 8, got: 5 }),
@@ -516,7 +583,11 @@ mod tests {
             ("000105", FrameError::BadDestination),
         ];
         for (text, want) in cases {
-            assert_eq!(Frame::decode(&hex::decode(text).unwrap()).unwrap_err(), *want, "{text}");
+            assert_eq!(
+                Frame::decode(&hex::decode(text).unwrap()).unwrap_err(),
+                *want,
+                "{text}"
+            );
         }
     }
 }

@@ -73,7 +73,9 @@ pub enum SnapshotError {
     Truncated { needed: usize, got: usize },
     #[error("not a blackboard snapshot (magic {0:02x?}, expected \"MBBB\")")]
     BadMagic([u8; 4]),
-    #[error("snapshot format version {found} is not supported (this reader knows version {supported})")]
+    #[error(
+        "snapshot format version {found} is not supported (this reader knows version {supported})"
+    )]
     UnsupportedVersion { found: u16, supported: u16 },
     #[error("snapshot layout {found:016x} differs from the expected {expected:016x}: the module's blackboard items changed")]
     LayoutMismatch { expected: u64, found: u64 },
@@ -84,7 +86,11 @@ pub enum SnapshotError {
     #[error("item {index} has unknown kind code {code}")]
     BadItemKind { index: usize, code: u8 },
     #[error("item '{name}' is {kind} but has {len} value bytes")]
-    BadItemSize { name: String, kind: ValueKind, len: usize },
+    BadItemSize {
+        name: String,
+        kind: ValueKind,
+        len: usize,
+    },
     #[error("item {index} has a name that is not UTF-8, or empty")]
     BadName { index: usize },
     #[error("item {index} is out of order or a duplicate: items are sorted by name")]
@@ -94,7 +100,11 @@ pub enum SnapshotError {
     #[error("no blackboard item named '{0}'")]
     UnknownItem(String),
     #[error("item '{name}' is {got}, not {expected}")]
-    WrongKind { name: String, expected: ValueKind, got: ValueKind },
+    WrongKind {
+        name: String,
+        expected: ValueKind,
+        got: ValueKind,
+    },
     #[error("duplicate item name '{0}'")]
     DuplicateItem(String),
     #[error("item name '{0}' is empty or longer than 255 bytes")]
@@ -102,7 +112,11 @@ pub enum SnapshotError {
     #[error("too many items ({0}, at most 65535)")]
     TooManyItems(usize),
     #[error("value for item '{name}' is {got}, the layout says {expected}")]
-    ValueKindMismatch { name: String, expected: ValueKind, got: ValueKind },
+    ValueKindMismatch {
+        name: String,
+        expected: ValueKind,
+        got: ValueKind,
+    },
     #[error("output buffer too small: {needed} bytes needed, {available} available")]
     BufferTooSmall { needed: usize, available: usize },
 }
@@ -164,7 +178,11 @@ impl SnapshotLayout {
         }
         let names_len = items.iter().map(|i| i.name.len()).sum();
         let hash = layout_hash(items.iter().map(|i| (i.name.as_str(), i.kind)));
-        Ok(SnapshotLayout { items, names_len, hash })
+        Ok(SnapshotLayout {
+            items,
+            names_len,
+            hash,
+        })
     }
 
     /// The items, in snapshot (name) order.
@@ -174,7 +192,9 @@ impl SnapshotLayout {
 
     /// The position of item `name` in [`SnapshotLayout::items`].
     pub fn index_of(&self, name: &str) -> Option<usize> {
-        self.items.binary_search_by(|i| i.name.as_bytes().cmp(name.as_bytes())).ok()
+        self.items
+            .binary_search_by(|i| i.name.as_bytes().cmp(name.as_bytes()))
+            .ok()
     }
 
     pub fn hash(&self) -> u64 {
@@ -183,7 +203,10 @@ impl SnapshotLayout {
 
     /// The snapshot's size with `values` (one per item, in item order).
     pub fn encoded_len(&self, values: &[Value<'_>]) -> usize {
-        HEADER_LEN + ENTRY_LEN * self.items.len() + self.names_len + values.iter().map(value_len).sum::<usize>()
+        HEADER_LEN
+            + ENTRY_LEN * self.items.len()
+            + self.names_len
+            + values.iter().map(value_len).sum::<usize>()
     }
 
     /// Writes a snapshot with `values` (one per item, in item order) at the start of `out`.
@@ -197,7 +220,10 @@ impl SnapshotLayout {
     ) -> Result<usize, SnapshotError> {
         let needed = self.encoded_len(values);
         if out.len() < needed {
-            return Err(SnapshotError::BufferTooSmall { needed, available: out.len() });
+            return Err(SnapshotError::BufferTooSmall {
+                needed,
+                available: out.len(),
+            });
         }
         for (item, v) in self.items.iter().zip(values) {
             if item.kind != v.kind() {
@@ -281,23 +307,40 @@ impl fmt::Debug for SnapshotView<'_> {
 impl<'a> SnapshotView<'a> {
     /// Checks `bytes` and returns a view of it. Never panics on malformed input.
     pub fn parse(bytes: &'a [u8]) -> Result<SnapshotView<'a>, SnapshotError> {
-        let (header, rest) = SnapshotHeader::ref_from_prefix(bytes)
-            .map_err(|_| SnapshotError::Truncated { needed: HEADER_LEN, got: bytes.len() })?;
+        let (header, rest) =
+            SnapshotHeader::ref_from_prefix(bytes).map_err(|_| SnapshotError::Truncated {
+                needed: HEADER_LEN,
+                got: bytes.len(),
+            })?;
         if header.magic != MAGIC {
             return Err(SnapshotError::BadMagic(header.magic));
         }
         if header.version.get() != VERSION {
-            return Err(SnapshotError::UnsupportedVersion { found: header.version.get(), supported: VERSION });
+            return Err(SnapshotError::UnsupportedVersion {
+                found: header.version.get(),
+                supported: VERSION,
+            });
         }
         let declared = header.total_len.get() as usize;
         if declared != bytes.len() {
-            return Err(SnapshotError::LengthMismatch { declared, actual: bytes.len() });
+            return Err(SnapshotError::LengthMismatch {
+                declared,
+                actual: bytes.len(),
+            });
         }
         let count = usize::from(header.item_count.get());
-        let (entries, _) = <[ItemEntry]>::ref_from_prefix_with_elems(rest, count).map_err(|_| {
-            SnapshotError::Truncated { needed: HEADER_LEN + ENTRY_LEN * count, got: bytes.len() }
-        })?;
-        let view = SnapshotView { header, entries, bytes };
+        let (entries, _) =
+            <[ItemEntry]>::ref_from_prefix_with_elems(rest, count).map_err(|_| {
+                SnapshotError::Truncated {
+                    needed: HEADER_LEN + ENTRY_LEN * count,
+                    got: bytes.len(),
+                }
+            })?;
+        let view = SnapshotView {
+            header,
+            entries,
+            bytes,
+        };
         let mut previous: Option<&str> = None;
         for index in 0..count {
             let (name, value, _) = view.entry(index)?;
@@ -312,16 +355,25 @@ impl<'a> SnapshotView<'a> {
             (name, value.kind())
         }));
         if computed != header.layout.get() {
-            return Err(SnapshotError::HashMismatch { declared: header.layout.get(), computed });
+            return Err(SnapshotError::HashMismatch {
+                declared: header.layout.get(),
+                computed,
+            });
         }
         Ok(view)
     }
 
     /// Parses and checks that the layout is `expected`.
-    pub fn parse_expecting(bytes: &'a [u8], expected: u64) -> Result<SnapshotView<'a>, SnapshotError> {
+    pub fn parse_expecting(
+        bytes: &'a [u8],
+        expected: u64,
+    ) -> Result<SnapshotView<'a>, SnapshotError> {
         let view = Self::parse(bytes)?;
         if view.layout() != expected {
-            return Err(SnapshotError::LayoutMismatch { expected, found: view.layout() });
+            return Err(SnapshotError::LayoutMismatch {
+                expected,
+                found: view.layout(),
+            });
         }
         Ok(view)
     }
@@ -340,10 +392,19 @@ impl<'a> SnapshotView<'a> {
             .ok()
             .filter(|n| !n.is_empty())
             .ok_or(SnapshotError::BadName { index })?;
-        let kind = ValueKind::from_code(e.kind).ok_or(SnapshotError::BadItemKind { index, code: e.kind })?;
+        let kind = ValueKind::from_code(e.kind).ok_or(SnapshotError::BadItemKind {
+            index,
+            code: e.kind,
+        })?;
         let raw = slice(e.val_off, e.val_len.get() as usize)?;
-        let bad_size = || SnapshotError::BadItemSize { name: name.to_owned(), kind, len: raw.len() };
-        let eight = |raw: &[u8]| -> Result<[u8; 8], SnapshotError> { raw.try_into().map_err(|_| bad_size()) };
+        let bad_size = || SnapshotError::BadItemSize {
+            name: name.to_owned(),
+            kind,
+            len: raw.len(),
+        };
+        let eight = |raw: &[u8]| -> Result<[u8; 8], SnapshotError> {
+            raw.try_into().map_err(|_| bad_size())
+        };
         let value = match kind {
             ValueKind::F64 => Value::F64(f64::from_le_bytes(eight(raw)?)),
             ValueKind::I64 => Value::I64(i64::from_le_bytes(eight(raw)?)),
@@ -392,7 +453,13 @@ impl<'a> SnapshotView<'a> {
             match n.as_bytes().cmp(name.as_bytes()) {
                 core::cmp::Ordering::Less => lo = mid + 1,
                 core::cmp::Ordering::Greater => hi = mid,
-                core::cmp::Ordering::Equal => return Some(Item { name: n, value, writable }),
+                core::cmp::Ordering::Equal => {
+                    return Some(Item {
+                        name: n,
+                        value,
+                        writable,
+                    })
+                }
             }
         }
         None
@@ -400,14 +467,20 @@ impl<'a> SnapshotView<'a> {
 
     /// The item `name`, or an error naming it.
     pub fn value(&self, name: &str) -> Result<Value<'a>, SnapshotError> {
-        self.get(name).map(|i| i.value).ok_or_else(|| SnapshotError::UnknownItem(name.to_owned()))
+        self.get(name)
+            .map(|i| i.value)
+            .ok_or_else(|| SnapshotError::UnknownItem(name.to_owned()))
     }
 
     /// The f64 item `name`.
     pub fn f64(&self, name: &str) -> Result<f64, SnapshotError> {
         match self.value(name)? {
             Value::F64(v) => Ok(v),
-            other => Err(SnapshotError::WrongKind { name: name.to_owned(), expected: ValueKind::F64, got: other.kind() }),
+            other => Err(SnapshotError::WrongKind {
+                name: name.to_owned(),
+                expected: ValueKind::F64,
+                got: other.kind(),
+            }),
         }
     }
 
@@ -415,14 +488,22 @@ impl<'a> SnapshotView<'a> {
     pub fn bool(&self, name: &str) -> Result<bool, SnapshotError> {
         match self.value(name)? {
             Value::Bool(v) => Ok(v),
-            other => Err(SnapshotError::WrongKind { name: name.to_owned(), expected: ValueKind::Bool, got: other.kind() }),
+            other => Err(SnapshotError::WrongKind {
+                name: name.to_owned(),
+                expected: ValueKind::Bool,
+                got: other.kind(),
+            }),
         }
     }
 
     /// Every item, in name order.
     pub fn iter(&self) -> impl Iterator<Item = Item<'a>> + '_ {
         (0..self.entries.len()).filter_map(|i| {
-            self.entry(i).ok().map(|(name, value, writable)| Item { name, value, writable })
+            self.entry(i).ok().map(|(name, value, writable)| Item {
+                name,
+                value,
+                writable,
+            })
         })
     }
 }
@@ -434,9 +515,21 @@ mod tests {
 
     fn layout() -> SnapshotLayout {
         SnapshotLayout::new(vec![
-            ItemSpec { name: "y".into(), kind: ValueKind::F64, writable: false },
-            ItemSpec { name: "moving".into(), kind: ValueKind::Bool, writable: false },
-            ItemSpec { name: "x".into(), kind: ValueKind::F64, writable: true },
+            ItemSpec {
+                name: "y".into(),
+                kind: ValueKind::F64,
+                writable: false,
+            },
+            ItemSpec {
+                name: "moving".into(),
+                kind: ValueKind::Bool,
+                writable: false,
+            },
+            ItemSpec {
+                name: "x".into(),
+                kind: ValueKind::F64,
+                writable: true,
+            },
         ])
         .unwrap()
     }
@@ -452,13 +545,40 @@ mod tests {
     #[test]
     fn a_snapshot_encodes_to_the_documented_golden_bytes() {
         let want = concat!(
-            "4d424242", "0100", "02", "00", "0300", "0000", "71000000",
-            "bba3101c6e56836a", "0700000000000000", "e803000000000000",
-            "58000000", "0600", "03", "00", "60000000", "01000000",
-            "5e000000", "0100", "01", "01", "61000000", "08000000",
-            "5f000000", "0100", "01", "00", "69000000", "08000000",
-            "6d6f76696e67", "78", "79",
-            "01", "000000000000f83f", "00000000000000c0",
+            "4d424242",
+            "0100",
+            "02",
+            "00",
+            "0300",
+            "0000",
+            "71000000",
+            "bba3101c6e56836a",
+            "0700000000000000",
+            "e803000000000000",
+            "58000000",
+            "0600",
+            "03",
+            "00",
+            "60000000",
+            "01000000",
+            "5e000000",
+            "0100",
+            "01",
+            "01",
+            "61000000",
+            "08000000",
+            "5f000000",
+            "0100",
+            "01",
+            "00",
+            "69000000",
+            "08000000",
+            "6d6f76696e67",
+            "78",
+            "79",
+            "01",
+            "000000000000f83f",
+            "00000000000000c0",
         );
         assert_eq!(hex::encode(&golden()), want);
     }
@@ -472,7 +592,10 @@ mod tests {
         assert_eq!(sut.f64("y").unwrap(), -2.0);
         assert!(sut.bool("moving").unwrap());
         assert!(sut.get("x").unwrap().writable);
-        assert_eq!(sut.value("z").unwrap_err(), SnapshotError::UnknownItem("z".into()));
+        assert_eq!(
+            sut.value("z").unwrap_err(),
+            SnapshotError::UnknownItem("z".into())
+        );
     }
 
     #[test]
@@ -485,7 +608,10 @@ mod tests {
         bytes[4] = 2;
         assert_eq!(
             SnapshotView::parse(&bytes).unwrap_err(),
-            SnapshotError::UnsupportedVersion { found: 2, supported: 1 }
+            SnapshotError::UnsupportedVersion {
+                found: 2,
+                supported: 1
+            }
         );
     }
 }

@@ -201,7 +201,10 @@ impl<'a> Value<'a> {
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, ValueError> {
         let needed = self.encoded_len();
         if out.len() < needed {
-            return Err(ValueError::BufferTooSmall { needed, available: out.len() });
+            return Err(ValueError::BufferTooSmall {
+                needed,
+                available: out.len(),
+            });
         }
         let mut cursor = &mut out[..needed];
         self.write_to(&mut cursor)?;
@@ -217,7 +220,10 @@ impl<'a> Value<'a> {
     fn write_to<W: std::io::Write>(&self, wr: &mut W) -> Result<(), ValueError> {
         let needed = self.encoded_len();
         // The only way these writers fail is running out of room (a `&mut [u8]` that is full).
-        let short = || ValueError::BufferTooSmall { needed, available: 0 };
+        let short = || ValueError::BufferTooSmall {
+            needed,
+            available: 0,
+        };
         let len32 = |len: usize| u32::try_from(len).map_err(|_| ValueError::TooLong { len });
         match *self {
             Value::F64(v) => rmp::encode::write_f64(wr, v).map_err(|_| short())?,
@@ -247,16 +253,23 @@ impl<'a> Value<'a> {
     ///
     /// `base` is added to byte offsets in errors (the position of `input` in its frame).
     pub fn decode(input: &'a [u8], base: usize) -> Result<(Value<'a>, usize), ValueError> {
-        let truncated = |needed: usize| ValueError::Truncated { offset: base, needed };
+        let truncated = |needed: usize| ValueError::Truncated {
+            offset: base,
+            needed,
+        };
         let Some(&first) = input.first() else {
             return Err(truncated(1));
         };
         let take = |start: usize, len: usize| -> Result<&'a [u8], ValueError> {
             let end = start.checked_add(len).ok_or(truncated(len))?;
-            input.get(start..end).ok_or(truncated(end.saturating_sub(input.len())))
+            input
+                .get(start..end)
+                .ok_or(truncated(end.saturating_sub(input.len())))
         };
         let be = |start: usize, len: usize| -> Result<u64, ValueError> {
-            Ok(take(start, len)?.iter().fold(0u64, |acc, b| acc << 8 | u64::from(*b)))
+            Ok(take(start, len)?
+                .iter()
+                .fold(0u64, |acc, b| acc << 8 | u64::from(*b)))
         };
         let int = |v: i128, used: usize| {
             i64::try_from(v)
@@ -331,7 +344,10 @@ impl<'a> Value<'a> {
                 })?;
                 Ok((Value::F64s(array), used))
             }
-            _ => Err(ValueError::Unsupported { offset: base, marker: first }),
+            _ => Err(ValueError::Unsupported {
+                offset: base,
+                marker: first,
+            }),
         }
     }
 
@@ -507,7 +523,10 @@ pub struct Values<'a> {
 impl<'a> Values<'a> {
     /// Iterates over `payload`; `base` is its offset in the frame, for error messages.
     pub fn new(payload: &'a [u8], base: usize) -> Self {
-        Self { rest: payload, offset: base }
+        Self {
+            rest: payload,
+            offset: base,
+        }
     }
 }
 
@@ -571,7 +590,9 @@ mod tests {
     #[test]
     fn encoded_len_matches_the_encoder_at_every_length_boundary() {
         let blob = vec![7u8; 70_000];
-        for n in [0, 1, 2, 3, 4, 8, 15, 16, 17, 31, 32, 255, 256, 65535, 65536, 70_000] {
+        for n in [
+            0, 1, 2, 3, 4, 8, 15, 16, 17, 31, 32, 255, 256, 65535, 65536, 70_000,
+        ] {
             let bytes = &blob[..n];
             let text = core::str::from_utf8(bytes).unwrap();
             enc(Value::Bytes(bytes));
@@ -580,20 +601,64 @@ mod tests {
                 enc(Value::F64s(F64s::from_le_bytes(bytes).unwrap()));
             }
         }
-        for v in [i64::MIN, -2147483649, -2147483648, -32769, -32768, -129, -128, -33, -32, 0, 127, 128, 255, 256, 65535, 65536, 4294967295, 4294967296, i64::MAX] {
+        for v in [
+            i64::MIN,
+            -2147483649,
+            -2147483648,
+            -32769,
+            -32768,
+            -129,
+            -128,
+            -33,
+            -32,
+            0,
+            127,
+            128,
+            255,
+            256,
+            65535,
+            65536,
+            4294967295,
+            4294967296,
+            i64::MAX,
+        ] {
             let bytes = enc(Value::I64(v));
-            assert_eq!(Value::decode(&bytes, 0).unwrap(), (Value::I64(v), bytes.len()));
+            assert_eq!(
+                Value::decode(&bytes, 0).unwrap(),
+                (Value::I64(v), bytes.len())
+            );
         }
     }
 
     #[test]
     fn decoding_rejects_what_modbot_does_not_carry() {
-        assert_eq!(Value::decode(&[0xc0], 4), Err(ValueError::Unsupported { offset: 4, marker: 0xc0 }));
-        assert_eq!(Value::decode(&[0xd4, 0x02, 0x00], 0), Err(ValueError::UnknownExt { offset: 0, ty: 2 }));
-        assert_eq!(Value::decode(&[0xd6, 0x01, 0, 0, 0, 0], 0), Err(ValueError::BadF64ArrayLength { offset: 0, len: 4 }));
-        assert_eq!(Value::decode(&[0xcf, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff], 0), Err(ValueError::IntegerOutOfRange { offset: 0 }));
-        assert_eq!(Value::decode(&[0xa2, 0xff, 0xfe], 0), Err(ValueError::BadUtf8 { offset: 0 }));
-        assert!(matches!(Value::decode(&[0xdb, 0xff, 0xff, 0xff, 0xff], 0), Err(ValueError::Truncated { .. })));
+        assert_eq!(
+            Value::decode(&[0xc0], 4),
+            Err(ValueError::Unsupported {
+                offset: 4,
+                marker: 0xc0
+            })
+        );
+        assert_eq!(
+            Value::decode(&[0xd4, 0x02, 0x00], 0),
+            Err(ValueError::UnknownExt { offset: 0, ty: 2 })
+        );
+        assert_eq!(
+            Value::decode(&[0xd6, 0x01, 0, 0, 0, 0], 0),
+            Err(ValueError::BadF64ArrayLength { offset: 0, len: 4 })
+        );
+        assert_eq!(
+            Value::decode(&[0xcf, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff], 0),
+            Err(ValueError::IntegerOutOfRange { offset: 0 })
+        );
+        assert_eq!(
+            Value::decode(&[0xa2, 0xff, 0xfe], 0),
+            Err(ValueError::BadUtf8 { offset: 0 })
+        );
+        assert!(matches!(
+            Value::decode(&[0xdb, 0xff, 0xff, 0xff, 0xff], 0),
+            Err(ValueError::Truncated { .. })
+        ));
     }
 
     #[test]
@@ -601,11 +666,23 @@ mod tests {
         assert_eq!(OwnedValue::parse("10").unwrap(), OwnedValue::I64(10));
         assert_eq!(OwnedValue::parse("0.61").unwrap(), OwnedValue::F64(0.61));
         assert_eq!(OwnedValue::parse("true").unwrap(), OwnedValue::Bool(true));
-        assert_eq!(OwnedValue::parse("[1, 2.5]").unwrap(), OwnedValue::F64s(vec![1.0, 2.5]));
-        assert_eq!(OwnedValue::parse("0x0a0b").unwrap(), OwnedValue::Bytes(vec![10, 11]));
-        assert_eq!(OwnedValue::parse("text:true").unwrap(), OwnedValue::Text("true".into()));
+        assert_eq!(
+            OwnedValue::parse("[1, 2.5]").unwrap(),
+            OwnedValue::F64s(vec![1.0, 2.5])
+        );
+        assert_eq!(
+            OwnedValue::parse("0x0a0b").unwrap(),
+            OwnedValue::Bytes(vec![10, 11])
+        );
+        assert_eq!(
+            OwnedValue::parse("text:true").unwrap(),
+            OwnedValue::Text("true".into())
+        );
         assert_eq!(OwnedValue::parse("f64:3").unwrap(), OwnedValue::F64(3.0));
-        assert_eq!(OwnedValue::parse("north").unwrap(), OwnedValue::Text("north".into()));
+        assert_eq!(
+            OwnedValue::parse("north").unwrap(),
+            OwnedValue::Text("north".into())
+        );
         assert!(OwnedValue::parse("i64:x").is_err());
     }
 }

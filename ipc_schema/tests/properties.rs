@@ -3,12 +3,17 @@
 
 use modbot_ipc_schema::snapshot::ItemSpec;
 use modbot_ipc_schema::value::Values;
-use modbot_ipc_schema::{Addr, Frame, FrameKind, FrameSpec, NakCode, OwnedValue, Seq, SnapshotLayout, SnapshotView, Value};
+use modbot_ipc_schema::{
+    Addr, Frame, FrameKind, FrameSpec, NakCode, OwnedValue, Seq, SnapshotLayout, SnapshotView,
+    Value,
+};
 use proptest::prelude::*;
 
 fn owned_value() -> impl Strategy<Value = OwnedValue> {
     prop_oneof![
-        any::<f64>().prop_filter("NaN is not equal to itself", |v| !v.is_nan()).prop_map(OwnedValue::F64),
+        any::<f64>()
+            .prop_filter("NaN is not equal to itself", |v| !v.is_nan())
+            .prop_map(OwnedValue::F64),
         any::<i64>().prop_map(OwnedValue::I64),
         any::<bool>().prop_map(OwnedValue::Bool),
         ".{0,40}".prop_map(OwnedValue::Text),
@@ -22,7 +27,9 @@ fn frame_kind() -> impl Strategy<Value = FrameKind> {
         Just(FrameKind::Ack),
         any::<u8>().prop_map(|method| FrameKind::Exec { method }),
         Just(FrameKind::Reply),
-        any::<u8>().prop_map(|code| FrameKind::Nak { code: NakCode(code) }),
+        any::<u8>().prop_map(|code| FrameKind::Nak {
+            code: NakCode(code)
+        }),
         any::<u8>().prop_map(|topic| FrameKind::Report { topic }),
     ]
 }

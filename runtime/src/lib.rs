@@ -1,1 +1,41 @@
+//! modbot's module runtime: the MRA module model on iceoryx2 shared memory.
+//!
+//! Each module of a robot is its own OS process. It declares a name, an 8-bit address, a table
+//! of local methods and a blackboard; the runtime serves RVMF* frames to those methods, calls
+//! other modules' methods through the phone book and the method queue, and publishes the
+//! blackboard as zero-copy snapshots.
+//!
+//! # Layout
+//! - [`domain`]: the namespace of a system's shared memory (an iceoryx2 prefix).
+//! - [`transport`]: the transport traits, with the iceoryx2 backend ([`transport::ipc`]) and an
+//!   in-process one for tests ([`transport::local`]).
+//! - [`module`]: declaring a module ([`ModuleBuilder`]) and the message manager that serves it.
+//! - [`ctx`]: what a module's code can do: call, report, read snapshots, use its blackboard.
+//! - [`calls`]: the method queue, matching answers by (peer, sequence).
+//! - [`phonebook`]: names to addresses, liveness and method tables.
+//! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
+//! - [`run`]: the default application controller (main loop, signals, receive modes).
+//! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 
+pub mod blackboard;
+pub mod calls;
+pub mod clock;
+pub mod ctx;
+pub mod domain;
+pub mod error;
+pub mod module;
+pub mod phonebook;
+pub mod run;
+pub mod signals;
+pub mod transport;
+
+pub use blackboard::Blackboard;
+pub use calls::{CallHandle, CallOptions};
+pub use ctx::Ctx;
+pub use domain::Domain;
+pub use error::{CallError, MethodError, ModuleError};
+pub use module::{Module, ModuleBuilder, Reply, Report};
+pub use run::run;
+pub use transport::ipc::IpcTransport;
+pub use transport::local::LocalTransport;
+pub use transport::{Dest, ReceiveMode};

@@ -1,0 +1,46 @@
+//! What every module program shares: `--domain`, `--name`, `--addr`, `--mode`, and logging.
+
+use clap::Args;
+use modbot_runtime::{Domain, IpcTransport, ReceiveMode};
+
+/// The options every module program takes.
+#[derive(Debug, Clone, Args)]
+pub struct ModuleArgs {
+    /// The system's domain: every module of one robot uses the same.
+    #[arg(long, env = "MODBOT_DOMAIN", default_value = "default")]
+    pub domain: String,
+    /// The module's name in the phone book.
+    #[arg(long)]
+    pub name: Option<String>,
+    /// The module's 8-bit address (1..=254).
+    #[arg(long)]
+    pub addr: Option<u8>,
+    /// How to wait for frames: `blocking` (sleep until woken) or `busy` (spin on a core).
+    #[arg(long, default_value = "blocking", value_parser = ["blocking", "busy"])]
+    pub mode: String,
+}
+
+impl ModuleArgs {
+    pub fn receive_mode(&self) -> ReceiveMode {
+        if self.mode == "busy" {
+            ReceiveMode::BusyPoll
+        } else {
+            ReceiveMode::Blocking
+        }
+    }
+
+    pub fn transport(&self) -> anyhow::Result<IpcTransport> {
+        Ok(IpcTransport::new(&Domain::new(&self.domain)?)?)
+    }
+}
+
+/// Logs to stderr, filtered by `RUST_LOG` (default `info`).
+pub fn init_logging() {
+    let filter =
+        tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into());
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
+}

@@ -1,0 +1,117 @@
+//! A system's domain: the namespace of all its shared-memory resources.
+//!
+//! Every iceoryx2 file of a domain starts with the prefix `modbot_<domain>.`: two systems (or
+//! two tests) with different domains never see each other. Domain names are `[a-z0-9_]`, so no
+//! prefix is a prefix of another domain's.
+
+use std::path::Path;
+
+use thiserror::Error;
+
+/// The largest frame a module's inbox takes by default (a 64 KiB payload plus header room).
+pub const DEFAULT_MAX_FRAME: usize = 64 * 1024 + 64;
+
+/// A bad domain name.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("invalid domain name '{0}': use 1 to 40 characters of a-z, 0-9 and _")]
+pub struct DomainNameError(pub String);
+
+/// A domain and the settings its modules share.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Domain {
+    name: String,
+    max_frame: usize,
+}
+
+impl Domain {
+    /// The domain `name`.
+    pub fn new(name: &str) -> Result<Domain, DomainNameError> {
+        let ok = !name.is_empty()
+            && name.len() <= 40
+            && name
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
+        if !ok {
+            return Err(DomainNameError(name.to_owned()));
+        }
+        Ok(Domain {
+            name: name.to_owned(),
+            max_frame: DEFAULT_MAX_FRAME,
+        })
+    }
+
+    /// Sets the largest frame, in bytes, that an inbox takes. Every module of a domain must
+    /// use the same value.
+    pub fn with_max_frame(mut self, bytes: usize) -> Domain {
+        self.max_frame = bytes.max(64);
+        self
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn max_frame(&self) -> usize {
+        self.max_frame
+    }
+
+    /// The iceoryx2 prefix of every resource of this domain.
+    pub fn prefix(&self) -> String {
+        format!("modbot_{}.", self.name)
+    }
+
+    /// The domain's files in `/dev/shm` and `/tmp/iceoryx2`, whoever left them.
+    pub fn files(&self) -> Vec<std::path::PathBuf> {
+        let prefix = self.prefix();
+        let mut found = Vec::new();
+        collect_with_prefix(Path::new("/dev/shm"), &prefix, &mut found);
+        collect_with_prefix(Path::new("/tmp/iceoryx2"), &prefix, &mut found);
+        found
+    }
+
+    /// Removes every file of this domain. Only call it when no module of the domain runs.
+    pub fn remove_files(&self) -> usize {
+        let files = self.files();
+        let mut removed = 0;
+        for f in &files {
+            let gone = if f.is_dir() {
+                std::fs::remove_dir_all(f)
+            } else {
+                std::fs::remove_file(f)
+            };
+            if gone.is_ok() {
+                removed += 1;
+            }
+        }
+        removed
+    }
+}
+
+fn collect_with_prefix(dir: &Path, prefix: &str, out: &mut Vec<std::path::PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name();
+        if name.to_string_lossy().starts_with(prefix) {
+            out.push(path);
+        } else if entry.file_type().is_ok_and(|t| t.is_dir()) {
+            collect_with_prefix(&path, prefix, out);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn domain_names_are_checked() {
+        assert!(Domain::new("robot_1").is_ok());
+        assert!(Domain::new("").is_err());
+        assert!(Domain::new("Robot").is_err());
+        assert!(Domain::new("a.b").is_err());
+        assert_eq!(Domain::new("arm").unwrap().prefix(), "modbot_arm.");
+    }
+}

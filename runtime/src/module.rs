@@ -1,0 +1,878 @@
+//! A module: its name, address, method table and hooks, and the message manager that serves
+//! them.
+
+use core::time::Duration;
+use std::sync::Arc;
+
+use modbot_ipc_schema::{sysmethod, Addr, Args, Frame, FrameKind, FrameSpec, OwnedValue, Value};
+
+use crate::blackboard::Blackboard;
+use crate::calls::{CallHandle, CallOptions, MethodQueue, Purpose};
+use crate::clock::{Clock, MonotonicClock};
+use crate::ctx::Ctx;
+use crate::error::{CallError, MethodError, ModuleError};
+use crate::phonebook::PhoneBook;
+use crate::transport::{
+    Dest, PeerInfo, ReceiveMode, Rx, SendError, Snapshots, Transport, TransportError, Tx,
+};
+
+/// A local method: reads its arguments, may use the context, writes its results into `reply`
+/// (no results: the caller gets an ACK).
+pub type MethodFn<S> = fn(&mut S, &mut Ctx, &Args<'_>, &mut Reply) -> Result<(), MethodError>;
+/// Receives a REPORT.
+pub type ReportFn<S> = fn(&mut S, &mut Ctx, &Report<'_>);
+/// Receives the answer to a call made with [`Ctx::call`].
+pub type DoneFn<S> = fn(&mut S, &mut Ctx, CallHandle, Result<&Args<'_>, &CallError>);
+/// Periodic work.
+pub type TaskFn<S> = fn(&mut S, &mut Ctx);
+
+/// A REPORT as the receiver sees it.
+#[derive(Debug)]
+pub struct Report<'a> {
+    pub from: Addr,
+    pub topic: u8,
+    pub values: Args<'a>,
+}
+
+/// A method's results, encoded as they are pushed.
+#[derive(Debug, Default)]
+pub struct Reply {
+    buf: Vec<u8>,
+    count: usize,
+}
+
+impl Reply {
+    pub fn push(&mut self, v: Value<'_>) {
+        if v.encode_to_vec(&mut self.buf).is_ok() {
+            self.count += 1;
+        }
+    }
+
+    pub fn f64(&mut self, v: f64) {
+        self.push(Value::F64(v));
+    }
+
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// The answer a blocking call gets.
+type Waiter<'w> = Option<(CallHandle, &'w mut dyn FnMut(Result<&Args<'_>, &CallError>))>;
+
+/// Declares a module.
+pub struct ModuleBuilder<S> {
+    name: String,
+    addr: Addr,
+    mode: ReceiveMode,
+    methods: Vec<(String, MethodFn<S>)>,
+    on_report: Option<ReportFn<S>>,
+    on_done: Option<DoneFn<S>>,
+    tasks: Vec<(Duration, TaskFn<S>)>,
+    groups: Vec<String>,
+    peers: Vec<String>,
+    blackboard: Option<Blackboard>,
+    snapshot_period: Duration,
+    clock: Arc<dyn Clock>,
+}
+
+impl<S> ModuleBuilder<S> {
+    /// A module named `name` at `addr`.
+    pub fn new(name: &str, addr: u8) -> Self {
+        ModuleBuilder {
+            name: name.to_owned(),
+            addr: Addr(addr),
+            mode: ReceiveMode::Blocking,
+            methods: Vec::new(),
+            on_report: None,
+            on_done: None,
+            tasks: Vec::new(),
+            groups: Vec::new(),
+            peers: Vec::new(),
+            blackboard: None,
+            snapshot_period: Duration::from_millis(100),
+            clock: Arc::new(MonotonicClock),
+        }
+    }
+
+    /// Adds a local method; ids are given in declaration order.
+    pub fn method(mut self, name: &str, f: MethodFn<S>) -> Self {
+        self.methods.push((name.to_owned(), f));
+        self
+    }
+
+    pub fn on_report(mut self, f: ReportFn<S>) -> Self {
+        self.on_report = Some(f);
+        self
+    }
+
+    pub fn on_done(mut self, f: DoneFn<S>) -> Self {
+        self.on_done = Some(f);
+        self
+    }
+
+    /// Runs `f` every `period`.
+    pub fn every(mut self, period: Duration, f: TaskFn<S>) -> Self {
+        self.tasks.push((period, f));
+        self
+    }
+
+    pub fn mode(mut self, mode: ReceiveMode) -> Self {
+        self.mode = mode;
+        self
+    }
+
+    /// Joins a multicast group.
+    pub fn group(mut self, group: &str) -> Self {
+        self.groups.push(group.to_owned());
+        self
+    }
+
+    /// Names a module this one calls: it is looked up at start-up and whenever it (re)appears.
+    pub fn peer(mut self, name: &str) -> Self {
+        self.peers.push(name.to_owned());
+        self
+    }
+
+    pub fn blackboard(mut self, bb: Blackboard) -> Self {
+        self.blackboard = Some(bb);
+        self
+    }
+
+    /// Publishes a snapshot at least this often (and at once on every change).
+    pub fn snapshot_period(mut self, period: Duration) -> Self {
+        self.snapshot_period = period;
+        self
+    }
+
+    pub fn clock(mut self, clock: Arc<dyn Clock>) -> Self {
+        self.clock = clock;
+        self
+    }
+
+    /// Claims the address and name in the domain and announces the module.
+    pub fn open<T: Transport + 'static>(
+        self,
+        transport: T,
+        state: S,
+    ) -> Result<Module<S>, ModuleError> {
+        if self.methods.len() > usize::from(sysmethod::FIRST_RESERVED) {
+            return Err(ModuleError::Definition(format!(
+                "{} methods; at most 240",
+                self.methods.len()
+            )));
+        }
+        let endpoint = transport
+            .open(self.addr, &self.name, self.mode, &self.groups)
+            .map_err(|source| ModuleError::Open {
+                name: self.name.clone(),
+                addr: self.addr,
+                source,
+            })?;
+        Self::assemble(self, Box::new(transport), endpoint, state)
+    }
+
+    /// Opens a tool's endpoint at a free address (the CLI, benchmark drivers).
+    pub fn open_tool<T: Transport + 'static>(
+        self,
+        transport: T,
+        state: S,
+    ) -> Result<Module<S>, ModuleError> {
+        let endpoint = transport.open_tool(&self.name)?;
+        Self::assemble(self, Box::new(transport), endpoint, state)
+    }
+
+    fn assemble(
+        b: Self,
+        transport: Box<dyn Transport>,
+        endpoint: crate::transport::Endpoint,
+        state: S,
+    ) -> Result<Module<S>, ModuleError> {
+        let now = b.clock.now_ns();
+        let ctx = Ctx {
+            addr: endpoint.addr,
+            name: b.name.clone(),
+            mode: b.mode,
+            tx: endpoint.tx,
+            snapshots: endpoint.snapshots,
+            directory: endpoint.directory,
+            bb: b.blackboard.unwrap_or_else(Blackboard::empty),
+            calls: MethodQueue::default(),
+            book: PhoneBook::new(),
+            clock: b.clock,
+            pending: Vec::new(),
+            failures: Vec::new(),
+            describing: [false; 256],
+            rejected: 0,
+            stale: 0,
+            stop: false,
+            caller: Addr::NONE,
+        };
+        let tasks = b
+            .tasks
+            .iter()
+            .map(|(p, _)| now + p.as_nanos() as u64)
+            .collect();
+        let mut module = Module {
+            def: Definition {
+                methods: b.methods,
+                on_report: b.on_report,
+                on_done: b.on_done,
+                tasks: b.tasks,
+                peers: b.peers,
+                snapshot_period_ns: b.snapshot_period.as_nanos() as u64,
+            },
+            state,
+            ctx,
+            rx: endpoint.rx,
+            transport,
+            next_task_ns: tasks,
+            next_refresh_ns: 0,
+            last_snapshot_ns: 0,
+            reply: Reply {
+                buf: Vec::with_capacity(4096),
+                count: 0,
+            },
+        };
+        module.ctx.refresh_book();
+        let pid = i64::from(std::process::id());
+        let name = module.ctx.name.clone();
+        if let Err(e) = module.ctx.report(
+            Dest::Broadcast,
+            sysmethod::ANNOUNCE_TOPIC,
+            &[Value::Text(&name), Value::I64(pid)],
+        ) {
+            tracing::debug!("announce not sent: {e}");
+        }
+        module.look_up_peers();
+        module.publish_snapshot(now);
+        tracing::info!(addr = %module.ctx.addr, mode = module.ctx.mode.name(), "module {} is up", module.ctx.name);
+        Ok(module)
+    }
+}
+
+struct Definition<S> {
+    methods: Vec<(String, MethodFn<S>)>,
+    on_report: Option<ReportFn<S>>,
+    on_done: Option<DoneFn<S>>,
+    tasks: Vec<(Duration, TaskFn<S>)>,
+    peers: Vec<String>,
+    snapshot_period_ns: u64,
+}
+
+/// A running module: its state, its context and its endpoint.
+pub struct Module<S> {
+    def: Definition<S>,
+    state: S,
+    ctx: Ctx,
+    rx: Box<dyn Rx>,
+    transport: Box<dyn Transport>,
+    next_task_ns: Vec<u64>,
+    next_refresh_ns: u64,
+    last_snapshot_ns: u64,
+    reply: Reply,
+}
+
+/// How often the phone book re-reads the directory (liveness, new modules).
+const REFRESH_NS: u64 = 200_000_000;
+
+impl<S> Module<S> {
+    pub fn state(&self) -> &S {
+        &self.state
+    }
+
+    pub fn state_mut(&mut self) -> &mut S {
+        &mut self.state
+    }
+
+    pub fn ctx(&mut self) -> &mut Ctx {
+        &mut self.ctx
+    }
+
+    pub fn addr(&self) -> Addr {
+        self.ctx.addr
+    }
+
+    pub fn mode(&self) -> ReceiveMode {
+        self.ctx.mode
+    }
+
+    /// Every module of the domain as the directory sees it now.
+    pub fn list_modules(&self) -> Result<Vec<PeerInfo>, TransportError> {
+        let mut out = Vec::new();
+        self.ctx.directory.list(&mut |p| out.push(p))?;
+        out.sort_by_key(|p| (p.addr, !p.alive));
+        Ok(out)
+    }
+
+    /// Removes resources left by dead modules.
+    pub fn reap_dead(&self) -> usize {
+        self.ctx.directory.reap_dead()
+    }
+
+    /// Serves at most one waiting frame; returns whether there was one.
+    pub fn poll_once(&mut self) -> Result<bool, TransportError> {
+        self.poll_with(&mut None)
+    }
+
+    fn poll_with(&mut self, waiter: &mut Waiter<'_>) -> Result<bool, TransportError> {
+        let (def, state, ctx, reply) = (&self.def, &mut self.state, &mut self.ctx, &mut self.reply);
+        self.rx
+            .try_receive(&mut |bytes| dispatch(def, state, ctx, reply, bytes, waiter))
+    }
+
+    /// Periodic work: due tasks, call deadlines, liveness, pending sends, snapshots.
+    pub fn housekeeping(&mut self) {
+        self.housekeeping_with(&mut None);
+    }
+
+    fn housekeeping_with(&mut self, waiter: &mut Waiter<'_>) {
+        let now = self.ctx.now_ns();
+        for i in 0..self.def.tasks.len() {
+            if now >= self.next_task_ns[i] {
+                let (period, f) = self.def.tasks[i];
+                let period = period.as_nanos() as u64;
+                self.next_task_ns[i] = if now - self.next_task_ns[i] > period {
+                    now + period
+                } else {
+                    self.next_task_ns[i] + period
+                };
+                f(&mut self.state, &mut self.ctx);
+            }
+        }
+        let ctx = &mut self.ctx;
+        let failures = &mut ctx.failures;
+        let book = &ctx.book;
+        let describing = &mut ctx.describing;
+        ctx.calls.expire(now, |e| {
+            let name = book
+                .get(e.peer)
+                .map(|x| x.name.clone())
+                .unwrap_or_else(|| format!("module {}", e.peer));
+            match e.purpose {
+                Purpose::User => failures.push((
+                    e.handle,
+                    CallError::Timeout {
+                        module: name,
+                        timeout_ms: 0,
+                    },
+                )),
+                Purpose::Describe => describing[usize::from(e.peer.0)] = false,
+            }
+        });
+        if now >= self.next_refresh_ns {
+            self.next_refresh_ns = now + REFRESH_NS;
+            let changes = self.ctx.refresh_book();
+            if !changes.died.is_empty() {
+                self.ctx.directory.reap_dead();
+            }
+            for addr in changes.died {
+                let name = self
+                    .ctx
+                    .book
+                    .get(addr)
+                    .map(|e| e.name.clone())
+                    .unwrap_or_default();
+                if self.def.peers.contains(&name) {
+                    tracing::warn!("peer {name} ({addr}) died");
+                } else {
+                    tracing::debug!("module {name} ({addr}) died");
+                }
+                self.ctx.describing[usize::from(addr.0)] = false;
+                let failures = &mut self.ctx.failures;
+                self.ctx.calls.fail_peer(addr, |e| {
+                    if e.purpose == Purpose::User {
+                        failures.push((
+                            e.handle,
+                            CallError::NotAvailable {
+                                name: name.clone(),
+                                why: "its process died".into(),
+                            },
+                        ));
+                    }
+                });
+            }
+            if !changes.appeared.is_empty() {
+                self.look_up_peers();
+            }
+        }
+        self.ctx.flush_pending();
+        self.deliver_failures(waiter);
+        let since = now.saturating_sub(self.last_snapshot_ns);
+        if !self.ctx.bb.is_empty()
+            && ((self.ctx.bb.changed() && since >= 1_000_000)
+                || since >= self.def.snapshot_period_ns)
+        {
+            self.publish_snapshot(now);
+        }
+    }
+
+    fn deliver_failures(&mut self, waiter: &mut Waiter<'_>) {
+        while let Some((handle, mut err)) = self.ctx.failures.pop() {
+            if let CallError::Timeout { timeout_ms, .. } = &mut err {
+                *timeout_ms = 0;
+            }
+            match waiter {
+                Some((h, f)) if *h == handle => f(Err(&err)),
+                _ => match self.def.on_done {
+                    Some(done) => done(&mut self.state, &mut self.ctx, handle, Err(&err)),
+                    None => tracing::warn!("call failed: {err}"),
+                },
+            }
+        }
+    }
+
+    fn look_up_peers(&mut self) {
+        for name in &self.def.peers {
+            if let Ok(e) = self.ctx.book.lookup(name) {
+                let addr = e.addr;
+                if e.methods.is_none() {
+                    let _ = self.ctx.tx.connect(addr);
+                    self.ctx.describe(addr);
+                }
+            }
+        }
+    }
+
+    /// Publishes the blackboard now.
+    pub fn publish_snapshot(&mut self, now: u64) {
+        if self.ctx.bb.is_empty() {
+            return;
+        }
+        self.last_snapshot_ns = now;
+        let len = self.ctx.bb.snapshot_len();
+        let (bb, addr) = (&mut self.ctx.bb, self.ctx.addr);
+        if let Err(e) = self
+            .ctx
+            .snapshots
+            .publish(len, &mut |buf| bb.write_snapshot(buf, addr, now))
+        {
+            tracing::warn!("snapshot not published: {e}");
+        }
+    }
+
+    /// Calls `method` of `module` and waits for the answer, serving incoming frames meanwhile.
+    /// `on_answer` reads the answer in place.
+    pub fn call_blocking<R>(
+        &mut self,
+        module: &str,
+        method: &str,
+        args: &[Value<'_>],
+        opts: CallOptions,
+        on_answer: impl FnOnce(Result<&Args<'_>, &CallError>) -> R,
+    ) -> R {
+        let handle = match self.ctx.call_with(module, method, args, opts) {
+            Ok(h) => h,
+            Err(e) => return on_answer(Err(&e)),
+        };
+        let mut on_answer = Some(on_answer);
+        let mut out = None;
+        let mut cb = |r: Result<&Args<'_>, &CallError>| {
+            if let Some(f) = on_answer.take() {
+                out = Some(f(r));
+            }
+        };
+        let mut waiter: Waiter<'_> = Some((handle, &mut cb));
+        let deadline = self.ctx.now_ns() + opts.timeout.as_nanos() as u64 + 50_000_000;
+        let mut spins = 0u32;
+        loop {
+            match self.poll_with(&mut waiter) {
+                Ok(true) => {
+                    spins = 0;
+                    if !self.ctx.calls.is_waiting(handle)
+                        && !self.ctx.pending.iter().any(|p| p.handle == handle)
+                    {
+                        break;
+                    }
+                    continue;
+                }
+                Ok(false) => {}
+                Err(e) => {
+                    let err = CallError::Transport(e);
+                    if let Some((_, f)) = waiter.as_mut() {
+                        f(Err(&err));
+                    }
+                    break;
+                }
+            }
+            spins += 1;
+            if spins % 64 == 0 || self.ctx.mode == ReceiveMode::Blocking {
+                self.housekeeping_with(&mut waiter);
+                if !self.ctx.calls.is_waiting(handle)
+                    && !self.ctx.pending.iter().any(|p| p.handle == handle)
+                {
+                    break;
+                }
+                if self.ctx.now_ns() > deadline {
+                    break;
+                }
+            }
+            if self.ctx.mode == ReceiveMode::Blocking {
+                let _ = self.rx.wait(Duration::from_millis(5));
+            } else {
+                core::hint::spin_loop();
+            }
+        }
+        drop(waiter);
+        match out {
+            Some(r) => r,
+            None => {
+                let e = CallError::Timeout {
+                    module: module.to_owned(),
+                    timeout_ms: opts.timeout.as_millis() as u64,
+                };
+                (on_answer.take().expect("not called"))(Err(&e))
+            }
+        }
+    }
+
+    /// Like [`Module::call_blocking`], returning owned values.
+    pub fn call_owned(
+        &mut self,
+        module: &str,
+        method: &str,
+        args: &[Value<'_>],
+        opts: CallOptions,
+    ) -> Result<Vec<OwnedValue>, CallError> {
+        self.call_blocking(module, method, args, opts, |r| match r {
+            Ok(a) => Ok(a.as_slice().iter().map(Value::to_owned_value).collect()),
+            Err(e) => Err(e.clone()),
+        })
+    }
+
+    /// Runs the default application controller until SIGTERM/SIGINT or [`Ctx::stop`].
+    pub fn run(mut self) -> Result<(), ModuleError> {
+        crate::run::run_loop(&mut self)?;
+        Ok(())
+    }
+
+    pub(crate) fn should_stop(&self) -> bool {
+        self.ctx.stop || crate::signals::termination_requested()
+    }
+
+    /// Time until the next task is due (blocking mode sleeps at most this long).
+    pub(crate) fn idle_budget(&self) -> Duration {
+        let now = self.ctx.now_ns();
+        let next = self
+            .next_task_ns
+            .iter()
+            .copied()
+            .chain([self.next_refresh_ns])
+            .min()
+            .unwrap_or(u64::MAX);
+        Duration::from_nanos(next.saturating_sub(now).clamp(100_000, 50_000_000))
+    }
+
+    pub(crate) fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
+        self.rx.wait(timeout)
+    }
+}
+
+impl<S> Drop for Module<S> {
+    fn drop(&mut self) {
+        // Release every iceoryx2 resource of this module, then clean the domain if it was the
+        // last one.
+        self.rx = Box::new(Closed);
+        self.ctx.tx = Box::new(Closed);
+        self.ctx.snapshots = Box::new(Closed);
+        if self.transport.sweep_if_empty() {
+            tracing::debug!("last module of the domain left: its files are removed");
+        }
+    }
+}
+
+/// Stands in for the endpoint once a module has released it.
+struct Closed;
+
+impl Rx for Closed {
+    fn try_receive(&mut self, _: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
+        Ok(false)
+    }
+    fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
+        std::thread::sleep(timeout);
+        Ok(())
+    }
+}
+
+impl Tx for Closed {
+    fn send(
+        &mut self,
+        to: Dest<'_>,
+        _: usize,
+        _: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), SendError> {
+        Err(SendError::NoReceiver(match to {
+            Dest::Module(a) => a,
+            _ => Addr::BROADCAST,
+        }))
+    }
+    fn connect(&mut self, _: Addr) -> Result<(), SendError> {
+        Ok(())
+    }
+    fn disconnect(&mut self, _: Addr) {}
+    fn dropped(&self) -> u64 {
+        0
+    }
+}
+
+impl Snapshots for Closed {
+    fn publish(&mut self, _: usize, _: &mut dyn FnMut(&mut [u8])) -> Result<(), TransportError> {
+        Ok(())
+    }
+    fn read_latest(&mut self, _: Addr, _: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
+        Ok(false)
+    }
+}
+
+/// Serves one frame.
+fn dispatch<S>(
+    def: &Definition<S>,
+    state: &mut S,
+    ctx: &mut Ctx,
+    reply: &mut Reply,
+    bytes: &[u8],
+    waiter: &mut Waiter<'_>,
+) {
+    let frame = match Frame::decode(bytes) {
+        Ok(f) => f,
+        Err(e) => {
+            ctx.rejected += 1;
+            tracing::debug!("dropped a malformed frame of {} bytes: {e}", bytes.len());
+            return;
+        }
+    };
+    if frame.dst() != ctx.addr && !frame.dst().is_broadcast() {
+        ctx.rejected += 1;
+        tracing::debug!(
+            "dropped a frame for {} that reached {}",
+            frame.dst(),
+            ctx.addr
+        );
+        return;
+    }
+    let src = frame.src();
+    ctx.caller = src;
+    match frame.kind() {
+        FrameKind::Exec { method } => {
+            let answer = !frame.dst().is_broadcast();
+            let result: Result<(), UnknownOr> = match Args::decode(frame.values()) {
+                Err(e) => Err(MethodError::from(e).into()),
+                Ok(args) => {
+                    reply.buf.clear();
+                    reply.count = 0;
+                    if method >= sysmethod::FIRST_RESERVED {
+                        system_method(def, ctx, method, &args, reply)
+                    } else {
+                        match def.methods.get(usize::from(method)) {
+                            Some((_, f)) => f(state, ctx, &args, reply).map_err(UnknownOr::from),
+                            None => Err(unknown_method(method, def)),
+                        }
+                    }
+                }
+            };
+            if !answer {
+                return;
+            }
+            let spec = |kind| FrameSpec {
+                dst: src,
+                src: ctx.addr,
+                seq: frame.seq(),
+                kind,
+            };
+            let sent = match result {
+                Ok(()) if reply.count == 0 => {
+                    ctx.send_raw(Dest::Module(src), spec(FrameKind::Ack), &[])
+                }
+                Ok(()) => {
+                    let buf = core::mem::take(&mut reply.buf);
+                    let r = ctx.send_raw(Dest::Module(src), spec(FrameKind::Reply), &buf);
+                    reply.buf = buf;
+                    r
+                }
+                Err(UnknownOr::Unknown(detail)) => {
+                    let code = modbot_ipc_schema::NakCode::UNKNOWN_METHOD;
+                    ctx.send_values(
+                        Dest::Module(src),
+                        spec(FrameKind::Nak { code }),
+                        &[Value::Text(&detail)],
+                    )
+                }
+                Err(UnknownOr::Method(e)) => {
+                    let detail = match &e {
+                        MethodError::BadArguments(a) => a.to_string(),
+                        MethodError::Busy(s)
+                        | MethodError::Failed(s)
+                        | MethodError::NotReady(s) => s.clone(),
+                    };
+                    ctx.send_values(
+                        Dest::Module(src),
+                        spec(FrameKind::Nak { code: e.code() }),
+                        &[Value::Text(&detail)],
+                    )
+                }
+            };
+            if let Err(e) = sent {
+                tracing::debug!("answer to {src} not delivered: {e}");
+            }
+        }
+        FrameKind::Reply | FrameKind::Ack | FrameKind::Nak { .. } => {
+            let Some((handle, purpose)) = ctx.calls.complete(src, frame.seq()) else {
+                ctx.stale += 1;
+                return;
+            };
+            let module = ctx
+                .book
+                .get(src)
+                .map(|e| e.name.clone())
+                .unwrap_or_else(|| format!("module {src}"));
+            let result = match frame.kind() {
+                FrameKind::Nak { code } => {
+                    let detail = match frame.values().next() {
+                        Some(Ok(Value::Text(t))) => t.to_owned(),
+                        _ => String::new(),
+                    };
+                    Err(CallError::Nak {
+                        module,
+                        code,
+                        detail,
+                    })
+                }
+                _ => Args::decode(frame.values()).map_err(|e| CallError::BadAnswer {
+                    module,
+                    detail: e.to_string(),
+                }),
+            };
+            match purpose {
+                Purpose::Describe => {
+                    ctx.describing[usize::from(src.0)] = false;
+                    match &result {
+                        Ok(args) => {
+                            if let Err(e) = ctx.book.learn(src, args) {
+                                tracing::warn!("bad describe answer from {src}: {e}");
+                            }
+                            ctx.flush_pending();
+                        }
+                        Err(e) => tracing::warn!("describe of {src} failed: {e}"),
+                    }
+                }
+                Purpose::User => {
+                    let result = result.as_ref();
+                    match waiter {
+                        Some((h, f)) if *h == handle => f(result),
+                        _ => match def.on_done {
+                            Some(done) => done(state, ctx, handle, result),
+                            None => {
+                                if let Err(e) = result {
+                                    tracing::warn!("call failed: {e}");
+                                }
+                            }
+                        },
+                    }
+                }
+            }
+        }
+        FrameKind::Report { topic } => {
+            if topic == sysmethod::ANNOUNCE_TOPIC {
+                ctx.refresh_book();
+                return;
+            }
+            match Args::decode(frame.values()) {
+                Ok(values) => {
+                    if let Some(f) = def.on_report {
+                        f(
+                            state,
+                            ctx,
+                            &Report {
+                                from: src,
+                                topic,
+                                values,
+                            },
+                        );
+                    }
+                }
+                Err(e) => {
+                    ctx.rejected += 1;
+                    tracing::debug!("dropped a report from {src}: {e}");
+                }
+            }
+        }
+    }
+}
+
+/// A method error, or an unknown method (which has its own NAK code).
+enum UnknownOr {
+    Unknown(String),
+    Method(MethodError),
+}
+
+impl From<MethodError> for UnknownOr {
+    fn from(e: MethodError) -> Self {
+        UnknownOr::Method(e)
+    }
+}
+
+fn unknown_method<S>(id: u8, def: &Definition<S>) -> UnknownOr {
+    let known: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
+    UnknownOr::Unknown(format!(
+        "no method with id {id} (known: {})",
+        known.join(", ")
+    ))
+}
+
+fn system_method<S>(
+    def: &Definition<S>,
+    ctx: &mut Ctx,
+    id: u8,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), UnknownOr> {
+    match id {
+        sysmethod::DESCRIBE => {
+            let methods: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
+            reply.push(Value::Text(&ctx.name));
+            reply.push(Value::I64(i64::from(std::process::id())));
+            reply.push(Value::Text(ctx.mode.name()));
+            reply.push(Value::Text(&methods.join(",")));
+            reply.push(Value::Text(&ctx.bb.describe()));
+            reply.push(Value::I64(ctx.tx.dropped() as i64));
+            reply.push(Value::I64(ctx.rejected as i64));
+            Ok(())
+        }
+        sysmethod::BB_GET => {
+            let name = args.text(0).map_err(MethodError::from)?;
+            let v = ctx
+                .bb
+                .read(name)
+                .map_err(|e| MethodError::Failed(e.to_string()))?;
+            reply.push(v);
+            Ok(())
+        }
+        sysmethod::BB_SET => {
+            let name = args.text(0).map_err(MethodError::from)?;
+            let v = args.get(1).ok_or(MethodError::BadArguments(
+                modbot_ipc_schema::ArgError::Missing {
+                    index: 1,
+                    expected: modbot_ipc_schema::ValueKind::F64,
+                },
+            ))?;
+            ctx.bb
+                .write_remote(name, v)
+                .map_err(|e| MethodError::Failed(e.to_string()))?;
+            Ok(())
+        }
+        sysmethod::BB_SNAPSHOT => {
+            let len = ctx.bb.snapshot_len();
+            let mut buf = vec![0; len];
+            let now = ctx.now_ns();
+            let addr = ctx.addr;
+            ctx.bb.write_snapshot(&mut buf, addr, now);
+            reply.push(Value::Bytes(&buf));
+            Ok(())
+        }
+        _ => Err(UnknownOr::Unknown(format!("no system method with id {id}"))),
+    }
+}

@@ -1,0 +1,160 @@
+//! The phone book: module names to addresses, with liveness and method tables.
+//!
+//! It is filled from the domain's directory (iceoryx2 node liveness) and from `describe`
+//! answers, which carry a module's methods and blackboard items. A module that starts later
+//! is found on the next refresh; a dead module is marked unavailable; a restarted one (new pid)
+//! is seen coming back and its method table is learned again.
+
+use modbot_ipc_schema::{Addr, Args};
+
+use crate::error::CallError;
+use crate::transport::{Directory, PeerInfo, ReceiveMode, TransportError};
+
+/// What the phone book knows about one module.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Entry {
+    pub addr: Addr,
+    pub name: String,
+    pub pid: u32,
+    pub mode: ReceiveMode,
+    pub alive: bool,
+    /// Method names in id order, once learned by `describe`.
+    pub methods: Option<Vec<String>>,
+    /// Blackboard items (`name:kind[:rw]`), once learned.
+    pub items: Option<String>,
+}
+
+/// Name → address resolution with liveness.
+#[derive(Debug, Default)]
+pub struct PhoneBook {
+    /// Indexed by address.
+    entries: Vec<Option<Entry>>,
+}
+
+/// What a refresh saw change.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Changes {
+    pub died: Vec<Addr>,
+    pub appeared: Vec<Addr>,
+}
+
+impl PhoneBook {
+    pub fn new() -> PhoneBook {
+        PhoneBook {
+            entries: vec![None; 256],
+        }
+    }
+
+    /// Re-reads the directory: new modules appear, dead ones are marked, restarted ones are
+    /// seen as new.
+    pub fn refresh(&mut self, dir: &dyn Directory) -> Result<Changes, TransportError> {
+        let mut seen: Vec<Option<PeerInfo>> = vec![None; 256];
+        dir.list(&mut |p| {
+            let slot = &mut seen[usize::from(p.addr.0)];
+            // A live node wins over a dead one left at the same address.
+            if slot.as_ref().is_none_or(|s| !s.alive || p.alive) {
+                *slot = Some(p);
+            }
+        })?;
+        let mut changes = Changes::default();
+        for (i, info) in seen.into_iter().enumerate() {
+            let old = &mut self.entries[i];
+            match (info, old.as_mut()) {
+                (Some(p), Some(e)) if e.pid == p.pid && e.name == p.name => {
+                    if e.alive && !p.alive {
+                        changes.died.push(p.addr);
+                    }
+                    e.alive = p.alive;
+                }
+                (Some(p), previous) => {
+                    if previous.is_some_and(|e| e.alive) {
+                        changes.died.push(p.addr);
+                    }
+                    if p.alive {
+                        changes.appeared.push(p.addr);
+                    }
+                    *old = Some(Entry {
+                        addr: p.addr,
+                        name: p.name,
+                        pid: p.pid,
+                        mode: p.mode,
+                        alive: p.alive,
+                        methods: None,
+                        items: None,
+                    });
+                }
+                (None, Some(e)) => {
+                    if e.alive {
+                        changes.died.push(e.addr);
+                    }
+                    e.alive = false;
+                }
+                (None, None) => {}
+            }
+        }
+        Ok(changes)
+    }
+
+    /// The live module named `name`.
+    pub fn lookup(&self, name: &str) -> Result<&Entry, CallError> {
+        let mut dead = None;
+        for e in self.entries.iter().flatten().filter(|e| e.name == name) {
+            if e.alive {
+                return Ok(e);
+            }
+            dead = Some(e);
+        }
+        match dead {
+            Some(e) => Err(CallError::NotAvailable {
+                name: name.to_owned(),
+                why: format!("its process (pid {}) died; it has not come back", e.pid),
+            }),
+            None => Err(CallError::UnknownModule(name.to_owned())),
+        }
+    }
+
+    pub fn get(&self, addr: Addr) -> Option<&Entry> {
+        self.entries[usize::from(addr.0)].as_ref()
+    }
+
+    /// Every module known, by address.
+    pub fn entries(&self) -> impl Iterator<Item = &Entry> {
+        self.entries.iter().flatten()
+    }
+
+    /// Records a `describe` answer.
+    pub fn learn(&mut self, addr: Addr, answer: &Args<'_>) -> Result<(), String> {
+        let entry = self.entries[usize::from(addr.0)]
+            .as_mut()
+            .ok_or("describe answer from an unknown module")?;
+        let methods = answer.text(3).map_err(|e| e.to_string())?;
+        let items = answer.text(4).map_err(|e| e.to_string())?;
+        entry.methods = Some(
+            methods
+                .split(',')
+                .filter(|m| !m.is_empty())
+                .map(str::to_owned)
+                .collect(),
+        );
+        entry.items = Some(items.to_owned());
+        Ok(())
+    }
+
+    /// The id of `method` at `addr`, if its table is known: `Some(Ok(id))`, `Some(Err)` if
+    /// it has no such method, `None` if the table is not learned yet.
+    pub fn method_id(&self, addr: Addr, method: &str) -> Option<Result<u8, CallError>> {
+        let entry = self.get(addr)?;
+        if let Some(id) = modbot_ipc_schema::sysmethod::id(method) {
+            return Some(Ok(id));
+        }
+        let methods = entry.methods.as_ref()?;
+        Some(match methods.iter().position(|m| m == method) {
+            Some(i) => Ok(i as u8),
+            None => Err(CallError::UnknownMethod {
+                module: entry.name.clone(),
+                method: method.to_owned(),
+                known: methods.join(", "),
+            }),
+        })
+    }
+}

@@ -1,0 +1,734 @@
+//! The iceoryx2 backend: frames in shared memory between processes, without copies.
+
+use core::time::Duration;
+use std::collections::HashMap;
+use std::os::fd::BorrowedFd;
+
+use iceoryx2::config::Config;
+use iceoryx2::node::NodeView;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use modbot_ipc_schema::Addr;
+use nix::poll::{PollFd, PollFlags, PollTimeout};
+
+use super::{
+    check_name, Dest, Directory, Endpoint, PeerInfo, ReceiveMode, Rx, SendError, Snapshots,
+    Transport, TransportError, Tx,
+};
+use crate::domain::Domain;
+
+type Pub = Publisher<ipc::Service, [u8], ()>;
+type Sub = Subscriber<ipc::Service, [u8], ()>;
+
+/// Most modules (and tools) a domain holds at once, plus room for stale ports.
+const MAX_NODES: usize = 300;
+/// Frames an inbox holds before it refuses more.
+const INBOX_DEPTH: usize = 64;
+/// Largest broadcast or multicast frame.
+const BCAST_MAX_FRAME: usize = 4096;
+
+fn ipc_err(op: &'static str) -> impl Fn(&dyn core::fmt::Debug) -> TransportError {
+    move |e| TransportError::Ipc {
+        op,
+        detail: format!("{e:?}"),
+    }
+}
+
+macro_rules! ipc {
+    ($op:literal, $e:expr) => {
+        $e.map_err(|e| ipc_err($op)(&e))
+    };
+}
+
+fn service_name(name: &str) -> Result<ServiceName, TransportError> {
+    ipc!("service name", ServiceName::new(name))
+}
+
+/// The iceoryx2 backend for one domain.
+#[derive(Debug, Clone)]
+pub struct IpcTransport {
+    domain: Domain,
+    config: Config,
+}
+
+impl IpcTransport {
+    pub fn new(domain: &Domain) -> Result<IpcTransport, TransportError> {
+        set_log_level_from_env_or(LogLevel::Error);
+        let mut config = Config::default();
+        config.global.prefix = ipc!("prefix", FileName::new(domain.prefix().as_bytes()))?;
+        Ok(IpcTransport {
+            domain: domain.clone(),
+            config,
+        })
+    }
+
+    pub fn domain(&self) -> &Domain {
+        &self.domain
+    }
+
+    fn node(&self, node_name: &str) -> Result<Node<ipc::Service>, TransportError> {
+        let name = ipc!("node name", NodeName::new(node_name))?;
+        ipc!(
+            "node creation",
+            NodeBuilder::new()
+                .name(&name)
+                .config(&self.config)
+                .signal_handling_mode(SignalHandlingMode::Disabled)
+                .create::<ipc::Service>()
+        )
+    }
+
+    fn claim(
+        &self,
+        node: &Node<ipc::Service>,
+        addr: Addr,
+        name: &str,
+    ) -> Result<
+        Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
+        TransportError,
+    > {
+        let dir = IpcDirectory {
+            config: self.config.clone(),
+        };
+        let mut claims = Vec::new();
+        for (service, is_addr) in [
+            (format!("claim.addr.{}", addr.0), true),
+            (format!("claim.name.{name}"), false),
+        ] {
+            let sname = service_name(&service)?;
+            let mut attempt = 0;
+            loop {
+                match node.service_builder(&sname).event().max_nodes(2).create() {
+                    Ok(f) => {
+                        claims.push(f);
+                        break;
+                    }
+                    Err(e) if attempt == 0 => {
+                        // Held by a live module, or left by a dead one: look, clean, retry once.
+                        let mut holder = None;
+                        dir.list(&mut |p| {
+                            let same = if is_addr {
+                                p.addr == addr
+                            } else {
+                                p.name == name
+                            };
+                            if same && p.alive && p.pid != std::process::id() {
+                                holder = Some(p);
+                            }
+                        })?;
+                        if let Some(p) = holder {
+                            return Err(if is_addr {
+                                TransportError::AddressTaken {
+                                    addr,
+                                    holder: p.name,
+                                    pid: p.pid,
+                                }
+                            } else {
+                                TransportError::NameTaken {
+                                    name: name.to_owned(),
+                                    addr: p.addr,
+                                    pid: p.pid,
+                                }
+                            });
+                        }
+                        dir.reap_dead();
+                        attempt += 1;
+                        tracing::debug!(
+                            "claim {service} busy ({e:?}); cleaned dead nodes, retrying"
+                        );
+                    }
+                    Err(e) => {
+                        return Err(ipc_err("claim")(&format!("{service}: {e:?} (another process may be starting with the same address or name)")));
+                    }
+                }
+            }
+        }
+        Ok(claims)
+    }
+}
+
+fn inbox_service(
+    node: &Node<ipc::Service>,
+    addr: Addr,
+    max_frame: usize,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    TransportError,
+> {
+    let _ = max_frame;
+    ipc!(
+        "open inbox",
+        node.service_builder(&service_name(&format!("inbox.{}", addr.0))?)
+            .publish_subscribe::<[u8]>()
+            .max_publishers(MAX_NODES)
+            .max_subscribers(2)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(INBOX_DEPTH)
+            .subscriber_max_borrowed_samples(4)
+            .history_size(0)
+            .enable_safe_overflow(false)
+            .open_or_create()
+    )
+}
+
+fn shared_bus(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    TransportError,
+> {
+    ipc!(
+        "open broadcast",
+        node.service_builder(&service_name(name)?)
+            .publish_subscribe::<[u8]>()
+            .max_publishers(MAX_NODES)
+            .max_subscribers(MAX_NODES)
+            .max_nodes(MAX_NODES)
+            .subscriber_max_buffer_size(16)
+            .subscriber_max_borrowed_samples(4)
+            .history_size(0)
+            .enable_safe_overflow(false)
+            .open_or_create()
+    )
+}
+
+fn wake_service(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, TransportError> {
+    ipc!(
+        "open wake-up event",
+        node.service_builder(&service_name(name)?)
+            .event()
+            .max_listeners(MAX_NODES)
+            .max_notifiers(MAX_NODES)
+            .max_nodes(MAX_NODES)
+            .open_or_create()
+    )
+}
+
+fn node_name(addr: Addr, mode: ReceiveMode, name: &str) -> String {
+    format!("m{:03}.{}.{}", addr.0, mode.code(), name)
+}
+
+fn parse_node_name(text: &str) -> Option<(Addr, ReceiveMode, String)> {
+    let rest = text.strip_prefix('m')?;
+    let (addr, rest) = rest.split_once('.')?;
+    let (mode, name) = rest.split_once('.')?;
+    let mut chars = mode.chars();
+    let mode = ReceiveMode::from_code(chars.next()?)?;
+    Some((Addr(addr.parse().ok()?), mode, name.to_owned()))
+}
+
+impl Transport for IpcTransport {
+    fn open(
+        &self,
+        addr: Addr,
+        name: &str,
+        mode: ReceiveMode,
+        groups: &[String],
+    ) -> Result<Endpoint, TransportError> {
+        if !addr.is_module() {
+            return Err(TransportError::BadAddress(addr));
+        }
+        check_name(name)?;
+        let node = self.node(&node_name(addr, mode, name))?;
+        let claims = self.claim(&node, addr, name)?;
+        let inbox = ipc!(
+            "inbox subscriber",
+            inbox_service(&node, addr, self.domain.max_frame())?
+                .subscriber_builder()
+                .buffer_size(INBOX_DEPTH)
+                .create()
+        )?;
+        let mut subs = vec![inbox];
+        let mut listeners = Vec::new();
+        let bus_names: Vec<String> = std::iter::once("bcast".to_owned())
+            .chain(groups.iter().map(|g| format!("group.{g}")))
+            .collect();
+        for bus in &bus_names {
+            subs.push(ipc!(
+                "bus subscriber",
+                shared_bus(&node, bus)?
+                    .subscriber_builder()
+                    .buffer_size(16)
+                    .create()
+            )?);
+        }
+        if mode == ReceiveMode::Blocking {
+            listeners.push(ipc!(
+                "wake listener",
+                wake_service(&node, &format!("wake.{}", addr.0))?
+                    .listener_builder()
+                    .create()
+            )?);
+            for bus in &bus_names {
+                listeners.push(ipc!(
+                    "bus listener",
+                    wake_service(&node, &format!("{bus}.wake"))?
+                        .listener_builder()
+                        .create()
+                )?);
+            }
+        }
+        let node = std::rc::Rc::new(node);
+        let rx = IpcRx {
+            subs,
+            listeners,
+            next: 0,
+        };
+        let tx = IpcTx {
+            node: node.clone(),
+            config: self.config.clone(),
+            me: addr,
+            max_frame: self.domain.max_frame(),
+            peers: (0..256).map(|_| None).collect(),
+            buses: HashMap::new(),
+            dropped: 0,
+            _claims: claims,
+        };
+        let snapshots = IpcSnapshots {
+            node,
+            me: addr,
+            publisher: None,
+            readers: HashMap::new(),
+        };
+        Ok(Endpoint {
+            addr,
+            rx: Box::new(rx),
+            tx: Box::new(tx),
+            snapshots: Box::new(snapshots),
+            directory: Box::new(IpcDirectory {
+                config: self.config.clone(),
+            }),
+        })
+    }
+
+    fn directory(&self) -> Result<Box<dyn Directory>, TransportError> {
+        Ok(Box::new(IpcDirectory {
+            config: self.config.clone(),
+        }))
+    }
+
+    fn sweep_if_empty(&self) -> bool {
+        let dir = IpcDirectory {
+            config: self.config.clone(),
+        };
+        dir.reap_dead();
+        let mut alive = 0;
+        if dir.list(&mut |p| alive += usize::from(p.alive)).is_err() {
+            return false;
+        }
+        if alive > 0 {
+            return false;
+        }
+        self.domain.remove_files();
+        true
+    }
+}
+
+/// Lists the nodes of the domain.
+#[derive(Debug)]
+struct IpcDirectory {
+    config: Config,
+}
+
+impl Directory for IpcDirectory {
+    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+        let mut visit = |view: &dyn NodeView, alive: bool| {
+            if let Some(details) = view.details() {
+                if let Some((addr, mode, name)) = parse_node_name(&details.name().to_string()) {
+                    let pid = view
+                        .id()
+                        .pid::<ipc::Service>()
+                        .map(|p| p.value() as u32)
+                        .unwrap_or(0);
+                    f(PeerInfo {
+                        addr,
+                        name,
+                        pid,
+                        mode,
+                        alive,
+                    });
+                }
+            }
+        };
+        ipc!(
+            "node list",
+            Node::<ipc::Service>::list(&self.config, |state| {
+                match &state {
+                    NodeState::Alive(v) => visit(v, true),
+                    NodeState::Dead(v) => visit(v, false),
+                    NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
+                }
+                CallbackProgression::Continue
+            })
+        )
+    }
+
+    fn reap_dead(&self) -> usize {
+        let mut dead = Vec::new();
+        let _ = Node::<ipc::Service>::list(&self.config, |state| {
+            if let NodeState::Dead(v) = state {
+                dead.push(v);
+            }
+            CallbackProgression::Continue
+        });
+        dead.into_iter()
+            .filter(|v| v.clone().try_remove_stale_resources().is_ok())
+            .count()
+    }
+}
+
+struct IpcRx {
+    /// The inbox first, then broadcast and the groups.
+    subs: Vec<Sub>,
+    /// Wake-up listeners (blocking mode only): own, broadcast, groups.
+    listeners: Vec<Listener<ipc::Service>>,
+    /// Which bus to look at first next time, so broadcast cannot starve the inbox or back.
+    next: usize,
+}
+
+impl Rx for IpcRx {
+    fn try_receive(&mut self, on_frame: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
+        let n = self.subs.len();
+        for i in 0..n {
+            let idx = (self.next + i) % n;
+            if let Some(sample) = ipc!("receive", self.subs[idx].receive())? {
+                self.next = (idx + 1) % n;
+                on_frame(sample.payload());
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
+        if self.listeners.is_empty() {
+            std::thread::sleep(timeout.min(Duration::from_micros(50)));
+            return Ok(());
+        }
+        for sub in &self.subs {
+            if ipc!("has samples", sub.has_samples())? {
+                return Ok(());
+            }
+        }
+        let mut fds: Vec<PollFd<'_>> = self
+            .listeners
+            .iter()
+            .map(|l| {
+                // SAFETY: the listener owns this descriptor and outlives the poll below.
+                let fd = unsafe { BorrowedFd::borrow_raw(l.file_descriptor().native_handle()) };
+                PollFd::new(fd, PollFlags::POLLIN)
+            })
+            .collect();
+        let ms = PollTimeout::try_from(timeout.as_millis().min(60_000) as i32)
+            .unwrap_or(PollTimeout::MAX);
+        match nix::poll::poll(&mut fds, ms) {
+            Ok(_) | Err(nix::errno::Errno::EINTR) => {}
+            Err(e) => return Err(ipc_err("poll")(&e)),
+        }
+        drop(fds);
+        for l in &self.listeners {
+            ipc!("drain wake-ups", l.try_wait(|_| {}))?;
+        }
+        Ok(())
+    }
+}
+
+struct PeerLink {
+    publisher: Pub,
+    notifier: Option<Notifier<ipc::Service>>,
+}
+
+struct IpcTx {
+    node: std::rc::Rc<Node<ipc::Service>>,
+    config: Config,
+    me: Addr,
+    max_frame: usize,
+    /// Indexed by address: the publishers opened so far.
+    peers: Vec<Option<PeerLink>>,
+    /// Broadcast and group publishers, by service name.
+    buses: HashMap<String, PeerLink>,
+    dropped: u64,
+    /// Held for the endpoint's life: they make the address and the name ours.
+    _claims: Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
+}
+
+impl IpcTx {
+    fn peer_mode(&self, addr: Addr) -> Option<ReceiveMode> {
+        let mut mode = None;
+        let _ = IpcDirectory {
+            config: self.config.clone(),
+        }
+        .list(&mut |p| {
+            if p.addr == addr && p.alive {
+                mode = Some(p.mode);
+            }
+        });
+        mode
+    }
+
+    fn open_peer(&mut self, to: Addr) -> Result<(), SendError> {
+        if self.peers[usize::from(to.0)].is_some() {
+            return Ok(());
+        }
+        let publisher = ipc!(
+            "inbox publisher",
+            inbox_service(&self.node, to, self.max_frame)?
+                .publisher_builder()
+                .initial_max_slice_len(self.max_frame)
+                .allocation_strategy(AllocationStrategy::Static)
+                .max_loaned_samples(2)
+                .backpressure_strategy(BackpressureStrategy::DiscardData)
+                .create()
+        )?;
+        let notifier = match self.peer_mode(to) {
+            Some(ReceiveMode::Blocking) => Some(ipc!(
+                "wake notifier",
+                wake_service(&self.node, &format!("wake.{}", to.0))?
+                    .notifier_builder()
+                    .create()
+            )?),
+            _ => None,
+        };
+        self.peers[usize::from(to.0)] = Some(PeerLink {
+            publisher,
+            notifier,
+        });
+        Ok(())
+    }
+
+    fn open_bus(&mut self, bus: &str) -> Result<(), SendError> {
+        if self.buses.contains_key(bus) {
+            return Ok(());
+        }
+        let publisher = ipc!(
+            "bus publisher",
+            shared_bus(&self.node, bus)?
+                .publisher_builder()
+                .initial_max_slice_len(BCAST_MAX_FRAME)
+                .max_loaned_samples(2)
+                .backpressure_strategy(BackpressureStrategy::DiscardData)
+                .create()
+        )?;
+        let notifier = Some(ipc!(
+            "bus notifier",
+            wake_service(&self.node, &format!("{bus}.wake"))?
+                .notifier_builder()
+                .create()
+        )?);
+        self.buses.insert(
+            bus.to_owned(),
+            PeerLink {
+                publisher,
+                notifier,
+            },
+        );
+        Ok(())
+    }
+}
+
+fn send_on(
+    link: &PeerLink,
+    len: usize,
+    fill: &mut dyn FnMut(&mut [u8]),
+) -> Result<usize, TransportError> {
+    let mut sample = ipc!("loan", link.publisher.loan_slice_uninit(len))?;
+    let payload = sample.payload_mut();
+    // SAFETY: the payload is `len` bytes of shared memory mapped by iceoryx2. Those pages are
+    // zero-filled by the kernel when first mapped and afterwards only ever hold bytes written
+    // by earlier frames, so every byte is initialised; `MaybeUninit<u8>` and `u8` have the same
+    // layout. `fill` writes the whole frame before it is sent.
+    let bytes = unsafe {
+        core::slice::from_raw_parts_mut(payload.as_mut_ptr().cast::<u8>(), payload.len())
+    };
+    fill(bytes);
+    // SAFETY: see above; every byte is initialised.
+    let sample = unsafe { sample.assume_init() };
+    let delivered = ipc!("send", sample.send())?;
+    if delivered > 0 {
+        if let Some(n) = &link.notifier {
+            ipc!("notify", n.notify())?;
+        }
+    }
+    Ok(delivered)
+}
+
+impl Tx for IpcTx {
+    fn send(
+        &mut self,
+        to: Dest<'_>,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), SendError> {
+        match to {
+            Dest::Module(addr) => {
+                if len > self.max_frame {
+                    return Err(TransportError::FrameTooLarge {
+                        len,
+                        max: self.max_frame,
+                    }
+                    .into());
+                }
+                self.open_peer(addr)?;
+                let link = self.peers[usize::from(addr.0)]
+                    .as_ref()
+                    .expect("opened above");
+                let delivered = send_on(link, len, fill)?;
+                if delivered == 0 {
+                    self.dropped += 1;
+                    // No subscriber at all means nobody serves this inbox.
+                    let subscribers = inbox_service(&self.node, addr, self.max_frame)
+                        .map(|s| s.dynamic_config().number_of_subscribers())
+                        .unwrap_or(0);
+                    return Err(if subscribers == 0 {
+                        SendError::NoReceiver(addr)
+                    } else {
+                        SendError::InboxFull(addr)
+                    });
+                }
+                Ok(())
+            }
+            Dest::Broadcast | Dest::Group(_) => {
+                if len > BCAST_MAX_FRAME {
+                    return Err(TransportError::FrameTooLarge {
+                        len,
+                        max: BCAST_MAX_FRAME,
+                    }
+                    .into());
+                }
+                let bus = match to {
+                    Dest::Group(g) => format!("group.{g}"),
+                    _ => "bcast".to_owned(),
+                };
+                self.open_bus(&bus)?;
+                let link = &self.buses[&bus];
+                send_on(link, len, fill)?;
+                Ok(())
+            }
+        }
+    }
+
+    fn connect(&mut self, to: Addr) -> Result<(), SendError> {
+        if to == self.me || !to.is_module() {
+            return Ok(());
+        }
+        self.open_peer(to)
+    }
+
+    fn disconnect(&mut self, to: Addr) {
+        self.peers[usize::from(to.0)] = None;
+    }
+
+    fn dropped(&self) -> u64 {
+        self.dropped
+    }
+}
+
+struct IpcSnapshots {
+    node: std::rc::Rc<Node<ipc::Service>>,
+    me: Addr,
+    publisher: Option<Pub>,
+    /// Per module read: its subscriber and the newest snapshot taken from it.
+    readers: HashMap<Addr, (Sub, Option<Sample<ipc::Service, [u8], ()>>)>,
+}
+
+fn bb_service(
+    node: &Node<ipc::Service>,
+    addr: Addr,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    TransportError,
+> {
+    ipc!(
+        "open snapshot service",
+        node.service_builder(&service_name(&format!("bb.{}", addr.0))?)
+            .publish_subscribe::<[u8]>()
+            .max_publishers(2)
+            .max_subscribers(64)
+            .max_nodes(MAX_NODES)
+            .history_size(1)
+            .subscriber_max_buffer_size(2)
+            .subscriber_max_borrowed_samples(2)
+            .enable_safe_overflow(true)
+            .open_or_create()
+    )
+}
+
+impl Snapshots for IpcSnapshots {
+    fn publish(
+        &mut self,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), TransportError> {
+        if self.publisher.is_none() {
+            self.publisher = Some(ipc!(
+                "snapshot publisher",
+                bb_service(&self.node, self.me)?
+                    .publisher_builder()
+                    .initial_max_slice_len(len.max(256))
+                    .allocation_strategy(AllocationStrategy::PowerOfTwo)
+                    .max_loaned_samples(1)
+                    .create()
+            )?);
+        }
+        let link = PeerLink {
+            publisher: self.publisher.take().expect("created above"),
+            notifier: None,
+        };
+        let result = send_on(&link, len, fill);
+        self.publisher = Some(link.publisher);
+        result.map(|_| ())
+    }
+
+    fn read_latest(
+        &mut self,
+        of: Addr,
+        read: &mut dyn FnMut(&[u8]),
+    ) -> Result<bool, TransportError> {
+        if !self.readers.contains_key(&of) {
+            let sub = ipc!(
+                "snapshot subscriber",
+                bb_service(&self.node, of)?
+                    .subscriber_builder()
+                    .buffer_size(2)
+                    .history_request(1)
+                    .create()
+            )?;
+            self.readers.insert(of, (sub, None));
+        }
+        let (sub, latest) = self.readers.get_mut(&of).expect("inserted above");
+        while let Some(sample) = ipc!("receive snapshot", sub.receive())? {
+            *latest = Some(sample);
+        }
+        match latest {
+            Some(sample) => {
+                read(sample.payload());
+                Ok(true)
+            }
+            None => Ok(false),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn node_names_carry_address_mode_and_name() {
+        let text = node_name(Addr(7), ReceiveMode::Blocking, "nav_sonar");
+        assert_eq!(text, "m007.b.nav_sonar");
+        assert_eq!(
+            parse_node_name(&text),
+            Some((Addr(7), ReceiveMode::Blocking, "nav_sonar".into()))
+        );
+        assert_eq!(parse_node_name("coordinator"), None);
+    }
+}

@@ -1,0 +1,302 @@
+//! The in-process backend: the same interface inside one process, for fast unit tests.
+//!
+//! Each "module" is a thread; frames move through bounded crossbeam channels. Frames are copied
+//! into heap buffers here: this backend is for tests, not for real runs.
+
+use core::time::Duration;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, OnceLock};
+
+use crossbeam::channel::{bounded, Receiver, RecvTimeoutError, Sender, TrySendError};
+use modbot_ipc_schema::Addr;
+
+use super::{
+    check_name, Dest, Directory, Endpoint, PeerInfo, ReceiveMode, Rx, SendError, Snapshots,
+    Transport, TransportError, Tx,
+};
+
+const INBOX_DEPTH: usize = 64;
+
+struct Slot {
+    name: String,
+    mode: ReceiveMode,
+    alive: bool,
+    inbox: Sender<Vec<u8>>,
+    groups: Vec<String>,
+}
+
+#[derive(Default)]
+struct LocalDomain {
+    slots: HashMap<u8, Slot>,
+    snapshots: HashMap<u8, Arc<Vec<u8>>>,
+}
+
+type Shared = Arc<Mutex<LocalDomain>>;
+
+fn registry() -> &'static Mutex<HashMap<String, Shared>> {
+    static DOMAINS: OnceLock<Mutex<HashMap<String, Shared>>> = OnceLock::new();
+    DOMAINS.get_or_init(Default::default)
+}
+
+fn lock(d: &Shared) -> std::sync::MutexGuard<'_, LocalDomain> {
+    d.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// The in-process backend for one domain (by name, shared by every thread of the process).
+#[derive(Clone)]
+pub struct LocalTransport {
+    domain: Shared,
+}
+
+impl LocalTransport {
+    pub fn new(domain: &crate::domain::Domain) -> LocalTransport {
+        let mut all = registry().lock().unwrap_or_else(|p| p.into_inner());
+        let domain = all.entry(domain.name().to_owned()).or_default().clone();
+        LocalTransport { domain }
+    }
+
+    /// Marks module `addr` dead, as if its process had been killed.
+    pub fn kill(&self, addr: Addr) {
+        if let Some(slot) = lock(&self.domain).slots.get_mut(&addr.0) {
+            slot.alive = false;
+        }
+    }
+}
+
+impl Transport for LocalTransport {
+    fn open(
+        &self,
+        addr: Addr,
+        name: &str,
+        mode: ReceiveMode,
+        groups: &[String],
+    ) -> Result<Endpoint, TransportError> {
+        if !addr.is_module() {
+            return Err(TransportError::BadAddress(addr));
+        }
+        check_name(name)?;
+        let mut d = lock(&self.domain);
+        if let Some(s) = d.slots.get(&addr.0).filter(|s| s.alive) {
+            return Err(TransportError::AddressTaken {
+                addr,
+                holder: s.name.clone(),
+                pid: std::process::id(),
+            });
+        }
+        if let Some((a, _)) = d.slots.iter().find(|(_, s)| s.alive && s.name == name) {
+            return Err(TransportError::NameTaken {
+                name: name.to_owned(),
+                addr: Addr(*a),
+                pid: std::process::id(),
+            });
+        }
+        let (tx, rx) = bounded(INBOX_DEPTH);
+        d.slots.insert(
+            addr.0,
+            Slot {
+                name: name.to_owned(),
+                mode,
+                alive: true,
+                inbox: tx,
+                groups: groups.to_vec(),
+            },
+        );
+        drop(d);
+        Ok(Endpoint {
+            addr,
+            rx: Box::new(LocalRx {
+                domain: self.domain.clone(),
+                me: addr,
+                inbox: rx,
+                pending: None,
+            }),
+            tx: Box::new(LocalTx {
+                domain: self.domain.clone(),
+                me: addr,
+                dropped: 0,
+            }),
+            snapshots: Box::new(LocalSnapshots {
+                domain: self.domain.clone(),
+                me: addr,
+                held: HashMap::new(),
+            }),
+            directory: Box::new(LocalDirectory {
+                domain: self.domain.clone(),
+            }),
+        })
+    }
+
+    fn directory(&self) -> Result<Box<dyn Directory>, TransportError> {
+        Ok(Box::new(LocalDirectory {
+            domain: self.domain.clone(),
+        }))
+    }
+
+    fn sweep_if_empty(&self) -> bool {
+        let mut d = lock(&self.domain);
+        if d.slots.values().any(|s| s.alive) {
+            return false;
+        }
+        d.slots.clear();
+        d.snapshots.clear();
+        true
+    }
+}
+
+struct LocalDirectory {
+    domain: Shared,
+}
+
+impl Directory for LocalDirectory {
+    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+        let d = lock(&self.domain);
+        for (addr, s) in &d.slots {
+            f(PeerInfo {
+                addr: Addr(*addr),
+                name: s.name.clone(),
+                pid: std::process::id(),
+                mode: s.mode,
+                alive: s.alive,
+            });
+        }
+        Ok(())
+    }
+
+    fn reap_dead(&self) -> usize {
+        let mut d = lock(&self.domain);
+        let before = d.slots.len();
+        d.slots.retain(|_, s| s.alive);
+        before - d.slots.len()
+    }
+}
+
+struct LocalRx {
+    domain: Shared,
+    me: Addr,
+    inbox: Receiver<Vec<u8>>,
+    pending: Option<Vec<u8>>,
+}
+
+impl Drop for LocalRx {
+    fn drop(&mut self) {
+        let mut d = lock(&self.domain);
+        d.slots.remove(&self.me.0);
+        d.snapshots.remove(&self.me.0);
+    }
+}
+
+impl Rx for LocalRx {
+    fn try_receive(&mut self, on_frame: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
+        let frame = match self.pending.take() {
+            Some(f) => Some(f),
+            None => self.inbox.try_recv().ok(),
+        };
+        Ok(frame.map(|f| on_frame(&f)).is_some())
+    }
+
+    fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
+        if self.pending.is_none() {
+            match self.inbox.recv_timeout(timeout) {
+                Ok(f) => self.pending = Some(f),
+                Err(RecvTimeoutError::Timeout | RecvTimeoutError::Disconnected) => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+struct LocalTx {
+    domain: Shared,
+    me: Addr,
+    dropped: u64,
+}
+
+impl Tx for LocalTx {
+    fn send(
+        &mut self,
+        to: Dest<'_>,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), SendError> {
+        let mut frame = vec![0u8; len];
+        fill(&mut frame);
+        let d = lock(&self.domain);
+        match to {
+            Dest::Module(addr) => {
+                let Some(slot) = d.slots.get(&addr.0).filter(|s| s.alive) else {
+                    self.dropped += 1;
+                    return Err(SendError::NoReceiver(addr));
+                };
+                match slot.inbox.try_send(frame) {
+                    Ok(()) => Ok(()),
+                    Err(TrySendError::Full(_)) => {
+                        self.dropped += 1;
+                        Err(SendError::InboxFull(addr))
+                    }
+                    Err(TrySendError::Disconnected(_)) => {
+                        self.dropped += 1;
+                        Err(SendError::NoReceiver(addr))
+                    }
+                }
+            }
+            Dest::Broadcast | Dest::Group(_) => {
+                for (addr, slot) in &d.slots {
+                    let member = match to {
+                        Dest::Group(g) => slot.groups.iter().any(|m| m == g),
+                        _ => true,
+                    };
+                    if *addr != self.me.0
+                        && slot.alive
+                        && member
+                        && slot.inbox.try_send(frame.clone()).is_err()
+                    {
+                        self.dropped += 1;
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn connect(&mut self, _to: Addr) -> Result<(), SendError> {
+        Ok(())
+    }
+
+    fn disconnect(&mut self, _to: Addr) {}
+
+    fn dropped(&self) -> u64 {
+        self.dropped
+    }
+}
+
+struct LocalSnapshots {
+    domain: Shared,
+    me: Addr,
+    held: HashMap<Addr, Arc<Vec<u8>>>,
+}
+
+impl Snapshots for LocalSnapshots {
+    fn publish(
+        &mut self,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), TransportError> {
+        let mut snap = vec![0u8; len];
+        fill(&mut snap);
+        lock(&self.domain)
+            .snapshots
+            .insert(self.me.0, Arc::new(snap));
+        Ok(())
+    }
+
+    fn read_latest(
+        &mut self,
+        of: Addr,
+        read: &mut dyn FnMut(&[u8]),
+    ) -> Result<bool, TransportError> {
+        if let Some(s) = lock(&self.domain).snapshots.get(&of.0) {
+            self.held.insert(of, s.clone());
+        }
+        Ok(self.held.get(&of).map(|s| read(s)).is_some())
+    }
+}

@@ -1,0 +1,232 @@
+//! How frames move between module processes.
+//!
+//! The traits here are the whole interface the message manager needs; [`ipc`] implements them
+//! on iceoryx2 shared memory (real runs, one process per module) and [`local`] inside one process
+//! (fast unit tests). The same test suite runs against both.
+//!
+//! Service layout of the iceoryx2 backend, per domain (it scales to 254 modules because a
+//! module connects only to the peers it actually talks to):
+//! - `claim.addr.N`, `claim.name.NAME`: event services created exclusively, so an address or
+//!   a name has one owner;
+//! - `inbox.N`: publish-subscribe `[u8]`, module N's only subscriber; senders open a publisher
+//!   on first use. Full inboxes refuse new frames (no silent overwrite): the sender sees it;
+//! - `wake.N`: event, for modules in blocking mode;
+//! - `bcast` and `group.NAME`: publish-subscribe for broadcast and multicast;
+//! - `bb.N`: module N's blackboard snapshots, history 1.
+//!
+//! Liveness comes from iceoryx2 nodes: one per module, named `mNNN.MODE.NAME`.
+
+pub mod ipc;
+pub mod local;
+
+use core::time::Duration;
+
+use modbot_ipc_schema::Addr;
+use thiserror::Error;
+
+/// How a module receives: spinning on its inbox, or sleeping until woken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReceiveMode {
+    /// Spin on the inbox: lowest latency, one core busy. Give the module a core of its own.
+    BusyPoll,
+    /// Sleep until a sender's wake-up event: no CPU while idle, tens of microseconds more.
+    Blocking,
+}
+
+impl ReceiveMode {
+    pub fn code(self) -> char {
+        match self {
+            ReceiveMode::BusyPoll => 'p',
+            ReceiveMode::Blocking => 'b',
+        }
+    }
+
+    pub fn from_code(c: char) -> Option<ReceiveMode> {
+        match c {
+            'p' => Some(ReceiveMode::BusyPoll),
+            'b' => Some(ReceiveMode::Blocking),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ReceiveMode::BusyPoll => "busy-poll",
+            ReceiveMode::Blocking => "blocking",
+        }
+    }
+}
+
+/// What the directory knows about one module.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PeerInfo {
+    pub addr: Addr,
+    pub name: String,
+    pub pid: u32,
+    pub mode: ReceiveMode,
+    pub alive: bool,
+}
+
+/// Where a frame goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dest<'a> {
+    Module(Addr),
+    Broadcast,
+    Group(&'a str),
+}
+
+/// Errors of the transport layer.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum TransportError {
+    #[error("address {addr} is already taken by '{holder}' (pid {pid})")]
+    AddressTaken {
+        addr: Addr,
+        holder: String,
+        pid: u32,
+    },
+    #[error("name '{name}' is already taken by the module at address {addr} (pid {pid})")]
+    NameTaken { name: String, addr: Addr, pid: u32 },
+    #[error("address {0} is not a module address (1..=254)")]
+    BadAddress(Addr),
+    #[error("module name '{0}' is invalid: use 1 to 48 characters of a-z, A-Z, 0-9, _ and -")]
+    BadName(String),
+    #[error("no free address left in the domain")]
+    NoFreeAddress,
+    #[error("frame of {len} bytes exceeds the domain's maximum of {max} bytes")]
+    FrameTooLarge { len: usize, max: usize },
+    #[error("iceoryx2 {op} failed: {detail}")]
+    Ipc { op: &'static str, detail: String },
+}
+
+/// Why a frame was not delivered. Nothing is dropped silently: the sender always learns it.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum SendError {
+    #[error("module {0} has no inbox: it is not running")]
+    NoReceiver(Addr),
+    #[error("module {0}'s inbox is full: the frame was not delivered")]
+    InboxFull(Addr),
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+}
+
+/// Checks a module name.
+pub fn check_name(name: &str) -> Result<(), TransportError> {
+    let ok = !name.is_empty()
+        && name.len() <= 48
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+    if ok {
+        Ok(())
+    } else {
+        Err(TransportError::BadName(name.to_owned()))
+    }
+}
+
+/// The receive side of a module's endpoint: its inbox, broadcast and groups.
+pub trait Rx {
+    /// Lends the next waiting frame, if any, to `on_frame`; returns whether there was one.
+    fn try_receive(&mut self, on_frame: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError>;
+
+    /// Sleeps until a frame may have arrived, a signal came, or `timeout` passed.
+    fn wait(&mut self, timeout: Duration) -> Result<(), TransportError>;
+}
+
+/// The send side of a module's endpoint.
+pub trait Tx {
+    /// Sends a frame of `len` bytes, written in place by `fill` (into shared memory).
+    fn send(
+        &mut self,
+        to: Dest<'_>,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), SendError>;
+
+    /// Opens the connection to `to` ahead of the first send (it costs about a millisecond).
+    fn connect(&mut self, to: Addr) -> Result<(), SendError>;
+
+    /// Forgets the connection to `to` (its module died; it will be reopened on next use).
+    fn disconnect(&mut self, to: Addr);
+
+    /// Frames this endpoint could not deliver since it opened.
+    fn dropped(&self) -> u64;
+}
+
+/// Blackboard snapshots: publish your own, read the latest of others.
+pub trait Snapshots {
+    /// Publishes a snapshot of `len` bytes, written in place by `fill`.
+    fn publish(
+        &mut self,
+        len: usize,
+        fill: &mut dyn FnMut(&mut [u8]),
+    ) -> Result<(), TransportError>;
+
+    /// Lends the newest snapshot of module `of` received so far to `read`, if any.
+    fn read_latest(
+        &mut self,
+        of: Addr,
+        read: &mut dyn FnMut(&[u8]),
+    ) -> Result<bool, TransportError>;
+}
+
+/// The phone book's source of truth: which modules exist and whether they live.
+pub trait Directory {
+    /// Calls `f` for every module of the domain, alive or dead.
+    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError>;
+
+    /// Removes the resources dead modules left behind; returns how many were cleaned.
+    fn reap_dead(&self) -> usize;
+}
+
+/// A module's connection to its domain.
+pub struct Endpoint {
+    pub addr: Addr,
+    pub rx: Box<dyn Rx>,
+    pub tx: Box<dyn Tx>,
+    pub snapshots: Box<dyn Snapshots>,
+    pub directory: Box<dyn Directory>,
+}
+
+/// A backend: opens endpoints in one domain.
+pub trait Transport {
+    /// Claims `addr` and `name` and opens the module's endpoint, joined to `groups`.
+    fn open(
+        &self,
+        addr: Addr,
+        name: &str,
+        mode: ReceiveMode,
+        groups: &[String],
+    ) -> Result<Endpoint, TransportError>;
+
+    /// Opens an endpoint at the highest free address, for a tool (the CLI, a benchmark driver).
+    fn open_tool(&self, name: &str) -> Result<Endpoint, TransportError> {
+        let mut taken = [false; 256];
+        self.directory()?.list(&mut |p| {
+            if p.alive {
+                taken[usize::from(p.addr.0)] = true;
+            }
+        })?;
+        for a in (Addr::FIRST..=Addr::LAST).rev() {
+            if taken[usize::from(a)] {
+                continue;
+            }
+            match self.open(
+                Addr(a),
+                &format!("{name}-{}", std::process::id()),
+                ReceiveMode::Blocking,
+                &[],
+            ) {
+                Err(TransportError::AddressTaken { .. }) => continue,
+                other => return other,
+            }
+        }
+        Err(TransportError::NoFreeAddress)
+    }
+
+    /// The directory alone, without claiming an address.
+    fn directory(&self) -> Result<Box<dyn Directory>, TransportError>;
+
+    /// Runs when the last module of this process leaves: removes the domain's files if no
+    /// module of it lives anymore.
+    fn sweep_if_empty(&self) -> bool;
+}

@@ -1,0 +1,154 @@
+//! `modbot rvmf encode|decode`.
+
+use std::process::ExitCode;
+
+use clap::{Subcommand, ValueEnum};
+use modbot_ipc_schema::{hex, Addr, Frame, FrameKind, FrameSpec, NakCode, Seq};
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum KindArg {
+    Ack,
+    Nak,
+    Exec,
+    Reply,
+    Report,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum RvmfCommand {
+    /// Print a frame as one line of lowercase hex.
+    Encode {
+        kind: KindArg,
+        #[arg(long)]
+        dst: u8,
+        #[arg(long)]
+        src: u8,
+        /// Sequence number, 0..=31.
+        #[arg(long, default_value_t = 0)]
+        seq: u8,
+        /// Method id (exec), error code (nak) or topic (report).
+        #[arg(long)]
+        method: Option<u8>,
+        /// The payload, already encoded, as hex.
+        #[arg(long)]
+        payload: Option<String>,
+    },
+    /// Print a frame's fields, one `field: value` per line. Exits 2 on a malformed frame.
+    Decode {
+        /// The frame as hex.
+        hex: String,
+    },
+}
+
+pub fn run(command: RvmfCommand) -> ExitCode {
+    match command {
+        RvmfCommand::Encode {
+            kind,
+            dst,
+            src,
+            seq,
+            method,
+            payload,
+        } => match encode(kind, dst, src, seq, method, payload) {
+            Ok(line) => {
+                println!("{line}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("modbot rvmf encode: {e}");
+                ExitCode::from(2)
+            }
+        },
+        RvmfCommand::Decode { hex: text } => match decode(&text) {
+            Ok(lines) => {
+                print!("{lines}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("malformed frame: {e}");
+                ExitCode::from(2)
+            }
+        },
+    }
+}
+
+fn encode(
+    kind: KindArg,
+    dst: u8,
+    src: u8,
+    seq: u8,
+    op: Option<u8>,
+    payload: Option<String>,
+) -> Result<String, String> {
+    let seq = Seq::new(seq).ok_or(format!(
+        "sequence number {seq} does not fit in 5 bits (0..=31)"
+    ))?;
+    let need_op = |what: &str| {
+        op.ok_or(format!(
+            "--method is required for {what} (the {what} operand)"
+        ))
+    };
+    let kind = match kind {
+        KindArg::Ack => FrameKind::Ack,
+        KindArg::Reply => FrameKind::Reply,
+        KindArg::Exec => FrameKind::Exec {
+            method: need_op("exec")?,
+        },
+        KindArg::Nak => FrameKind::Nak {
+            code: NakCode(need_op("nak")?),
+        },
+        KindArg::Report => FrameKind::Report {
+            topic: need_op("report")?,
+        },
+    };
+    let payload = match payload {
+        Some(p) => hex::decode(&p).map_err(|e| format!("--payload: {e}"))?,
+        None => Vec::new(),
+    };
+    let spec = FrameSpec {
+        dst: Addr(dst),
+        src: Addr(src),
+        seq,
+        kind,
+    };
+    let mut out = vec![0; spec.encoded_len(payload.len())];
+    spec.encode(&payload, &mut out).map_err(|e| e.to_string())?;
+    Ok(hex::encode(&out))
+}
+
+fn decode(text: &str) -> Result<String, String> {
+    let bytes = hex::decode(text).map_err(|e| e.to_string())?;
+    let frame = Frame::decode_strict(&bytes).map_err(|e| e.to_string())?;
+    let mut out = String::new();
+    let mut line = |k: &str, v: String| out.push_str(&format!("{k}: {v}\n"));
+    line("kind", frame.kind().kind().to_string());
+    line("dst", frame.dst().to_string());
+    line("src", frame.src().to_string());
+    line("seq", frame.seq().to_string());
+    line(
+        "length",
+        format!(
+            "{} bytes{}",
+            frame.len(),
+            if frame.is_extended() {
+                " (extended form)"
+            } else {
+                ""
+            }
+        ),
+    );
+    match frame.kind() {
+        FrameKind::Exec { method } => line("method", method.to_string()),
+        FrameKind::Nak { code } => line("code", code.to_string()),
+        FrameKind::Report { topic } => line("topic", topic.to_string()),
+        FrameKind::Ack | FrameKind::Reply => {}
+    }
+    if frame.kind() != FrameKind::Ack {
+        line("payload", hex::encode(frame.payload()));
+    }
+    for (i, v) in frame.values().enumerate() {
+        let v = v.map_err(|e| e.to_string())?;
+        line(&format!("value[{i}]"), format!("{} {v}", v.kind()));
+    }
+    Ok(out)
+}
