@@ -483,6 +483,7 @@ impl<S> Module<S> {
             match self.poll_with(&mut waiter) {
                 Ok(true) => {
                     spins = 0;
+                    self.deliver_failures(&mut waiter);
                     if !self.ctx.calls.is_waiting(handle)
                         && !self.ctx.pending.iter().any(|p| p.handle == handle)
                     {

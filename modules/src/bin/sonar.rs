@@ -19,7 +19,7 @@ struct Cli {
     #[command(flatten)]
     module: ModuleArgs,
     /// A point obstacle at X,Y metres; repeat for more.
-    #[arg(long = "obstacle", value_parser = parse_point)]
+    #[arg(long = "obstacle", value_parser = parse_point, allow_hyphen_values = true)]
     obstacles: Vec<(f64, f64)>,
     /// The module whose blackboard holds the robot's pose (x, y, heading).
     #[arg(long, default_value = "mobility")]

@@ -1,0 +1,138 @@
+//! Test fixture: a fresh domain per test, real module processes killed on drop, and a check
+//! that the domain's shared memory is gone afterwards.
+
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::{Duration, Instant};
+
+use modbot_runtime::Domain;
+
+static COUNTER: AtomicU32 = AtomicU32::new(0);
+
+/// Where cargo put the workspace's binaries.
+pub fn bin(name: &str) -> PathBuf {
+    let modbot = PathBuf::from(env!("CARGO_BIN_EXE_modbot"));
+    modbot.with_file_name(name)
+}
+
+/// A domain of its own, with the processes started in it.
+pub struct TestDomain {
+    pub domain: Domain,
+    children: Vec<(String, Child)>,
+}
+
+impl TestDomain {
+    pub fn new(test: &str) -> TestDomain {
+        let n = COUNTER.fetch_add(1, Ordering::SeqCst);
+        let short: String = test
+            .chars()
+            .filter(|c| c.is_ascii_lowercase())
+            .take(12)
+            .collect();
+        let name = format!("t{}_{}_{}", std::process::id(), n, short);
+        TestDomain {
+            domain: Domain::new(&name).unwrap(),
+            children: Vec::new(),
+        }
+    }
+
+    pub fn name(&self) -> &str {
+        self.domain.name()
+    }
+
+    /// Starts a module program in this domain.
+    pub fn spawn(&mut self, program: &str, args: &[&str]) -> u32 {
+        let child = Command::new(bin(program))
+            .args(args)
+            .env("MODBOT_DOMAIN", self.name())
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {program}: {e}"));
+        let pid = child.id();
+        self.children.push((program.to_owned(), child));
+        pid
+    }
+
+    /// Runs `modbot ARGS` in this domain.
+    pub fn modbot(&self, args: &[&str]) -> Output {
+        Command::new(bin("modbot"))
+            .args(args)
+            .env("MODBOT_DOMAIN", self.name())
+            .output()
+            .unwrap()
+    }
+
+    /// Runs `modbot ARGS` and returns stdout, asserting success.
+    pub fn modbot_ok(&self, args: &[&str]) -> String {
+        let out = self.modbot(args);
+        assert!(
+            out.status.success(),
+            "modbot {args:?} failed: {}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    }
+
+    /// Waits until `f` holds, or panics after `timeout`.
+    pub fn wait_for(&self, what: &str, timeout: Duration, mut f: impl FnMut() -> bool) {
+        let start = Instant::now();
+        while !f() {
+            assert!(
+                start.elapsed() < timeout,
+                "timed out after {timeout:?} waiting for {what}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// Sends `signal` to the child with `pid`.
+    pub fn signal(&self, pid: u32, signal: nix::sys::signal::Signal) {
+        nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid as i32), signal).unwrap();
+    }
+
+    /// Reaps the child with `pid` (after it was killed), returning how it ended.
+    pub fn reap(&mut self, pid: u32) -> std::process::ExitStatus {
+        let i = self
+            .children
+            .iter()
+            .position(|(_, c)| c.id() == pid)
+            .expect("a child of this test");
+        let (_, mut child) = self.children.remove(i);
+        child.wait().unwrap()
+    }
+
+    /// Stops every module with SIGTERM and checks each exits cleanly (status 0).
+    pub fn stop_all_cleanly(&mut self) {
+        for (_, c) in &self.children {
+            let _ = nix::sys::signal::kill(
+                nix::unistd::Pid::from_raw(c.id() as i32),
+                nix::sys::signal::Signal::SIGTERM,
+            );
+        }
+        for (name, mut c) in self.children.drain(..) {
+            let status = c.wait().unwrap();
+            assert!(status.success(), "{name} did not exit cleanly: {status}");
+        }
+    }
+
+    /// The domain's files still in /dev/shm or /tmp/iceoryx2.
+    pub fn leftover_files(&self) -> Vec<PathBuf> {
+        self.domain.files()
+    }
+}
+
+impl Drop for TestDomain {
+    fn drop(&mut self) {
+        for (_, c) in &mut self.children {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+        self.domain.remove_files();
+    }
+}

@@ -1,0 +1,160 @@
+//! The MRA paper's scenario with real processes: a sonar module and a mobility module, each
+//! its own process, in a domain of their own.
+
+mod common;
+
+use std::time::Duration;
+
+use common::TestDomain;
+use nix::sys::signal::Signal;
+
+/// An ACK is 3 bytes and an EXEC without arguments 5, and both decode back to their fields;
+/// truncated or random bytes exit 2 with a reason.
+#[test]
+fn frames_have_the_sizes_of_the_paper_and_decode_back() {
+    let sut = TestDomain::new("frames");
+    let ack = sut.modbot_ok(&[
+        "rvmf", "encode", "ack", "--dst", "3", "--src", "1", "--seq", "5",
+    ]);
+    assert_eq!(ack.trim().len(), 6, "3 bytes: {ack}");
+    let exec = sut.modbot_ok(&[
+        "rvmf", "encode", "exec", "--dst", "3", "--src", "1", "--seq", "5", "--method", "7",
+    ]);
+    assert_eq!(exec.trim().len(), 10, "5 bytes: {exec}");
+    let fields = sut.modbot_ok(&["rvmf", "decode", exec.trim()]);
+    for line in ["kind: exec", "dst: 3", "src: 1", "seq: 5", "method: 7"] {
+        assert!(fields.contains(line), "{line} missing in {fields}");
+    }
+    let fields = sut.modbot_ok(&["rvmf", "decode", ack.trim()]);
+    assert!(
+        fields.contains("kind: ack") && fields.contains("seq: 5"),
+        "{fields}"
+    );
+    for bad in ["0301", "03012502", "ffffffffffffffff", "zz", "0301e5"] {
+        let out = sut.modbot(&["rvmf", "decode", bad]);
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+        let reason = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(
+            reason.lines().count(),
+            1,
+            "one-line reason for {bad}: {reason}"
+        );
+    }
+}
+
+fn bb_f64(sut: &TestDomain, module: &str, item: &str) -> f64 {
+    sut.modbot_ok(&["bb", module, item]).trim().parse().unwrap()
+}
+
+/// `forward 10` stops short of the obstacle at x = 3 because the sonar reports within 0.61 m.
+#[test]
+fn the_base_stops_short_of_the_obstacle_when_the_sonar_reports() {
+    let mut sut = TestDomain::new("stops");
+    let sonar = sut.spawn("modbot-sonar", &["--obstacle", "3,0", "--obstacle", "5,5"]);
+    let mobility = sut.spawn("modbot-mobility", &["--speed", "1.0"]);
+    sut.wait_for("both modules in ls", Duration::from_secs(10), || {
+        let ls = String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout).to_string();
+        let listed = |name: &str, pid: u32| {
+            ls.lines()
+                .any(|l| l.contains(name) && l.contains(&pid.to_string()) && l.contains("alive"))
+        };
+        listed(" sonar ", sonar) && listed(" mobility ", mobility)
+    });
+    assert_eq!(
+        sut.modbot_ok(&["call", "mobility.forward", "10"]).trim(),
+        "ok"
+    );
+    sut.wait_for("the base to stop", Duration::from_secs(20), || {
+        sut.modbot_ok(&["bb", "mobility", "moving"]).trim() == "false"
+    });
+    let x = bb_f64(&sut, "mobility", "x");
+    assert!((2.3..=2.5).contains(&x), "stopped at x = {x}");
+    let snapshot = sut.modbot_ok(&["bb", "mobility"]);
+    assert!(
+        snapshot.contains("x: ") && snapshot.contains("heading: 0.0"),
+        "{snapshot}"
+    );
+    sut.stop_all_cleanly();
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
+
+/// A SIGKILLed sonar stops being listed as alive within 1 s, calls to it fail with "not
+/// available", a restarted sonar answers again, and a clean exit leaves no files behind.
+#[test]
+fn a_killed_module_is_not_available_until_it_is_restarted() {
+    let mut sut = TestDomain::new("killed");
+    let sonar = sut.spawn("modbot-sonar", &["--obstacle", "3,0"]);
+    sut.spawn("modbot-mobility", &[]);
+    sut.wait_for("the sonar to answer", Duration::from_secs(10), || {
+        sut.modbot(&["call", "sonar.ranges"]).status.success()
+    });
+
+    sut.signal(sonar, Signal::SIGKILL);
+    sut.reap(sonar);
+    let killed = std::time::Instant::now();
+    sut.wait_for(
+        "ls to stop listing the sonar as alive",
+        Duration::from_secs(1),
+        || {
+            !sut.modbot_ok(&["ls"])
+                .lines()
+                .any(|l| l.contains(" sonar ") && l.contains("alive"))
+        },
+    );
+    assert!(killed.elapsed() < Duration::from_secs(1));
+    let out = sut.modbot(&["call", "sonar.ranges"]);
+    assert_eq!(out.status.code(), Some(1));
+    let reason = String::from_utf8_lossy(&out.stderr);
+    assert!(reason.contains("not available"), "{reason}");
+
+    sut.spawn("modbot-sonar", &["--obstacle", "3,0"]);
+    sut.wait_for(
+        "the restarted sonar to answer",
+        Duration::from_secs(10),
+        || sut.modbot(&["call", "sonar.ranges"]).status.success(),
+    );
+    let ranges = sut.modbot_ok(&["call", "sonar.ranges"]);
+    assert!(
+        ranges.trim().starts_with('[') && ranges.matches(',').count() == 11,
+        "{ranges}"
+    );
+
+    sut.stop_all_cleanly();
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
+
+/// Bad calls get clear, typed answers and never take the module down.
+#[test]
+fn bad_calls_get_clear_errors() {
+    let mut sut = TestDomain::new("badcalls");
+    sut.spawn("modbot-sonar", &[]);
+    sut.wait_for("the sonar to answer", Duration::from_secs(10), || {
+        sut.modbot(&["call", "sonar.ranges"]).status.success()
+    });
+    let cases: &[(&[&str], &str)] = &[
+        (&["call", "sonar.fly"], "has no method 'fly'"),
+        (
+            &["call", "sonar.monitor", "north"],
+            "argument 0 is text, expected f64",
+        ),
+        (&["call", "sonar.monitor", "-1"], "threshold must be"),
+        (&["call", "nobody.ranges"], "not available"),
+        (&["bb", "sonar", "ranges", "1.0"], "read-only"),
+        (
+            &["bb", "sonar", "nothing"],
+            "no blackboard item named 'nothing'",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = sut.modbot(args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let text = String::from_utf8_lossy(&out.stderr);
+        assert!(text.contains(want), "{args:?}: {text}");
+    }
+    assert_eq!(
+        sut.modbot_ok(&["bb", "sonar", "air_temp_c", "30"]).trim(),
+        "ok"
+    );
+    assert_eq!(sut.modbot_ok(&["bb", "sonar", "air_temp_c"]).trim(), "30.0");
+    sut.stop_all_cleanly();
+}
