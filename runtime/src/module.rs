@@ -182,7 +182,7 @@ impl<S> ModuleBuilder<S> {
         transport: T,
         state: S,
     ) -> Result<Module<S>, ModuleError> {
-        let endpoint = transport.open_tool(&self.name)?;
+        let endpoint = transport.open_tool(&self.name, self.mode)?;
         Self::assemble(self, Box::new(transport), endpoint, state)
     }
 

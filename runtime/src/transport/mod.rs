@@ -199,7 +199,7 @@ pub trait Transport {
     ) -> Result<Endpoint, TransportError>;
 
     /// Opens an endpoint at the highest free address, for a tool (the CLI, a benchmark driver).
-    fn open_tool(&self, name: &str) -> Result<Endpoint, TransportError> {
+    fn open_tool(&self, name: &str, mode: ReceiveMode) -> Result<Endpoint, TransportError> {
         let mut taken = [false; 256];
         self.directory()?.list(&mut |p| {
             if p.alive {
@@ -213,7 +213,7 @@ pub trait Transport {
             match self.open(
                 Addr(a),
                 &format!("{name}-{}", std::process::id()),
-                ReceiveMode::Blocking,
+                mode,
                 &[],
             ) {
                 Err(TransportError::AddressTaken { .. }) => continue,

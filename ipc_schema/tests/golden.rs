@@ -1,0 +1,138 @@
+//! The golden vectors written in `ipc_schema/README.md` match the encoders and decoders.
+
+use modbot_ipc_schema::snapshot::ItemSpec;
+use modbot_ipc_schema::{
+    hex, Addr, Frame, FrameKind, FrameSpec, NakCode, OwnedValue, Seq, SnapshotLayout, SnapshotView,
+    Value, ValueKind,
+};
+
+fn golden_lines() -> Vec<(String, String)> {
+    let readme = include_str!("../README.md");
+    let block = readme
+        .split("```golden")
+        .nth(1)
+        .expect("README has a golden block")
+        .split("```")
+        .next()
+        .unwrap();
+    block
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            // the description is everything up to the first run of 2+ spaces
+            let (desc, bytes) = l.split_once("  ").expect("description, then hex");
+            (
+                desc.trim().to_owned(),
+                bytes.split_whitespace().collect::<String>(),
+            )
+        })
+        .collect()
+}
+
+fn field<'a>(desc: &'a str, key: &str) -> &'a str {
+    desc.split_whitespace()
+        .find_map(|w| w.strip_prefix(&format!("{key}=")))
+        .unwrap_or_else(|| panic!("{key} in {desc}"))
+}
+
+fn values(desc: &str) -> Vec<OwnedValue> {
+    desc.split_whitespace()
+        .filter_map(|w| w.split_once('='))
+        .filter_map(|(k, v)| match k {
+            "f64" => Some(OwnedValue::F64(v.parse().unwrap())),
+            "i64" => Some(OwnedValue::I64(v.parse().unwrap())),
+            "bool" => Some(OwnedValue::Bool(v.parse().unwrap())),
+            "text" => Some(OwnedValue::Text(v.to_owned())),
+            "bytes" => Some(OwnedValue::Bytes(hex::decode(v).unwrap())),
+            "f64s" => Some(OwnedValue::F64s(
+                v.split(',').map(|x| x.parse().unwrap()).collect(),
+            )),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn the_readme_golden_vectors_match_the_encoders() {
+    let lines = golden_lines();
+    assert!(lines.len() >= 10, "the README lists the golden vectors");
+    for (desc, want) in lines {
+        let kind_word = desc.split_whitespace().next().unwrap();
+        let got = match kind_word {
+            "value" => {
+                let v = values(&desc);
+                let mut out = vec![0; v[0].as_value().encoded_len()];
+                v[0].as_value().encode(&mut out).unwrap();
+                out
+            }
+            "snapshot" => {
+                let layout = SnapshotLayout::new(vec![
+                    ItemSpec {
+                        name: "moving".into(),
+                        kind: ValueKind::Bool,
+                        writable: false,
+                    },
+                    ItemSpec {
+                        name: "x".into(),
+                        kind: ValueKind::F64,
+                        writable: true,
+                    },
+                    ItemSpec {
+                        name: "y".into(),
+                        kind: ValueKind::F64,
+                        writable: false,
+                    },
+                ])
+                .unwrap();
+                let vals = [
+                    Value::Bool(field(&desc, "moving") == "true"),
+                    Value::F64(field(&desc, "x").parse().unwrap()),
+                    Value::F64(field(&desc, "y").parse().unwrap()),
+                ];
+                let mut out = vec![0; layout.encoded_len(&vals)];
+                layout
+                    .write(
+                        &mut out,
+                        Addr(field(&desc, "addr").parse().unwrap()),
+                        field(&desc, "seq").parse().unwrap(),
+                        field(&desc, "stamp").parse().unwrap(),
+                        &vals,
+                    )
+                    .unwrap();
+                let view = SnapshotView::parse_expecting(&out, layout.hash()).unwrap();
+                assert_eq!(view.f64("x").unwrap(), 1.5);
+                out
+            }
+            _ => {
+                let num = |k| field(&desc, k).parse::<u8>().unwrap();
+                let kind = match kind_word {
+                    "ack" => FrameKind::Ack,
+                    "exec" => FrameKind::Exec {
+                        method: num("method"),
+                    },
+                    "reply" => FrameKind::Reply,
+                    "nak" => FrameKind::Nak {
+                        code: NakCode(num("code")),
+                    },
+                    "report" => FrameKind::Report {
+                        topic: num("topic"),
+                    },
+                    other => panic!("unknown golden kind {other}"),
+                };
+                let spec = FrameSpec {
+                    dst: Addr(num("dst")),
+                    src: Addr(num("src")),
+                    seq: Seq::new(num("seq")).unwrap(),
+                    kind,
+                };
+                let owned = values(&desc);
+                let vals: Vec<Value<'_>> = owned.iter().map(OwnedValue::as_value).collect();
+                let bytes = spec.to_vec(&vals).unwrap();
+                let frame = Frame::decode_strict(&bytes).unwrap();
+                assert_eq!(frame.spec(), spec, "{desc}");
+                bytes
+            }
+        };
+        assert_eq!(hex::encode(&got), want, "{desc}");
+    }
+}
