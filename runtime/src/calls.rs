@@ -3,7 +3,7 @@
 //! A call takes a sequence number that is free for its peer, and waits in the queue until the
 //! peer's REPLY, ACK or NAK with that (peer, sequence) arrives, or its deadline passes. Many
 //! calls can be outstanding at once (up to 32 per peer). A sequence number whose call timed
-//! out stays reserved for one more timeout, so a late answer cannot be taken for the answer to
+//! out stays reserved for one more timeout (at least a second), so a late answer cannot be taken for the answer to
 //! a newer call. The table is allocated once; the hot path does not allocate.
 
 use core::time::Duration;
@@ -68,6 +68,8 @@ struct Slot {
     peer: Addr,
     seq: Seq,
     deadline_ns: u64,
+    /// The timeout the caller chose, for the error that reports it.
+    timeout: Duration,
     state: SlotState,
     /// What the call is for (user call or a lookup the runtime makes).
     purpose: Purpose,
@@ -88,6 +90,8 @@ pub struct Expired {
     pub handle: CallHandle,
     pub peer: Addr,
     pub purpose: Purpose,
+    /// The timeout the caller chose.
+    pub timeout: Duration,
 }
 
 /// The method queue.
@@ -150,6 +154,7 @@ impl MethodQueue {
             peer,
             seq,
             deadline_ns,
+            timeout,
             state: SlotState::Waiting,
             purpose,
         });
@@ -204,8 +209,9 @@ impl MethodQueue {
                         handle: slot.handle,
                         peer: slot.peer,
                         purpose: slot.purpose,
+                        timeout: slot.timeout,
                     });
-                    let quarantine = slot.deadline_ns.saturating_sub(now_ns).max(1_000_000_000);
+                    let quarantine = (slot.timeout.as_nanos() as u64).max(1_000_000_000);
                     slot.state = SlotState::Quarantined {
                         until_ns: now_ns + quarantine,
                     };
@@ -234,6 +240,7 @@ impl MethodQueue {
                         handle: slot.handle,
                         peer,
                         purpose: slot.purpose,
+                        timeout: slot.timeout,
                     });
                 }
             }
@@ -313,8 +320,17 @@ mod tests {
         let mut expired = vec![];
         sut.expire(SEC / 2, |e| expired.push(e.handle));
         assert!(expired.is_empty());
-        sut.expire(SEC, |e| expired.push(e.handle));
+        let mut timeouts = vec![];
+        sut.expire(SEC, |e| {
+            expired.push(e.handle);
+            timeouts.push(e.timeout);
+        });
         assert_eq!(expired, vec![a]);
+        assert_eq!(
+            timeouts,
+            vec![Duration::from_secs(1)],
+            "the expiry reports the caller's timeout"
+        );
         for _ in 0..31 {
             let (_, s) = sut
                 .begin(Addr(2), SEC, Duration::from_secs(1), Purpose::User)

@@ -358,7 +358,7 @@ impl<S> Module<S> {
                     e.handle,
                     CallError::Timeout {
                         module: name,
-                        timeout_ms: 0,
+                        timeout_ms: e.timeout.as_millis() as u64,
                     },
                 )),
                 Purpose::Describe => describing[usize::from(e.peer.0)] = false,
@@ -412,10 +412,7 @@ impl<S> Module<S> {
     }
 
     fn deliver_failures(&mut self, waiter: &mut Waiter<'_>) {
-        while let Some((handle, mut err)) = self.ctx.failures.pop() {
-            if let CallError::Timeout { timeout_ms, .. } = &mut err {
-                *timeout_ms = 0;
-            }
+        while let Some((handle, err)) = self.ctx.failures.pop() {
             match waiter {
                 Some((h, f)) if *h == handle => f(Err(&err)),
                 _ => match self.def.on_done {
