@@ -6,14 +6,38 @@
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use modbot_runtime::Domain;
 
 static COUNTER: AtomicU32 = AtomicU32::new(0);
 
+static BUILT: OnceLock<Result<(), String>> = OnceLock::new();
+
 /// Where cargo put the workspace's binaries.
+///
+/// `cargo test` only builds the binaries of the package under test, and the module programs
+/// live in other packages; so the first call builds every program of the workspace with the
+/// same cargo and profile (a no-op when they are up to date). This keeps the tests from
+/// silently running a stale program left over from an earlier build.
 pub fn bin(name: &str) -> PathBuf {
+    let built = BUILT.get_or_init(|| {
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let out = Command::new(cargo)
+            .args(["build", "--workspace", "--bins", "--quiet"])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .map_err(|e| format!("cannot run cargo: {e}"))?;
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(String::from_utf8_lossy(&out.stderr).into_owned())
+        }
+    });
+    if let Err(e) = built {
+        panic!("building the workspace's programs failed:\n{e}");
+    }
     let modbot = PathBuf::from(env!("CARGO_BIN_EXE_modbot"));
     modbot.with_file_name(name)
 }
