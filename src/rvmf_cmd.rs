@@ -10,6 +10,8 @@ pub enum KindArg {
     Ack,
     Nak,
     Exec,
+    /// A retransmitted EXEC.
+    Retry,
     Reply,
     Report,
 }
@@ -91,6 +93,9 @@ fn encode(
     let kind = match kind {
         KindArg::Ack => FrameKind::Ack,
         KindArg::Reply => FrameKind::Reply,
+        KindArg::Retry => FrameKind::Retry {
+            method: need_op("retry")?,
+        },
         KindArg::Exec => FrameKind::Exec {
             method: need_op("exec")?,
         },
@@ -138,7 +143,9 @@ fn decode(text: &str) -> Result<String, String> {
         ),
     );
     match frame.kind() {
-        FrameKind::Exec { method } => line("method", method.to_string()),
+        FrameKind::Exec { method } | FrameKind::Retry { method } => {
+            line("method", method.to_string())
+        }
         FrameKind::Nak { code } => line("code", code.to_string()),
         FrameKind::Report { topic } => line("topic", topic.to_string()),
         FrameKind::Ack | FrameKind::Reply => {}

@@ -5,7 +5,8 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context};
 use modbot_ipc_schema::{sysmethod, OwnedValue, SnapshotView, Value};
-use modbot_runtime::{CallOptions, Domain, IpcTransport, Module, ModuleBuilder};
+use modbot_runtime::supervisor::status::Row;
+use modbot_runtime::{CallError, CallOptions, Domain, IpcTransport, Module, ModuleBuilder};
 
 fn open(domain: &str) -> anyhow::Result<Module<()>> {
     let domain = Domain::new(domain)?;
@@ -15,46 +16,215 @@ fn open(domain: &str) -> anyhow::Result<Module<()>> {
         .context("cannot join the domain")
 }
 
+/// One line of `modbot ls`.
+struct LsLine {
+    addr: u8,
+    name: String,
+    pid: u32,
+    state: String,
+    mode: &'static str,
+    restarts: String,
+    last_exit: String,
+    counters: [String; 3],
+    methods: String,
+}
+
+/// The supervisor's status rows, if a supervisor runs in the domain.
+fn supervisor_rows(tool: &mut Module<()>) -> Option<Vec<Row>> {
+    tool.call_blocking(
+        "supervisor",
+        "status",
+        &[],
+        CallOptions::timeout(Duration::from_millis(1000)),
+        |r| {
+            r.ok()
+                .and_then(|a| a.bytes(0).ok())
+                .and_then(|b| Row::parse_all(b).ok())
+        },
+    )
+}
+
 /// `modbot ls`.
-pub fn ls(domain: &str) -> anyhow::Result<ExitCode> {
+pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
     let mut tool = open(domain)?;
     let me = tool.addr();
     let modules = tool.list_modules()?;
-    println!(
-        "{:>4}  {:<16} {:>8}  {:<6} {:<10} METHODS",
-        "ADDR", "NAME", "PID", "STATE", "MODE"
-    );
-    for m in modules.iter().filter(|m| m.addr != me) {
-        let (state, methods) = if m.alive {
+    let supervised = if modules.iter().any(|m| m.alive && m.name == "supervisor") {
+        supervisor_rows(&mut tool).unwrap_or_default()
+    } else {
+        Vec::new()
+    };
+    let mut lines = Vec::new();
+    for m in modules
+        .iter()
+        .filter(|m| m.addr != me && m.name != "supervisor")
+    {
+        let sup = supervised.iter().find(|r| r.addr == m.addr.0);
+        let mut line = LsLine {
+            addr: m.addr.0,
+            name: m.name.clone(),
+            pid: m.pid,
+            state: if m.alive { "alive" } else { "dead" }.to_owned(),
+            mode: m.mode.name(),
+            restarts: "-".into(),
+            last_exit: "-".into(),
+            counters: ["-".into(), "-".into(), "-".into()],
+            methods: String::new(),
+        };
+        if let Some(r) = sup {
+            line.state = if m.alive {
+                r.state.clone()
+            } else {
+                "dead".into()
+            };
+            line.restarts = r.restarts.to_string();
+            if !r.last_exit.is_empty() {
+                line.last_exit = r.last_exit.clone();
+            }
+            line.counters = [
+                r.counters.dropped.to_string(),
+                r.counters.rejected.to_string(),
+                r.counters.replayed.to_string(),
+            ];
+        }
+        if m.alive {
             let described = tool.call_blocking(
                 &m.name,
-                sysmethod::name(sysmethod::DESCRIBE).unwrap(),
+                sysmethod::name(sysmethod::DESCRIBE).unwrap_or("describe"),
                 &[],
                 CallOptions::timeout(Duration::from_millis(500)),
                 |r| match r {
-                    Ok(a) => a.text(3).map(str::to_owned).map_err(|e| e.to_string()),
+                    Ok(a) => {
+                        let count = |i| a.i64(i).map(|n| n.to_string()).unwrap_or("-".into());
+                        let methods = a.text(3).map(str::to_owned).map_err(|e| e.to_string())?;
+                        Ok(([count(5), count(6), count(7)], methods))
+                    }
                     Err(e) => Err(e.to_string()),
                 },
             );
             match described {
-                Ok(methods) => ("alive", methods.replace(',', " ")),
-                Err(e) => ("alive", format!("(no answer: {e})")),
+                Ok((counters, methods)) => {
+                    line.counters = counters;
+                    line.methods = methods.replace(',', " ");
+                }
+                Err(e) => line.methods = format!("(no answer: {e})"),
             }
-        } else {
-            ("dead", String::new())
-        };
+        }
+        lines.push(line);
+    }
+    // Supervised modules that are down have no node: list them from the supervisor.
+    for r in &supervised {
+        if !lines.iter().any(|l| l.addr == r.addr) {
+            lines.push(LsLine {
+                addr: r.addr,
+                name: r.name.clone(),
+                pid: r.pid,
+                state: r.state.clone(),
+                mode: "-",
+                restarts: r.restarts.to_string(),
+                last_exit: if r.last_exit.is_empty() {
+                    "-".into()
+                } else {
+                    r.last_exit.clone()
+                },
+                counters: [
+                    r.counters.dropped.to_string(),
+                    r.counters.rejected.to_string(),
+                    r.counters.replayed.to_string(),
+                ],
+                methods: String::new(),
+            });
+        }
+    }
+    lines.sort_by_key(|l| l.addr);
+    let width = lines.iter().map(|l| l.name.len()).max().unwrap_or(4).max(4);
+    let header = LsLine {
+        addr: 0,
+        name: "NAME".into(),
+        pid: 0,
+        state: "STATE".into(),
+        mode: "MODE",
+        restarts: "RESTARTS".into(),
+        last_exit: "LAST EXIT".into(),
+        counters: ["DROPPED".into(), "REJECT".into(), "REPLAY".into()],
+        methods: "METHODS".into(),
+    };
+    let print = |l: &LsLine, addr: &str, pid: &str| {
+        if tsv {
+            let [d, r, p] = &l.counters;
+            let fields = [
+                addr,
+                &l.name,
+                pid,
+                &l.state,
+                l.mode,
+                &l.restarts,
+                &l.last_exit,
+                d,
+                r,
+                p,
+                &l.methods,
+            ];
+            println!("{}", fields.join("\t"));
+            return;
+        }
         println!(
-            "{:>4}  {:<16} {:>8}  {:<6} {:<10} {}",
-            m.addr,
-            m.name,
-            m.pid,
-            state,
-            m.mode.name(),
-            methods
+            "{addr:>4}  {:<width$}  {pid:>8}  {:<10} {:<9} {:>8}  {:<30} {:>7} {:>7} {:>7}  {}",
+            l.name,
+            l.state,
+            l.mode,
+            l.restarts,
+            l.last_exit,
+            l.counters[0],
+            l.counters[1],
+            l.counters[2],
+            l.methods
+        )
+    };
+    print(&header, "ADDR", "PID");
+    for l in &lines {
+        print(
+            l,
+            &l.addr.to_string(),
+            &if l.pid == 0 {
+                "-".into()
+            } else {
+                l.pid.to_string()
+            },
         );
     }
     tool.reap_dead();
     Ok(ExitCode::SUCCESS)
+}
+
+/// `modbot down`: asks the domain's supervisor to stop the system, and waits until it has.
+pub fn down(domain: &str) -> anyhow::Result<ExitCode> {
+    let mut tool = open(domain)?;
+    let asked = tool.call_owned(
+        "supervisor",
+        "down",
+        &[],
+        CallOptions::timeout(Duration::from_secs(2)),
+    );
+    if let Err(e) = asked {
+        eprintln!("modbot down: no supervisor answers in domain '{domain}': {e}");
+        return Ok(ExitCode::from(1));
+    }
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    while std::time::Instant::now() < deadline {
+        let others = tool
+            .list_modules()?
+            .into_iter()
+            .filter(|m| m.alive && m.addr != tool.addr())
+            .count();
+        if others == 0 {
+            println!("domain '{domain}' is down");
+            return Ok(ExitCode::SUCCESS);
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    eprintln!("modbot down: domain '{domain}' still has live modules after 60 s");
+    Ok(ExitCode::from(1))
 }
 
 /// `modbot call MODULE.METHOD ARGS...`.
@@ -63,6 +233,7 @@ pub fn call(
     target: &str,
     args: &[String],
     timeout_ms: u64,
+    wait: bool,
 ) -> anyhow::Result<ExitCode> {
     let (module, method) = target
         .split_once('.')
@@ -73,12 +244,21 @@ pub fn call(
         .collect::<anyhow::Result<Vec<_>>>()?;
     let values: Vec<Value<'_>> = owned.iter().map(OwnedValue::as_value).collect();
     let mut tool = open(domain)?;
-    let result = tool.call_owned(
-        module,
-        method,
-        &values,
-        CallOptions::timeout(Duration::from_millis(timeout_ms)),
-    );
+    let deadline = std::time::Instant::now() + Duration::from_millis(timeout_ms);
+    let result = loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        let mut opts = CallOptions::timeout(left.max(Duration::from_millis(1)));
+        opts.wait_for_peer = wait;
+        match tool.call_owned(module, method, &values, opts) {
+            // This tool has not seen the module before: wait until it (re)appears.
+            Err(CallError::NotAvailable { .. } | CallError::UnknownModule(_))
+                if wait && left > Duration::from_millis(50) =>
+            {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            other => break other,
+        }
+    };
     match result {
         Ok(values) if values.is_empty() => println!("ok"),
         Ok(values) => {

@@ -13,6 +13,7 @@
 //! - [`args`]: a decoded argument list with typed accessors, without allocating.
 //! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
 //!   readable in place.
+//! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
 //! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set).
 //! - [`hex`]: hex helpers for the command line and the golden vectors.
 //!
@@ -24,6 +25,7 @@ compile_error!("modbot's wire formats are little-endian and are read in place: b
 
 pub mod addr;
 pub mod args;
+pub mod heartbeat;
 pub mod hex;
 pub mod rvmf;
 pub mod snapshot;

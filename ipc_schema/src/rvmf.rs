@@ -10,7 +10,7 @@
 //! -------- an ACK ends here: 3 bytes
 //! byte 3   len   body length 0..=254, or 255: the length follows as u32 little-endian
 //! [4..8]   ext   extended body length (>= 255), only when len == 255
-//! body     EXEC: method id (1 byte), then the arguments
+//! body     EXEC, RETRY: method id (1 byte), then the arguments
 //!          REPLY: the results
 //!          NAK: error code (1 byte), then optionally a text detail
 //!          REPORT: topic (1 byte), then the values
@@ -65,6 +65,9 @@ pub enum Kind {
     Reply = 2,
     Nak = 3,
     Report = 4,
+    /// A retransmitted EXEC: same body, same (src, seq) as the original. A receiver that
+    /// already served the original answers again without executing twice.
+    Retry = 5,
 }
 
 impl Kind {
@@ -75,6 +78,7 @@ impl Kind {
             2 => Kind::Reply,
             3 => Kind::Nak,
             4 => Kind::Report,
+            5 => Kind::Retry,
             _ => return None,
         })
     }
@@ -86,12 +90,13 @@ impl Kind {
             Kind::Reply => "reply",
             Kind::Nak => "nak",
             Kind::Report => "report",
+            Kind::Retry => "retry",
         }
     }
 
     /// Whether the body starts with a one-byte operand (method, code or topic).
     fn has_op(self) -> bool {
-        matches!(self, Kind::Exec | Kind::Nak | Kind::Report)
+        matches!(self, Kind::Exec | Kind::Nak | Kind::Report | Kind::Retry)
     }
 }
 
@@ -146,6 +151,7 @@ impl NakCode {
     pub const READ_ONLY: NakCode = NakCode(6);
     pub const TOO_LARGE: NakCode = NakCode(7);
     pub const NOT_READY: NakCode = NakCode(8);
+    pub const DUPLICATE: NakCode = NakCode(9);
 
     pub fn name(self) -> &'static str {
         match self {
@@ -157,6 +163,7 @@ impl NakCode {
             Self::READ_ONLY => "blackboard item is read-only",
             Self::TOO_LARGE => "result too large",
             Self::NOT_READY => "not ready",
+            Self::DUPLICATE => "duplicate request: already executed",
             _ => "unknown error code",
         }
     }
@@ -172,13 +179,31 @@ impl fmt::Display for NakCode {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrameKind {
     Ack,
-    Exec { method: u8 },
+    Exec {
+        method: u8,
+    },
     Reply,
-    Nak { code: NakCode },
-    Report { topic: u8 },
+    Nak {
+        code: NakCode,
+    },
+    Report {
+        topic: u8,
+    },
+    /// A retransmitted EXEC.
+    Retry {
+        method: u8,
+    },
 }
 
 impl FrameKind {
+    /// The method a request asks for: `Some` for EXEC and RETRY.
+    pub fn request_method(self) -> Option<u8> {
+        match self {
+            FrameKind::Exec { method } | FrameKind::Retry { method } => Some(method),
+            _ => None,
+        }
+    }
+
     pub fn kind(self) -> Kind {
         match self {
             FrameKind::Ack => Kind::Ack,
@@ -186,12 +211,13 @@ impl FrameKind {
             FrameKind::Reply => Kind::Reply,
             FrameKind::Nak { .. } => Kind::Nak,
             FrameKind::Report { .. } => Kind::Report,
+            FrameKind::Retry { .. } => Kind::Retry,
         }
     }
 
     fn op(self) -> Option<u8> {
         match self {
-            FrameKind::Exec { method } => Some(method),
+            FrameKind::Exec { method } | FrameKind::Retry { method } => Some(method),
             FrameKind::Nak { code } => Some(code.0),
             FrameKind::Report { topic } => Some(topic),
             FrameKind::Ack | FrameKind::Reply => None,
@@ -204,7 +230,7 @@ impl FrameKind {
 pub enum FrameError {
     #[error("frame truncated: {needed} bytes needed, {got} present")]
     Truncated { needed: usize, got: usize },
-    #[error("unknown frame kind {0} (known: 0 ack, 1 exec, 2 reply, 3 nak, 4 report)")]
+    #[error("unknown frame kind {0} (known: 0 ack, 1 exec, 2 reply, 3 nak, 4 report, 5 retry)")]
     UnknownKind(u8),
     #[error("an ACK is exactly 3 bytes, this one has {0}")]
     AckWithBody(usize),
@@ -397,6 +423,7 @@ impl<'a> Frame<'a> {
             let kind = match kind {
                 Kind::Exec => FrameKind::Exec { method: op },
                 Kind::Nak => FrameKind::Nak { code: NakCode(op) },
+                Kind::Retry => FrameKind::Retry { method: op },
                 _ => FrameKind::Report { topic: op },
             };
             (kind, payload, body_offset + 1)
@@ -567,6 +594,7 @@ mod tests {
             ("", FrameError::Truncated { needed: 3, got: 0 }),
             ("0301", FrameError::Truncated { needed: 3, got: 2 }),
             ("0301e5", FrameError::UnknownKind(7)),
+            ("0301c5", FrameError::UnknownKind(6)),
             ("030105ff", FrameError::AckWithBody(4)),
             ("030125", FrameError::Truncated { needed: 4, got: 3 }),
             (

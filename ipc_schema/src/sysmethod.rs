@@ -7,12 +7,13 @@
 pub const FIRST_RESERVED: u8 = 0xF0;
 
 /// `describe()` → `[name: text, pid: i64, mode: text, methods: text, items: text,
-/// dropped: i64, rejected: i64]`.
+/// dropped: i64, rejected: i64, replayed: i64]`.
 ///
 /// `methods` lists the method names in id order, comma-separated; `items` lists the blackboard
 /// items as `name:kind` (with `:rw` when other modules may write), comma-separated. `dropped`
 /// counts frames this module could not deliver (a full inbox); `rejected` counts malformed
-/// frames it received and dropped.
+/// frames it received and dropped; `replayed` counts retransmitted requests it answered from its
+/// record of served requests instead of executing them again.
 pub const DESCRIBE: u8 = 0xF0;
 
 /// `bb_get(item: text)` → `[value]`.

@@ -110,6 +110,9 @@ fn the_readme_golden_vectors_match_the_encoders() {
                     "exec" => FrameKind::Exec {
                         method: num("method"),
                     },
+                    "retry" => FrameKind::Retry {
+                        method: num("method"),
+                    },
                     "reply" => FrameKind::Reply,
                     "nak" => FrameKind::Nak {
                         code: NakCode(num("code")),

@@ -26,6 +26,7 @@ fn frame_kind() -> impl Strategy<Value = FrameKind> {
     prop_oneof![
         Just(FrameKind::Ack),
         any::<u8>().prop_map(|method| FrameKind::Exec { method }),
+        any::<u8>().prop_map(|method| FrameKind::Retry { method }),
         Just(FrameKind::Reply),
         any::<u8>().prop_map(|code| FrameKind::Nak {
             code: NakCode(code)
@@ -74,6 +75,9 @@ proptest! {
         for v in Values::new(&bytes, 0) { let _ = v; }
         if let Ok(view) = SnapshotView::parse(&bytes) {
             for item in view.iter() { let _ = view.get(item.name); }
+        }
+        if let Ok(hb) = modbot_ipc_schema::heartbeat::Heartbeat::parse(&bytes) {
+            let _ = (hb.addr(), hb.state(), hb.counters());
         }
     }
 

@@ -178,8 +178,19 @@ impl Blackboard {
                 got: value.kind(),
             });
         }
+        let changed = self.values[i].as_value() != value;
+        if let Some(hook) = self.devices[i].write.as_mut() {
+            // The device sees the new value first; a refusal leaves the item as it was.
+            let proposed = value.to_owned_value();
+            hook(&proposed).map_err(|reason| BlackboardError::Refused {
+                name: self.layout.items()[i].name.clone(),
+                reason,
+            })?;
+            self.values[i] = proposed;
+            self.changed |= changed;
+            return Ok(());
+        }
         let slot = &mut self.values[i];
-        let changed = slot.as_value() != value;
         match (&mut *slot, value) {
             (OwnedValue::F64(x), Value::F64(v)) => *x = v,
             (OwnedValue::I64(x), Value::I64(v)) => *x = v,
@@ -191,12 +202,6 @@ impl Blackboard {
                 x.extend(v.iter());
             }
             (slot, v) => *slot = v.to_owned_value(),
-        }
-        if let Some(hook) = self.devices[i].write.as_mut() {
-            hook(&self.values[i]).map_err(|reason| BlackboardError::Refused {
-                name: self.layout.items()[i].name.clone(),
-                reason,
-            })?;
         }
         self.changed |= changed;
         Ok(())

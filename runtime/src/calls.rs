@@ -3,8 +3,19 @@
 //! A call takes a sequence number that is free for its peer, and waits in the queue until the
 //! peer's REPLY, ACK or NAK with that (peer, sequence) arrives, or its deadline passes. Many
 //! calls can be outstanding at once (up to 32 per peer). A sequence number whose call timed
-//! out stays reserved for one more timeout (at least a second), so a late answer cannot be taken for the answer to
-//! a newer call. The table is allocated once; the hot path does not allocate.
+//! out stays reserved for one more timeout (at least a second), so a late answer cannot be taken
+//! for the answer to a newer call.
+//!
+//! An unanswered call is retransmitted per its [`RetryPolicy`]: the timeout is split into
+//! `retries + 1` equal intervals, and at the end of each but the last the queue hands the call
+//! back to be sent again as a RETRY frame (same peer, same sequence number, same payload; the
+//! receiver answers a RETRY of a request it already served from its record, without executing
+//! twice). A call whose peer died and came back is sent again at once, if its caller chose to
+//! wait for the peer. When the deadline passes the call fails with a timeout that says how
+//! many times it was sent: nothing is silently lost.
+//!
+//! The table is allocated once; payloads kept for retransmission live in per-slot buffers that
+//! are reused, so the hot path does not allocate once a buffer has grown to the payload size.
 
 use core::time::Duration;
 
@@ -15,14 +26,37 @@ use crate::error::CallError;
 /// The most calls one module has outstanding at once.
 pub const MAX_OUTSTANDING: usize = 256;
 
+/// Payload bytes a slot keeps without growing its buffer.
+const KEPT_PAYLOAD: usize = 256;
+
+/// How often an unanswered request is sent again before its deadline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RetryPolicy {
+    /// Retransmissions after the first send, spread evenly over the timeout.
+    pub retries: u8,
+}
+
+impl Default for RetryPolicy {
+    fn default() -> Self {
+        RetryPolicy { retries: 2 }
+    }
+}
+
+impl RetryPolicy {
+    /// Never retransmit: the payload is not kept, which saves a copy of large arguments.
+    pub const NONE: RetryPolicy = RetryPolicy { retries: 0 };
+}
+
 /// Options of one call.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CallOptions {
-    /// How long to wait for the answer.
+    /// How long to wait for the answer, all attempts included.
     pub timeout: Duration,
     /// While the peer is down or its inbox is full, keep trying until the deadline instead of
-    /// failing at once.
+    /// failing at once; a call sent to a peer that then dies is sent again when it comes back.
     pub wait_for_peer: bool,
+    /// Retransmission of a request whose answer is overdue.
+    pub retry: RetryPolicy,
 }
 
 impl Default for CallOptions {
@@ -30,6 +64,7 @@ impl Default for CallOptions {
         CallOptions {
             timeout: Duration::from_secs(2),
             wait_for_peer: false,
+            retry: RetryPolicy::default(),
         }
     }
 }
@@ -40,6 +75,23 @@ impl CallOptions {
             timeout,
             ..Default::default()
         }
+    }
+
+    /// The same options, waiting for a peer that is down (see [`CallOptions::wait_for_peer`]).
+    pub fn waiting_for_peer(mut self) -> CallOptions {
+        self.wait_for_peer = true;
+        self
+    }
+
+    /// The same options with another retry policy.
+    pub fn with_retry(mut self, retry: RetryPolicy) -> CallOptions {
+        self.retry = retry;
+        self
+    }
+
+    /// Whether the payload must be kept after the first send.
+    pub fn keeps_payload(&self) -> bool {
+        self.retry.retries > 0 || self.wait_for_peer
     }
 }
 
@@ -73,6 +125,32 @@ struct Slot {
     state: SlotState,
     /// What the call is for (user call or a lookup the runtime makes).
     purpose: Purpose,
+    /// The method id, once the request was sent.
+    method: Option<u8>,
+    /// Time between two sends; 0 when the call is never retransmitted.
+    retry_every_ns: u64,
+    /// When the next retransmission is due.
+    next_retry_ns: u64,
+    /// Retransmissions left.
+    retries_left: u8,
+    /// How many times the request was sent.
+    sends: u8,
+    /// The caller waits for a peer that is down, and across its restart.
+    wait_for_peer: bool,
+    /// Whether the payload was kept for retransmission.
+    kept: bool,
+}
+
+impl Slot {
+    fn expired(&self) -> Expired {
+        Expired {
+            handle: self.handle,
+            peer: self.peer,
+            purpose: self.purpose,
+            timeout: self.timeout,
+            sends: self.sends,
+        }
+    }
 }
 
 /// Why the runtime sent a request.
@@ -92,12 +170,25 @@ pub struct Expired {
     pub purpose: Purpose,
     /// The timeout the caller chose.
     pub timeout: Duration,
+    /// How many times the request was sent.
+    pub sends: u8,
+}
+
+/// A request to send again, lent by [`MethodQueue::expire`] and [`MethodQueue::resend_to`].
+#[derive(Debug)]
+pub struct Resend<'a> {
+    pub peer: Addr,
+    pub seq: Seq,
+    pub method: u8,
+    pub payload: &'a [u8],
 }
 
 /// The method queue.
 #[derive(Debug)]
 pub struct MethodQueue {
     slots: Vec<Option<Slot>>,
+    /// Per slot, the payload kept for retransmission.
+    payloads: Vec<Vec<u8>>,
     /// Per peer, a bit per sequence number in use (waiting or quarantined).
     in_use: Vec<u32>,
     /// Per peer, where the round-robin search for a free sequence number starts.
@@ -112,6 +203,9 @@ impl Default for MethodQueue {
     fn default() -> Self {
         MethodQueue {
             slots: vec![None; MAX_OUTSTANDING],
+            payloads: (0..MAX_OUTSTANDING)
+                .map(|_| Vec::with_capacity(KEPT_PAYLOAD))
+                .collect(),
             in_use: vec![0; 256],
             next_seq: vec![0; 256],
             next_handle: 1,
@@ -127,9 +221,10 @@ impl MethodQueue {
         &mut self,
         peer: Addr,
         now_ns: u64,
-        timeout: Duration,
+        opts: CallOptions,
         purpose: Purpose,
     ) -> Result<(CallHandle, Seq), CallError> {
+        let timeout = opts.timeout;
         let p = usize::from(peer.0);
         if self.in_use[p] == u32::MAX {
             return Err(CallError::TooManyOutstanding(peer));
@@ -148,7 +243,13 @@ impl MethodQueue {
         let seq = Seq::new(n).expect("masked to 5 bits");
         let handle = CallHandle(self.next_handle);
         self.next_handle += 1;
-        let deadline_ns = now_ns.saturating_add(timeout.as_nanos() as u64);
+        let timeout_ns = timeout.as_nanos() as u64;
+        let deadline_ns = now_ns.saturating_add(timeout_ns);
+        let retry_every_ns = if opts.retry.retries > 0 {
+            timeout_ns / (u64::from(opts.retry.retries) + 1)
+        } else {
+            0
+        };
         self.slots[free_slot] = Some(Slot {
             handle,
             peer,
@@ -157,10 +258,49 @@ impl MethodQueue {
             timeout,
             state: SlotState::Waiting,
             purpose,
+            method: None,
+            retry_every_ns,
+            next_retry_ns: u64::MAX,
+            retries_left: opts.retry.retries,
+            sends: 0,
+            wait_for_peer: opts.wait_for_peer,
+            kept: false,
         });
+        self.payloads[free_slot].clear();
         self.earliest_ns = self.earliest_ns.min(deadline_ns);
         self.len += 1;
         Ok((handle, seq))
+    }
+
+    fn index(&self, handle: CallHandle) -> Option<usize> {
+        self.slots
+            .iter()
+            .position(|s| s.is_some_and(|s| s.handle == handle))
+    }
+
+    /// The buffer to keep `handle`'s payload in for retransmission (cleared, capacity kept).
+    pub fn payload_buffer(&mut self, handle: CallHandle) -> Option<&mut Vec<u8>> {
+        let i = self.index(handle)?;
+        self.payloads[i].clear();
+        Some(&mut self.payloads[i])
+    }
+
+    /// Records that `handle`'s request for `method` was sent now; `kept` says whether its
+    /// payload is in [`MethodQueue::payload_buffer`].
+    pub fn sent(&mut self, handle: CallHandle, method: u8, now_ns: u64, kept: bool) {
+        let Some(i) = self.index(handle) else {
+            return;
+        };
+        let Some(slot) = self.slots[i].as_mut() else {
+            return;
+        };
+        slot.method = Some(method);
+        slot.sends = slot.sends.saturating_add(1);
+        slot.kept = kept;
+        if kept && slot.retry_every_ns > 0 && slot.retries_left > 0 {
+            slot.next_retry_ns = now_ns.saturating_add(slot.retry_every_ns);
+            self.earliest_ns = self.earliest_ns.min(slot.next_retry_ns);
+        }
     }
 
     /// Matches an answer from `peer` with sequence `seq` to its call.
@@ -177,11 +317,7 @@ impl MethodQueue {
 
     /// Ends a call without an answer (its send failed, say).
     pub fn cancel(&mut self, handle: CallHandle) {
-        if let Some(i) = self
-            .slots
-            .iter()
-            .position(|s| s.is_some_and(|s| s.handle == handle))
-        {
+        if let Some(i) = self.index(handle) {
             let slot = self.slots[i].take().expect("found above");
             self.release(slot);
         }
@@ -193,8 +329,14 @@ impl MethodQueue {
     }
 
     /// Moves calls past their deadline to quarantine and reports them through `on_expired`;
-    /// frees quarantined sequence numbers whose time is up.
-    pub fn expire(&mut self, now_ns: u64, mut on_expired: impl FnMut(Expired)) {
+    /// lends calls due for retransmission to `on_resend`; frees quarantined sequence numbers
+    /// whose time is up.
+    pub fn expire(
+        &mut self,
+        now_ns: u64,
+        mut on_expired: impl FnMut(Expired),
+        mut on_resend: impl FnMut(Resend<'_>),
+    ) {
         if now_ns < self.earliest_ns {
             return;
         }
@@ -205,12 +347,7 @@ impl MethodQueue {
             };
             match slot.state {
                 SlotState::Waiting if now_ns >= slot.deadline_ns => {
-                    on_expired(Expired {
-                        handle: slot.handle,
-                        peer: slot.peer,
-                        purpose: slot.purpose,
-                        timeout: slot.timeout,
-                    });
+                    on_expired(slot.expired());
                     let quarantine = (slot.timeout.as_nanos() as u64).max(1_000_000_000);
                     slot.state = SlotState::Quarantined {
                         until_ns: now_ns + quarantine,
@@ -218,30 +355,80 @@ impl MethodQueue {
                     self.slots[i] = Some(slot);
                     earliest = earliest.min(now_ns + quarantine);
                 }
+                SlotState::Waiting => {
+                    if now_ns >= slot.next_retry_ns {
+                        if let Some(method) = slot.method {
+                            on_resend(Resend {
+                                peer: slot.peer,
+                                seq: slot.seq,
+                                method,
+                                payload: &self.payloads[i],
+                            });
+                        }
+                        slot.sends = slot.sends.saturating_add(1);
+                        slot.retries_left -= 1;
+                        slot.next_retry_ns = if slot.retries_left > 0 {
+                            now_ns + slot.retry_every_ns
+                        } else {
+                            u64::MAX
+                        };
+                        self.slots[i] = Some(slot);
+                    }
+                    earliest = earliest.min(slot.deadline_ns).min(slot.next_retry_ns);
+                }
                 SlotState::Quarantined { until_ns } if now_ns >= until_ns => {
                     self.slots[i] = None;
                     self.release(slot);
                 }
-                SlotState::Waiting => earliest = earliest.min(slot.deadline_ns),
                 SlotState::Quarantined { until_ns } => earliest = earliest.min(until_ns),
             }
         }
         self.earliest_ns = earliest;
     }
 
-    /// Fails every waiting call to `peer` now (it died); reports them through `on_failed`.
+    /// Sends again, through `on_resend`, every sent call to `peer` that waits for it across a
+    /// restart (the peer came back: what it had received died with it).
+    pub fn resend_to(&mut self, peer: Addr, mut on_resend: impl FnMut(Resend<'_>)) {
+        for i in 0..self.slots.len() {
+            let Some(slot) = self.slots[i].as_mut() else {
+                continue;
+            };
+            if slot.peer != peer
+                || slot.state != SlotState::Waiting
+                || !slot.wait_for_peer
+                || !slot.kept
+            {
+                continue;
+            }
+            if let Some(method) = slot.method {
+                slot.sends = slot.sends.saturating_add(1);
+                on_resend(Resend {
+                    peer,
+                    seq: slot.seq,
+                    method,
+                    payload: &self.payloads[i],
+                });
+            }
+        }
+    }
+
+    /// Fails every waiting call to `peer` now (it died) and reports them through `on_failed`,
+    /// except calls whose caller waits for the peer to come back: they keep their deadline.
     pub fn fail_peer(&mut self, peer: Addr, mut on_failed: impl FnMut(Expired)) {
         for i in 0..self.slots.len() {
-            if let Some(slot) = self.slots[i].filter(|s| s.peer == peer) {
-                self.slots[i] = None;
-                self.release(slot);
-                if slot.state == SlotState::Waiting {
-                    on_failed(Expired {
-                        handle: slot.handle,
-                        peer,
-                        purpose: slot.purpose,
-                        timeout: slot.timeout,
-                    });
+            let Some(slot) = self.slots[i].filter(|s| s.peer == peer) else {
+                continue;
+            };
+            match slot.state {
+                SlotState::Waiting if slot.wait_for_peer => {}
+                SlotState::Waiting => {
+                    self.slots[i] = None;
+                    self.release(slot);
+                    on_failed(slot.expired());
+                }
+                SlotState::Quarantined { .. } => {
+                    self.slots[i] = None;
+                    self.release(slot);
                 }
             }
         }
@@ -271,18 +458,17 @@ mod tests {
 
     const SEC: u64 = 1_000_000_000;
 
+    /// One second, never retransmitted.
+    fn one_second() -> CallOptions {
+        CallOptions::timeout(Duration::from_secs(1)).with_retry(RetryPolicy::NONE)
+    }
+
     #[test]
     fn answers_are_matched_by_peer_and_sequence() {
         let mut sut = MethodQueue::default();
-        let (a, sa) = sut
-            .begin(Addr(2), 0, Duration::from_secs(1), Purpose::User)
-            .unwrap();
-        let (b, sb) = sut
-            .begin(Addr(2), 0, Duration::from_secs(1), Purpose::User)
-            .unwrap();
-        let (c, sc) = sut
-            .begin(Addr(3), 0, Duration::from_secs(1), Purpose::User)
-            .unwrap();
+        let (a, sa) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
+        let (b, sb) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
+        let (c, sc) = sut.begin(Addr(3), 0, one_second(), Purpose::User).unwrap();
         assert_ne!(sa, sb);
         assert_eq!(sa, sc, "sequence numbers count per peer");
         assert_eq!(sut.complete(Addr(2), sb), Some((b, Purpose::User)));
@@ -299,32 +485,31 @@ mod tests {
     fn thirty_two_calls_can_wait_on_one_peer_and_the_thirty_third_is_refused() {
         let mut sut = MethodQueue::default();
         for _ in 0..32 {
-            sut.begin(Addr(2), 0, Duration::from_secs(1), Purpose::User)
-                .unwrap();
+            sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
         }
         assert_eq!(
-            sut.begin(Addr(2), 0, Duration::from_secs(1), Purpose::User),
+            sut.begin(Addr(2), 0, one_second(), Purpose::User),
             Err(CallError::TooManyOutstanding(Addr(2)))
         );
-        assert!(sut
-            .begin(Addr(3), 0, Duration::from_secs(1), Purpose::User)
-            .is_ok());
+        assert!(sut.begin(Addr(3), 0, one_second(), Purpose::User).is_ok());
     }
 
     #[test]
     fn a_timed_out_call_is_reported_and_its_late_answer_is_not_taken_for_a_new_call() {
         let mut sut = MethodQueue::default();
-        let (a, seq) = sut
-            .begin(Addr(2), 0, Duration::from_secs(1), Purpose::User)
-            .unwrap();
+        let (a, seq) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
         let mut expired = vec![];
-        sut.expire(SEC / 2, |e| expired.push(e.handle));
+        sut.expire(SEC / 2, |e| expired.push(e.handle), |_| {});
         assert!(expired.is_empty());
         let mut timeouts = vec![];
-        sut.expire(SEC, |e| {
-            expired.push(e.handle);
-            timeouts.push(e.timeout);
-        });
+        sut.expire(
+            SEC,
+            |e| {
+                expired.push(e.handle);
+                timeouts.push(e.timeout);
+            },
+            |_| {},
+        );
         assert_eq!(expired, vec![a]);
         assert_eq!(
             timeouts,
@@ -333,7 +518,7 @@ mod tests {
         );
         for _ in 0..31 {
             let (_, s) = sut
-                .begin(Addr(2), SEC, Duration::from_secs(1), Purpose::User)
+                .begin(Addr(2), SEC, one_second(), Purpose::User)
                 .unwrap();
             assert_ne!(s, seq, "a quarantined sequence number is not reused");
         }
@@ -342,7 +527,76 @@ mod tests {
             None,
             "the late answer matches nothing"
         );
-        sut.expire(5 * SEC, |_| {});
+        sut.expire(5 * SEC, |_| {}, |_| {});
         assert_eq!(sut.waiting(), 0);
+    }
+
+    #[test]
+    fn an_unanswered_call_is_sent_again_per_its_policy_and_then_fails_saying_how_often() {
+        let mut sut = MethodQueue::default();
+        let opts =
+            CallOptions::timeout(Duration::from_secs(3)).with_retry(RetryPolicy { retries: 2 });
+        let (handle, seq) = sut.begin(Addr(4), 0, opts, Purpose::User).unwrap();
+        sut.payload_buffer(handle)
+            .unwrap()
+            .extend_from_slice(b"args");
+        sut.sent(handle, 9, 0, true);
+        let mut resent = vec![];
+        let mut expired = vec![];
+        for t in [SEC / 2, SEC, 3 * SEC / 2, 2 * SEC, 5 * SEC / 2, 3 * SEC] {
+            sut.expire(
+                t,
+                |e| expired.push((t, e.sends)),
+                |r| resent.push((t, r.peer, r.seq, r.method, r.payload.to_vec())),
+            );
+        }
+        assert_eq!(
+            resent,
+            vec![
+                (SEC, Addr(4), seq, 9, b"args".to_vec()),
+                (2 * SEC, Addr(4), seq, 9, b"args".to_vec())
+            ],
+            "sent again at each third of the timeout, same sequence and payload"
+        );
+        assert_eq!(
+            expired,
+            vec![(3 * SEC, 3)],
+            "fails at the deadline after 3 sends"
+        );
+    }
+
+    #[test]
+    fn a_call_that_waits_for_its_peer_survives_the_peers_death_and_is_sent_again_when_it_returns() {
+        let mut sut = MethodQueue::default();
+        let waits = CallOptions::timeout(Duration::from_secs(5)).waiting_for_peer();
+        let (patient, seq) = sut.begin(Addr(4), 0, waits, Purpose::User).unwrap();
+        sut.payload_buffer(patient).unwrap().push(7);
+        sut.sent(patient, 1, 0, true);
+        let (hasty, _) = sut.begin(Addr(4), 0, one_second(), Purpose::User).unwrap();
+        sut.sent(hasty, 1, 0, false);
+        let mut failed = vec![];
+        sut.fail_peer(Addr(4), |e| failed.push(e.handle));
+        assert_eq!(
+            failed,
+            vec![hasty],
+            "only the call that does not wait fails"
+        );
+        assert!(sut.is_waiting(patient));
+        let mut resent = vec![];
+        sut.resend_to(Addr(4), |r| resent.push((r.seq, r.payload.to_vec())));
+        assert_eq!(resent, vec![(seq, vec![7])]);
+        assert_eq!(sut.complete(Addr(4), seq), Some((patient, Purpose::User)));
+    }
+
+    #[test]
+    fn a_call_without_retries_keeps_no_payload_and_is_never_resent() {
+        let mut sut = MethodQueue::default();
+        let (handle, _) = sut.begin(Addr(4), 0, one_second(), Purpose::User).unwrap();
+        sut.sent(handle, 1, 0, false);
+        let mut resent = 0;
+        for t in 1..=10 {
+            sut.expire(t * SEC / 10, |_| {}, |_| resent += 1);
+        }
+        assert_eq!(resent, 0);
     }
 }

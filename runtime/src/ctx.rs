@@ -6,10 +6,11 @@ use std::sync::Arc;
 use modbot_ipc_schema::{sysmethod, value, Addr, FrameKind, FrameSpec, Seq, SnapshotView, Value};
 
 use crate::blackboard::Blackboard;
-use crate::calls::{CallHandle, CallOptions, MethodQueue, Purpose};
+use crate::calls::{CallHandle, CallOptions, MethodQueue, Purpose, Resend};
 use crate::clock::Clock;
 use crate::error::CallError;
 use crate::phonebook::PhoneBook;
+use crate::served::ServedLog;
 use crate::transport::{Dest, Directory, ReceiveMode, SendError, Snapshots, Tx};
 
 /// A call that waits to be sent: its peer's method table is not learned yet, or the peer is
@@ -22,6 +23,8 @@ pub(crate) struct PendingCall {
     pub method: String,
     pub payload: Vec<u8>,
     pub wait_for_peer: bool,
+    /// Whether the payload is kept for retransmission once sent.
+    pub keep: bool,
 }
 
 /// A module's side of the runtime, lent to its methods and tasks.
@@ -46,6 +49,10 @@ pub struct Ctx {
     pub(crate) rejected: u64,
     /// Answers that matched no waiting call (late, after a timeout).
     pub(crate) stale: u64,
+    /// The requests served lately, to answer their retransmissions.
+    pub(crate) served: ServedLog,
+    /// Retransmitted requests answered from that record.
+    pub(crate) replayed: u64,
     pub(crate) stop: bool,
     /// The module whose frame is being served.
     pub(crate) caller: Addr,
@@ -113,44 +120,85 @@ impl Ctx {
                 self.refresh_book();
                 match self.book.lookup(module) {
                     Ok(e) => e.addr,
+                    // Down, but known: a caller that waits for it sends to its address, where
+                    // it comes back.
+                    Err(CallError::NotAvailable { .. }) if opts.wait_for_peer => {
+                        match self.book.entries().find(|e| e.name == module) {
+                            Some(e) => e.addr,
+                            None => return Err(CallError::UnknownModule(module.to_owned())),
+                        }
+                    }
                     Err(e) => return Err(e),
                 }
             }
         };
         let now = self.now_ns();
-        let (handle, seq) = self.calls.begin(addr, now, opts.timeout, Purpose::User)?;
+        let (handle, seq) = self.calls.begin(addr, now, opts, Purpose::User)?;
         match self.book.method_id(addr, method) {
-            Some(Ok(id)) => {
-                let spec = FrameSpec {
-                    dst: addr,
-                    src: self.addr,
-                    seq,
-                    kind: FrameKind::Exec { method: id },
-                };
-                match self.send_values(Dest::Module(addr), spec, args) {
-                    Ok(()) => Ok(handle),
-                    Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
-                        if opts.wait_for_peer =>
-                    {
-                        self.park(handle, addr, seq, method, args, true)?;
-                        Ok(handle)
-                    }
-                    Err(e) => {
-                        self.calls.cancel(handle);
-                        Err(self.explain(addr, e))
-                    }
+            Some(Ok(id)) => match self.send_exec(handle, addr, seq, id, args, opts.keeps_payload())
+            {
+                Ok(()) => Ok(handle),
+                Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
+                    if opts.wait_for_peer =>
+                {
+                    self.park(handle, addr, seq, method, args, opts)?;
+                    Ok(handle)
                 }
-            }
+                Err(e) => {
+                    self.calls.cancel(handle);
+                    Err(self.explain(addr, e))
+                }
+            },
             Some(Err(e)) => {
                 self.calls.cancel(handle);
                 Err(e)
             }
             None => {
-                self.park(handle, addr, seq, method, args, opts.wait_for_peer)?;
+                self.park(handle, addr, seq, method, args, opts)?;
                 self.describe(addr);
                 Ok(handle)
             }
         }
+    }
+
+    /// Sends call `handle` as an EXEC of method `id` with `args`. With `keep`, the payload is
+    /// encoded into the call's retransmission buffer first and sent from there.
+    fn send_exec(
+        &mut self,
+        handle: CallHandle,
+        addr: Addr,
+        seq: Seq,
+        id: u8,
+        args: &[Value<'_>],
+        keep: bool,
+    ) -> Result<(), CallError> {
+        let spec = FrameSpec {
+            dst: addr,
+            src: self.addr,
+            seq,
+            kind: FrameKind::Exec { method: id },
+        };
+        if keep {
+            let mut buf = self
+                .calls
+                .payload_buffer(handle)
+                .map(core::mem::take)
+                .unwrap_or_default();
+            buf.clear();
+            let mut sent = encode_into(args, &mut buf);
+            if sent.is_ok() {
+                sent = self.send_raw(Dest::Module(addr), spec, &buf);
+            }
+            if let Some(slot) = self.calls.payload_buffer(handle) {
+                *slot = buf;
+            }
+            sent?;
+        } else {
+            self.send_values(Dest::Module(addr), spec, args)?;
+        }
+        let now = self.now_ns();
+        self.calls.sent(handle, id, now, keep);
+        Ok(())
     }
 
     fn park(
@@ -160,20 +208,18 @@ impl Ctx {
         seq: Seq,
         method: &str,
         args: &[Value<'_>],
-        wait_for_peer: bool,
+        opts: CallOptions,
     ) -> Result<(), CallError> {
         let mut payload = Vec::with_capacity(value::encoded_len(args));
-        for a in args {
-            a.encode_to_vec(&mut payload)
-                .map_err(|e| CallError::Encode(e.to_string()))?;
-        }
+        encode_into(args, &mut payload)?;
         self.pending.push(PendingCall {
             handle,
             addr,
             seq,
             method: method.to_owned(),
             payload,
-            wait_for_peer,
+            wait_for_peer: opts.wait_for_peer,
+            keep: opts.keeps_payload(),
         });
         Ok(())
     }
@@ -204,21 +250,11 @@ impl Ctx {
             return;
         }
         let now = self.now_ns();
-        let Ok((handle, seq)) =
-            self.calls
-                .begin(addr, now, Duration::from_millis(1000), Purpose::Describe)
-        else {
+        let opts = CallOptions::timeout(Duration::from_millis(1000));
+        let Ok((handle, seq)) = self.calls.begin(addr, now, opts, Purpose::Describe) else {
             return;
         };
-        let spec = FrameSpec {
-            dst: addr,
-            src: self.addr,
-            seq,
-            kind: FrameKind::Exec {
-                method: sysmethod::DESCRIBE,
-            },
-        };
-        match self.send_values(Dest::Module(addr), spec, &[]) {
+        match self.send_exec(handle, addr, seq, sysmethod::DESCRIBE, &[], true) {
             Ok(()) => self.describing[usize::from(addr.0)] = true,
             Err(_) => self.calls.cancel(handle),
         }
@@ -253,6 +289,24 @@ impl Ctx {
             kind: FrameKind::Report { topic },
         };
         self.send_values(to, spec, values)
+    }
+
+    /// Sends `bytes` to `to` exactly as they are, unchecked: for tools and fault injection
+    /// (a receiver must count and drop what is malformed).
+    pub fn send_bytes(&mut self, to: Dest<'_>, bytes: &[u8]) -> Result<(), SendError> {
+        self.tx
+            .send(to, bytes.len(), &mut |buf| buf.copy_from_slice(bytes))
+    }
+
+    /// Resolves a module name to its address through the phone book.
+    pub fn resolve(&mut self, module: &str) -> Result<Addr, CallError> {
+        match self.book.lookup(module) {
+            Ok(e) => Ok(e.addr),
+            Err(_) => {
+                self.refresh_book();
+                Ok(self.book.lookup(module)?.addr)
+            }
+        }
     }
 
     /// Sends a REPORT to the module named `module`.
@@ -376,7 +430,15 @@ impl Ctx {
                 kind: FrameKind::Exec { method: id },
             };
             match self.send_raw(Dest::Module(p.addr), spec, &p.payload) {
-                Ok(()) => {}
+                Ok(()) => {
+                    let now = self.now_ns();
+                    self.calls.sent(p.handle, id, now, p.keep);
+                    if p.keep {
+                        if let Some(slot) = self.calls.payload_buffer(p.handle) {
+                            *slot = p.payload;
+                        }
+                    }
+                }
                 Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
                     if p.wait_for_peer =>
                 {
@@ -391,4 +453,31 @@ impl Ctx {
             }
         }
     }
+}
+
+/// Encodes `args` at the end of `out`.
+fn encode_into(args: &[Value<'_>], out: &mut Vec<u8>) -> Result<(), CallError> {
+    for a in args {
+        a.encode_to_vec(out)
+            .map_err(|e| CallError::Encode(e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// Sends a request again, as a RETRY frame.
+pub(crate) fn send_retry(tx: &mut dyn Tx, me: Addr, r: Resend<'_>) -> Result<(), SendError> {
+    let spec = FrameSpec {
+        dst: r.peer,
+        src: me,
+        seq: r.seq,
+        kind: FrameKind::Retry { method: r.method },
+    };
+    let len = spec.encoded_len(r.payload.len());
+    tx.send(Dest::Module(r.peer), len, &mut |buf| {
+        // The buffer is exactly `len` bytes and `me` is this module's address: encoding
+        // an already encoded payload cannot fail here.
+        if let Err(e) = spec.encode(r.payload, buf) {
+            tracing::warn!("retry to {} not encoded: {e}", r.peer);
+        }
+    })
 }

@@ -24,8 +24,13 @@ pub enum CallError {
         code: NakCode,
         detail: String,
     },
-    #[error("no answer from '{module}' within {timeout_ms} ms")]
-    Timeout { module: String, timeout_ms: u64 },
+    #[error("no answer from '{module}' within {timeout_ms} ms (request sent {})", times(*.sends))]
+    Timeout {
+        module: String,
+        timeout_ms: u64,
+        /// How many times the request was sent (first send and retransmissions).
+        sends: u8,
+    },
     #[error("too many calls outstanding to module {0} (32 per peer)")]
     TooManyOutstanding(Addr),
     #[error("the method queue is full ({0} calls outstanding)")]
@@ -38,6 +43,14 @@ pub enum CallError {
     Send(#[from] SendError),
     #[error(transparent)]
     Transport(#[from] TransportError),
+}
+
+fn times(n: u8) -> String {
+    match n {
+        0 => "never: the peer could not be reached".into(),
+        1 => "once".into(),
+        n => format!("{n} times"),
+    }
 }
 
 fn detail_suffix(detail: &str) -> String {
@@ -59,6 +72,12 @@ pub enum MethodError {
     Failed(String),
     #[error("not ready: {0}")]
     NotReady(String),
+    /// A request that names no blackboard item of this module.
+    #[error("{0}")]
+    UnknownItem(String),
+    /// A write to an item other modules may only read.
+    #[error("{0}")]
+    ReadOnly(String),
 }
 
 impl MethodError {
@@ -68,6 +87,8 @@ impl MethodError {
             MethodError::Busy(_) => NakCode::BUSY,
             MethodError::Failed(_) => NakCode::FAILED,
             MethodError::NotReady(_) => NakCode::NOT_READY,
+            MethodError::UnknownItem(_) => NakCode::UNKNOWN_ITEM,
+            MethodError::ReadOnly(_) => NakCode::READ_ONLY,
         }
     }
 }

@@ -11,10 +11,15 @@
 //!   in-process one for tests ([`transport::local`]).
 //! - [`module`]: declaring a module ([`ModuleBuilder`]) and the message manager that serves it.
 //! - [`ctx`]: what a module's code can do: call, report, read snapshots, use its blackboard.
-//! - [`calls`]: the method queue, matching answers by (peer, sequence).
+//! - [`calls`]: the method queue, matching answers by (peer, sequence), with retransmission.
+//! - `manager`: the message manager, serving one incoming frame.
+//! - [`served`]: the requests served lately, so a retransmission is not executed twice.
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
 //! - [`run`]: the default application controller (main loop, signals, receive modes).
+//! - [`system`]: the system description: the Lua file that lists a robot's module processes,
+//!   loaded in a sandbox and checked ([`system::load`]).
+//! - [`supervisor`]: `modbot up`: starts, watches and restarts a system's module processes.
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 
 pub mod blackboard;
@@ -23,14 +28,18 @@ pub mod clock;
 pub mod ctx;
 pub mod domain;
 pub mod error;
+mod manager;
 pub mod module;
 pub mod phonebook;
 pub mod run;
+pub mod served;
 pub mod signals;
+pub mod supervisor;
+pub mod system;
 pub mod transport;
 
 pub use blackboard::Blackboard;
-pub use calls::{CallHandle, CallOptions};
+pub use calls::{CallHandle, CallOptions, RetryPolicy};
 pub use ctx::Ctx;
 pub use domain::Domain;
 pub use error::{CallError, MethodError, ModuleError};

@@ -4,13 +4,16 @@
 use core::time::Duration;
 use std::sync::Arc;
 
-use modbot_ipc_schema::{sysmethod, Addr, Args, Frame, FrameKind, FrameSpec, OwnedValue, Value};
+use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
+use modbot_ipc_schema::{sysmethod, Addr, Args, OwnedValue, Value};
+use zerocopy::IntoBytes;
 
 use crate::blackboard::Blackboard;
 use crate::calls::{CallHandle, CallOptions, MethodQueue, Purpose};
 use crate::clock::{Clock, MonotonicClock};
 use crate::ctx::Ctx;
 use crate::error::{CallError, MethodError, ModuleError};
+use crate::manager;
 use crate::phonebook::PhoneBook;
 use crate::transport::{
     Dest, PeerInfo, ReceiveMode, Rx, SendError, Snapshots, Transport, TransportError, Tx,
@@ -37,8 +40,8 @@ pub struct Report<'a> {
 /// A method's results, encoded as they are pushed.
 #[derive(Debug, Default)]
 pub struct Reply {
-    buf: Vec<u8>,
-    count: usize,
+    pub(crate) buf: Vec<u8>,
+    pub(crate) count: usize,
 }
 
 impl Reply {
@@ -62,7 +65,7 @@ impl Reply {
 }
 
 /// The answer a blocking call gets.
-type Waiter<'w> = Option<(CallHandle, &'w mut dyn FnMut(Result<&Args<'_>, &CallError>))>;
+pub(crate) type Waiter<'w> = Option<(CallHandle, &'w mut dyn FnMut(Result<&Args<'_>, &CallError>))>;
 
 /// Declares a module.
 pub struct ModuleBuilder<S> {
@@ -155,11 +158,21 @@ impl<S> ModuleBuilder<S> {
     }
 
     /// Claims the address and name in the domain and announces the module.
+    ///
+    /// Under a supervisor, the environment adds to the declaration: `MODBOT_GROUPS` (groups to
+    /// join, comma-separated) and `MODBOT_HEARTBEAT_MS` (the heartbeat period).
     pub fn open<T: Transport + 'static>(
-        self,
+        mut self,
         transport: T,
         state: S,
     ) -> Result<Module<S>, ModuleError> {
+        if let Ok(groups) = std::env::var(crate::supervisor::env::GROUPS) {
+            for g in groups.split(',').filter(|g| !g.is_empty()) {
+                if !self.groups.iter().any(|have| have == g) {
+                    self.groups.push(g.to_owned());
+                }
+            }
+        }
         if self.methods.len() > usize::from(sysmethod::FIRST_RESERVED) {
             return Err(ModuleError::Definition(format!(
                 "{} methods; at most 240",
@@ -209,6 +222,8 @@ impl<S> ModuleBuilder<S> {
             describing: [false; 256],
             rejected: 0,
             stale: 0,
+            served: Default::default(),
+            replayed: 0,
             stop: false,
             caller: Addr::NONE,
         };
@@ -217,7 +232,11 @@ impl<S> ModuleBuilder<S> {
             .iter()
             .map(|(p, _)| now + p.as_nanos() as u64)
             .collect();
+        let beat_period_ns = crate::supervisor::env::heartbeat_period().as_nanos() as u64;
         let mut module = Module {
+            beat_period_ns,
+            next_beat_ns: now,
+            beats: 0,
             def: Definition {
                 methods: b.methods,
                 on_report: b.on_report,
@@ -255,10 +274,10 @@ impl<S> ModuleBuilder<S> {
     }
 }
 
-struct Definition<S> {
-    methods: Vec<(String, MethodFn<S>)>,
-    on_report: Option<ReportFn<S>>,
-    on_done: Option<DoneFn<S>>,
+pub(crate) struct Definition<S> {
+    pub(crate) methods: Vec<(String, MethodFn<S>)>,
+    pub(crate) on_report: Option<ReportFn<S>>,
+    pub(crate) on_done: Option<DoneFn<S>>,
     tasks: Vec<(Duration, TaskFn<S>)>,
     peers: Vec<String>,
     snapshot_period_ns: u64,
@@ -275,6 +294,11 @@ pub struct Module<S> {
     next_refresh_ns: u64,
     last_snapshot_ns: u64,
     reply: Reply,
+    /// Heartbeat period, and when the next beat is due.
+    beat_period_ns: u64,
+    next_beat_ns: u64,
+    /// Heartbeats sent.
+    beats: u64,
 }
 
 /// How often the phone book re-reads the directory (liveness, new modules).
@@ -322,7 +346,7 @@ impl<S> Module<S> {
     fn poll_with(&mut self, waiter: &mut Waiter<'_>) -> Result<bool, TransportError> {
         let (def, state, ctx, reply) = (&self.def, &mut self.state, &mut self.ctx, &mut self.reply);
         self.rx
-            .try_receive(&mut |bytes| dispatch(def, state, ctx, reply, bytes, waiter))
+            .try_receive(&mut |bytes| manager::dispatch(def, state, ctx, reply, bytes, waiter))
     }
 
     /// Periodic work: due tasks, call deadlines, liveness, pending sends, snapshots.
@@ -345,25 +369,34 @@ impl<S> Module<S> {
             }
         }
         let ctx = &mut self.ctx;
-        let failures = &mut ctx.failures;
-        let book = &ctx.book;
-        let describing = &mut ctx.describing;
-        ctx.calls.expire(now, |e| {
-            let name = book
-                .get(e.peer)
-                .map(|x| x.name.clone())
-                .unwrap_or_else(|| format!("module {}", e.peer));
-            match e.purpose {
-                Purpose::User => failures.push((
-                    e.handle,
-                    CallError::Timeout {
-                        module: name,
-                        timeout_ms: e.timeout.as_millis() as u64,
-                    },
-                )),
-                Purpose::Describe => describing[usize::from(e.peer.0)] = false,
-            }
-        });
+        let (failures, book, describing) = (&mut ctx.failures, &ctx.book, &mut ctx.describing);
+        let (tx, me) = (&mut ctx.tx, ctx.addr);
+        ctx.calls.expire(
+            now,
+            |e| {
+                let name = book
+                    .get(e.peer)
+                    .map(|x| x.name.clone())
+                    .unwrap_or_else(|| format!("module {}", e.peer));
+                match e.purpose {
+                    Purpose::User => failures.push((
+                        e.handle,
+                        CallError::Timeout {
+                            module: name,
+                            timeout_ms: e.timeout.as_millis() as u64,
+                            sends: e.sends,
+                        },
+                    )),
+                    Purpose::Describe => describing[usize::from(e.peer.0)] = false,
+                }
+            },
+            |r| {
+                let peer = r.peer;
+                if let Err(e) = crate::ctx::send_retry(tx.as_mut(), me, r) {
+                    tracing::debug!("retransmission to {peer} not delivered: {e}");
+                }
+            },
+        );
         if now >= self.next_refresh_ns {
             self.next_refresh_ns = now + REFRESH_NS;
             let changes = self.ctx.refresh_book();
@@ -396,12 +429,28 @@ impl<S> Module<S> {
                     }
                 });
             }
+            for &addr in &changes.appeared {
+                // A new process at `addr`: what it was served before died with the old one,
+                // and calls that wait for it go out again.
+                let ctx = &mut self.ctx;
+                ctx.served.forget(addr);
+                let (tx, me) = (&mut ctx.tx, ctx.addr);
+                ctx.calls.resend_to(addr, |r| {
+                    if let Err(e) = crate::ctx::send_retry(tx.as_mut(), me, r) {
+                        tracing::debug!("resend to {addr} not delivered: {e}");
+                    }
+                });
+            }
             if !changes.appeared.is_empty() {
                 self.look_up_peers();
             }
         }
         self.ctx.flush_pending();
         self.deliver_failures(waiter);
+        if now >= self.next_beat_ns {
+            self.next_beat_ns = now + self.beat_period_ns;
+            self.beat(ModuleState::Running);
+        }
         let since = now.saturating_sub(self.last_snapshot_ns);
         if !self.ctx.bb.is_empty()
             && ((self.ctx.bb.changed() && since >= 1_000_000)
@@ -432,6 +481,26 @@ impl<S> Module<S> {
                     self.ctx.describe(addr);
                 }
             }
+        }
+    }
+
+    /// Publishes a heartbeat now.
+    fn beat(&mut self, state: ModuleState) {
+        self.beats += 1;
+        let counters = Counters {
+            dropped: self.ctx.tx.dropped(),
+            rejected: self.ctx.rejected,
+            replayed: self.ctx.replayed,
+        };
+        let hb = Heartbeat::new(
+            self.ctx.addr,
+            std::process::id(),
+            state,
+            self.beats,
+            counters,
+        );
+        if let Err(e) = self.ctx.tx.heartbeat(hb.as_bytes()) {
+            tracing::debug!("heartbeat not sent: {e}");
         }
     }
 
@@ -522,6 +591,7 @@ impl<S> Module<S> {
                 let e = CallError::Timeout {
                     module: module.to_owned(),
                     timeout_ms: opts.timeout.as_millis() as u64,
+                    sends: 1 + opts.retry.retries,
                 };
                 (on_answer.take().expect("not called"))(Err(&e))
             }
@@ -559,7 +629,7 @@ impl<S> Module<S> {
             .next_task_ns
             .iter()
             .copied()
-            .chain([self.next_refresh_ns])
+            .chain([self.next_refresh_ns, self.next_beat_ns])
             .min()
             .unwrap_or(u64::MAX);
         Duration::from_nanos(next.saturating_sub(now).clamp(100_000, 50_000_000))
@@ -572,8 +642,9 @@ impl<S> Module<S> {
 
 impl<S> Drop for Module<S> {
     fn drop(&mut self) {
-        // Release every iceoryx2 resource of this module, then clean the domain if it was the
-        // last one.
+        // Tell the supervisor this is a clean stop, release every iceoryx2 resource of this
+        // module, then clean the domain if it was the last one.
+        self.beat(ModuleState::Stopping);
         self.rx = Box::new(Closed);
         self.ctx.tx = Box::new(Closed);
         self.ctx.snapshots = Box::new(Closed);
@@ -623,254 +694,5 @@ impl Snapshots for Closed {
     }
     fn read_latest(&mut self, _: Addr, _: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
         Ok(false)
-    }
-}
-
-/// Serves one frame.
-fn dispatch<S>(
-    def: &Definition<S>,
-    state: &mut S,
-    ctx: &mut Ctx,
-    reply: &mut Reply,
-    bytes: &[u8],
-    waiter: &mut Waiter<'_>,
-) {
-    let frame = match Frame::decode(bytes) {
-        Ok(f) => f,
-        Err(e) => {
-            ctx.rejected += 1;
-            tracing::debug!("dropped a malformed frame of {} bytes: {e}", bytes.len());
-            return;
-        }
-    };
-    if frame.dst() != ctx.addr && !frame.dst().is_broadcast() {
-        ctx.rejected += 1;
-        tracing::debug!(
-            "dropped a frame for {} that reached {}",
-            frame.dst(),
-            ctx.addr
-        );
-        return;
-    }
-    let src = frame.src();
-    ctx.caller = src;
-    match frame.kind() {
-        FrameKind::Exec { method } => {
-            let answer = !frame.dst().is_broadcast();
-            let result: Result<(), UnknownOr> = match Args::decode(frame.values()) {
-                Err(e) => Err(MethodError::from(e).into()),
-                Ok(args) => {
-                    reply.buf.clear();
-                    reply.count = 0;
-                    if method >= sysmethod::FIRST_RESERVED {
-                        system_method(def, ctx, method, &args, reply)
-                    } else {
-                        match def.methods.get(usize::from(method)) {
-                            Some((_, f)) => f(state, ctx, &args, reply).map_err(UnknownOr::from),
-                            None => Err(unknown_method(method, def)),
-                        }
-                    }
-                }
-            };
-            if !answer {
-                return;
-            }
-            let spec = |kind| FrameSpec {
-                dst: src,
-                src: ctx.addr,
-                seq: frame.seq(),
-                kind,
-            };
-            let sent = match result {
-                Ok(()) if reply.count == 0 => {
-                    ctx.send_raw(Dest::Module(src), spec(FrameKind::Ack), &[])
-                }
-                Ok(()) => {
-                    let buf = core::mem::take(&mut reply.buf);
-                    let r = ctx.send_raw(Dest::Module(src), spec(FrameKind::Reply), &buf);
-                    reply.buf = buf;
-                    r
-                }
-                Err(UnknownOr::Unknown(detail)) => {
-                    let code = modbot_ipc_schema::NakCode::UNKNOWN_METHOD;
-                    ctx.send_values(
-                        Dest::Module(src),
-                        spec(FrameKind::Nak { code }),
-                        &[Value::Text(&detail)],
-                    )
-                }
-                Err(UnknownOr::Method(e)) => {
-                    let detail = match &e {
-                        MethodError::BadArguments(a) => a.to_string(),
-                        MethodError::Busy(s)
-                        | MethodError::Failed(s)
-                        | MethodError::NotReady(s) => s.clone(),
-                    };
-                    ctx.send_values(
-                        Dest::Module(src),
-                        spec(FrameKind::Nak { code: e.code() }),
-                        &[Value::Text(&detail)],
-                    )
-                }
-            };
-            if let Err(e) = sent {
-                tracing::debug!("answer to {src} not delivered: {e}");
-            }
-        }
-        FrameKind::Reply | FrameKind::Ack | FrameKind::Nak { .. } => {
-            let Some((handle, purpose)) = ctx.calls.complete(src, frame.seq()) else {
-                ctx.stale += 1;
-                return;
-            };
-            let module = ctx
-                .book
-                .get(src)
-                .map(|e| e.name.clone())
-                .unwrap_or_else(|| format!("module {src}"));
-            let result = match frame.kind() {
-                FrameKind::Nak { code } => {
-                    let detail = match frame.values().next() {
-                        Some(Ok(Value::Text(t))) => t.to_owned(),
-                        _ => String::new(),
-                    };
-                    Err(CallError::Nak {
-                        module,
-                        code,
-                        detail,
-                    })
-                }
-                _ => Args::decode(frame.values()).map_err(|e| CallError::BadAnswer {
-                    module,
-                    detail: e.to_string(),
-                }),
-            };
-            match purpose {
-                Purpose::Describe => {
-                    ctx.describing[usize::from(src.0)] = false;
-                    match &result {
-                        Ok(args) => {
-                            if let Err(e) = ctx.book.learn(src, args) {
-                                tracing::warn!("bad describe answer from {src}: {e}");
-                            }
-                            ctx.flush_pending();
-                        }
-                        Err(e) => tracing::warn!("describe of {src} failed: {e}"),
-                    }
-                }
-                Purpose::User => {
-                    let result = result.as_ref();
-                    match waiter {
-                        Some((h, f)) if *h == handle => f(result),
-                        _ => match def.on_done {
-                            Some(done) => done(state, ctx, handle, result),
-                            None => {
-                                if let Err(e) = result {
-                                    tracing::warn!("call failed: {e}");
-                                }
-                            }
-                        },
-                    }
-                }
-            }
-        }
-        FrameKind::Report { topic } => {
-            if topic == sysmethod::ANNOUNCE_TOPIC {
-                ctx.refresh_book();
-                return;
-            }
-            match Args::decode(frame.values()) {
-                Ok(values) => {
-                    if let Some(f) = def.on_report {
-                        f(
-                            state,
-                            ctx,
-                            &Report {
-                                from: src,
-                                topic,
-                                values,
-                            },
-                        );
-                    }
-                }
-                Err(e) => {
-                    ctx.rejected += 1;
-                    tracing::debug!("dropped a report from {src}: {e}");
-                }
-            }
-        }
-    }
-}
-
-/// A method error, or an unknown method (which has its own NAK code).
-enum UnknownOr {
-    Unknown(String),
-    Method(MethodError),
-}
-
-impl From<MethodError> for UnknownOr {
-    fn from(e: MethodError) -> Self {
-        UnknownOr::Method(e)
-    }
-}
-
-fn unknown_method<S>(id: u8, def: &Definition<S>) -> UnknownOr {
-    let known: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
-    UnknownOr::Unknown(format!(
-        "no method with id {id} (known: {})",
-        known.join(", ")
-    ))
-}
-
-fn system_method<S>(
-    def: &Definition<S>,
-    ctx: &mut Ctx,
-    id: u8,
-    args: &Args<'_>,
-    reply: &mut Reply,
-) -> Result<(), UnknownOr> {
-    match id {
-        sysmethod::DESCRIBE => {
-            let methods: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
-            reply.push(Value::Text(&ctx.name));
-            reply.push(Value::I64(i64::from(std::process::id())));
-            reply.push(Value::Text(ctx.mode.name()));
-            reply.push(Value::Text(&methods.join(",")));
-            reply.push(Value::Text(&ctx.bb.describe()));
-            reply.push(Value::I64(ctx.tx.dropped() as i64));
-            reply.push(Value::I64(ctx.rejected as i64));
-            Ok(())
-        }
-        sysmethod::BB_GET => {
-            let name = args.text(0).map_err(MethodError::from)?;
-            let v = ctx
-                .bb
-                .read(name)
-                .map_err(|e| MethodError::Failed(e.to_string()))?;
-            reply.push(v);
-            Ok(())
-        }
-        sysmethod::BB_SET => {
-            let name = args.text(0).map_err(MethodError::from)?;
-            let v = args.get(1).ok_or(MethodError::BadArguments(
-                modbot_ipc_schema::ArgError::Missing {
-                    index: 1,
-                    expected: modbot_ipc_schema::ValueKind::F64,
-                },
-            ))?;
-            ctx.bb
-                .write_remote(name, v)
-                .map_err(|e| MethodError::Failed(e.to_string()))?;
-            Ok(())
-        }
-        sysmethod::BB_SNAPSHOT => {
-            let len = ctx.bb.snapshot_len();
-            let mut buf = vec![0; len];
-            let now = ctx.now_ns();
-            let addr = ctx.addr;
-            ctx.bb.write_snapshot(&mut buf, addr, now);
-            reply.push(Value::Bytes(&buf));
-            Ok(())
-        }
-        _ => Err(UnknownOr::Unknown(format!("no system method with id {id}"))),
     }
 }

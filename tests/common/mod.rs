@@ -46,6 +46,8 @@ pub fn bin(name: &str) -> PathBuf {
 pub struct TestDomain {
     pub domain: Domain,
     children: Vec<(String, Child)>,
+    /// Files this test wrote (system descriptions, captured output); removed on drop.
+    files: Vec<PathBuf>,
 }
 
 impl TestDomain {
@@ -60,7 +62,75 @@ impl TestDomain {
         TestDomain {
             domain: Domain::new(&name).unwrap(),
             children: Vec::new(),
+            files: Vec::new(),
         }
+    }
+
+    /// Writes a system description for this domain (`domain "..."` followed by `body`).
+    pub fn write_system(&mut self, body: &str) -> PathBuf {
+        let path = std::env::temp_dir().join(format!("{}.lua", self.name()));
+        std::fs::write(&path, format!("domain \"{}\"\n{body}", self.name())).unwrap();
+        self.files.push(path.clone());
+        path
+    }
+
+    /// Starts `program ARGS` in this domain with its output captured to a file.
+    pub fn spawn_logged(&mut self, program: &str, args: &[&str]) -> u32 {
+        let log = std::env::temp_dir().join(format!("{}.{}.log", self.name(), self.files.len()));
+        let out = std::fs::File::create(&log).unwrap();
+        let child = Command::new(bin(program))
+            .args(args)
+            .env("MODBOT_DOMAIN", self.name())
+            .env("RUST_LOG", "info")
+            .stdout(out.try_clone().unwrap())
+            .stderr(out)
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {program}: {e}"));
+        self.files.push(log.clone());
+        let pid = child.id();
+        self.children
+            .push((format!("{program}|{}", log.display()), child));
+        pid
+    }
+
+    /// What the process `pid`, started with [`TestDomain::spawn_logged`], printed so far.
+    pub fn output_of(&self, pid: u32) -> String {
+        let (name, _) = self
+            .children
+            .iter()
+            .find(|(_, c)| c.id() == pid)
+            .expect("a child of this test");
+        let path = name.split_once('|').map(|(_, p)| p).unwrap_or_default();
+        std::fs::read_to_string(path).unwrap_or_default()
+    }
+
+    /// Waits until the child `pid` exits, at most `timeout`; returns its status.
+    pub fn wait_exit(&mut self, pid: u32, timeout: Duration) -> std::process::ExitStatus {
+        let i = self
+            .children
+            .iter()
+            .position(|(_, c)| c.id() == pid)
+            .expect("a child of this test");
+        let start = Instant::now();
+        loop {
+            if let Some(status) = self.children[i].1.try_wait().unwrap() {
+                return status;
+            }
+            assert!(
+                start.elapsed() < timeout,
+                "{} did not exit within {timeout:?}",
+                self.children[i].0
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// One field of `modbot ls` for `module`, by column title (`ADDR`, `NAME`, `PID`, `STATE`,
+    /// `MODE`, `RESTARTS`, `LAST EXIT`, `DROPPED`, `REJECT`, `REPLAY`, `METHODS`).
+    pub fn ls_field(&self, module: &str, column: &str) -> Option<String> {
+        let out = self.modbot(&["ls", "--tsv"]);
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        ls_field(&text, module, column)
     }
 
     pub fn name(&self) -> &str {
@@ -158,5 +228,17 @@ impl Drop for TestDomain {
             let _ = c.wait();
         }
         self.domain.remove_files();
+        for f in &self.files {
+            let _ = std::fs::remove_file(f);
+        }
     }
+}
+
+/// One field of `modbot ls --tsv` output for `module`, by column title.
+pub fn ls_field(tsv: &str, module: &str, column: &str) -> Option<String> {
+    let mut lines = tsv.lines();
+    let header: Vec<&str> = lines.next()?.split('\t').collect();
+    let i = header.iter().position(|t| *t == column)?;
+    let row = lines.find(|l| l.split('\t').nth(1) == Some(module))?;
+    row.split('\t').nth(i).map(str::to_owned)
 }

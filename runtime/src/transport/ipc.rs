@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::os::fd::BorrowedFd;
 
 use iceoryx2::config::Config;
+use iceoryx2::identifiers::UniqueNodeId;
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -110,13 +111,14 @@ impl IpcTransport {
                     Err(e) if attempt == 0 => {
                         // Held by a live module, or left by a dead one: look, clean, retry once.
                         let mut holder = None;
-                        dir.list(&mut |p| {
+                        let mine = *node.id();
+                        dir.list_with_ids(&mut |id, p| {
                             let same = if is_addr {
                                 p.addr == addr
                             } else {
                                 p.name == name
                             };
-                            if same && p.alive && p.pid != std::process::id() {
+                            if same && p.alive && id != &mine {
                                 holder = Some(p);
                             }
                         })?;
@@ -212,6 +214,28 @@ fn wake_service(
     )
 }
 
+/// The service every module publishes its heartbeat on.
+fn heartbeat_service(
+    node: &Node<ipc::Service>,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    TransportError,
+> {
+    ipc!(
+        "open heartbeat service",
+        node.service_builder(&service_name("heartbeat")?)
+            .publish_subscribe::<[u8]>()
+            .max_publishers(MAX_NODES)
+            .max_subscribers(4)
+            .max_nodes(MAX_NODES)
+            .history_size(0)
+            .subscriber_max_buffer_size(4)
+            .subscriber_max_borrowed_samples(1)
+            .enable_safe_overflow(true)
+            .open_or_create()
+    )
+}
+
 fn node_name(addr: Addr, mode: ReceiveMode, name: &str) -> String {
     format!("m{:03}.{}.{}", addr.0, mode.code(), name)
 }
@@ -276,6 +300,15 @@ impl Transport for IpcTransport {
                 )?);
             }
         }
+        let heartbeat = ipc!(
+            "heartbeat publisher",
+            heartbeat_service(&node)?
+                .publisher_builder()
+                .initial_max_slice_len(modbot_ipc_schema::heartbeat::LEN)
+                .allocation_strategy(AllocationStrategy::Static)
+                .max_loaned_samples(1)
+                .create()
+        )?;
         let node = std::rc::Rc::new(node);
         let rx = IpcRx {
             subs,
@@ -290,6 +323,10 @@ impl Transport for IpcTransport {
             peers: (0..256).map(|_| None).collect(),
             buses: HashMap::new(),
             dropped: 0,
+            heartbeat: PeerLink {
+                publisher: heartbeat,
+                notifier: None,
+            },
             _claims: claims,
         };
         let snapshots = IpcSnapshots {
@@ -320,11 +357,15 @@ impl Transport for IpcTransport {
             config: self.config.clone(),
         };
         dir.reap_dead();
+        // Any live node counts, not only modules: a supervisor's heartbeat monitor, say.
         let mut alive = 0;
-        if dir.list(&mut |p| alive += usize::from(p.alive)).is_err() {
-            return false;
-        }
-        if alive > 0 {
+        let listed = Node::<ipc::Service>::list(&self.config, |state| {
+            if matches!(state, NodeState::Alive(_)) {
+                alive += 1;
+            }
+            CallbackProgression::Continue
+        });
+        if listed.is_err() || alive > 0 {
             return false;
         }
         self.domain.remove_files();
@@ -338,8 +379,12 @@ struct IpcDirectory {
     config: Config,
 }
 
-impl Directory for IpcDirectory {
-    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+impl IpcDirectory {
+    /// Like [`Directory::list`], with each module's iceoryx2 node id.
+    fn list_with_ids(
+        &self,
+        f: &mut dyn FnMut(&UniqueNodeId, PeerInfo),
+    ) -> Result<(), TransportError> {
         let mut visit = |view: &dyn NodeView, alive: bool| {
             if let Some(details) = view.details() {
                 if let Some((addr, mode, name)) = parse_node_name(&details.name().to_string()) {
@@ -348,13 +393,16 @@ impl Directory for IpcDirectory {
                         .pid::<ipc::Service>()
                         .map(|p| p.value() as u32)
                         .unwrap_or(0);
-                    f(PeerInfo {
-                        addr,
-                        name,
-                        pid,
-                        mode,
-                        alive,
-                    });
+                    f(
+                        view.id(),
+                        PeerInfo {
+                            addr,
+                            name,
+                            pid,
+                            mode,
+                            alive,
+                        },
+                    );
                 }
             }
         };
@@ -369,6 +417,12 @@ impl Directory for IpcDirectory {
                 CallbackProgression::Continue
             })
         )
+    }
+}
+
+impl Directory for IpcDirectory {
+    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+        self.list_with_ids(&mut |_, p| f(p))
     }
 
     fn reap_dead(&self) -> usize {
@@ -456,6 +510,8 @@ struct IpcTx {
     /// Broadcast and group publishers, by service name.
     buses: HashMap<String, PeerLink>,
     dropped: u64,
+    /// The heartbeat publisher.
+    heartbeat: PeerLink,
     /// Held for the endpoint's life: they make the address and the name ours.
     _claims: Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
 }
@@ -628,6 +684,47 @@ impl Tx for IpcTx {
 
     fn dropped(&self) -> u64 {
         self.dropped
+    }
+
+    fn heartbeat(&mut self, beat: &[u8]) -> Result<(), TransportError> {
+        send_on(&self.heartbeat, beat.len(), &mut |buf| {
+            buf.copy_from_slice(beat)
+        })
+        .map(|_| ())
+    }
+}
+
+/// The supervisor's side of the heartbeat service: every module's latest heartbeat.
+pub struct HeartbeatMonitor {
+    _node: Node<ipc::Service>,
+    subscriber: Sub,
+}
+
+impl HeartbeatMonitor {
+    /// Subscribes to the heartbeats of `transport`'s domain.
+    pub fn new(transport: &IpcTransport) -> Result<HeartbeatMonitor, TransportError> {
+        let node = transport.node(&format!("hbmon.{}", std::process::id()))?;
+        let subscriber = ipc!(
+            "heartbeat subscriber",
+            heartbeat_service(&node)?
+                .subscriber_builder()
+                .buffer_size(4)
+                .create()
+        )?;
+        Ok(HeartbeatMonitor {
+            _node: node,
+            subscriber,
+        })
+    }
+
+    /// Lends every heartbeat received since the last call to `f`, oldest first.
+    pub fn drain(&self, f: &mut dyn FnMut(&[u8])) -> Result<usize, TransportError> {
+        let mut n = 0;
+        while let Some(sample) = ipc!("receive heartbeat", self.subscriber.receive())? {
+            f(sample.payload());
+            n += 1;
+        }
+        Ok(n)
     }
 }
 

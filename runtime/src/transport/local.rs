@@ -5,6 +5,7 @@
 
 use core::time::Duration;
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 use crossbeam::channel::{bounded, Receiver, RecvTimeoutError, Sender, TrySendError};
@@ -18,6 +19,8 @@ use super::{
 const INBOX_DEPTH: usize = 64;
 
 struct Slot {
+    /// Which opening of the address this is (see [`LocalRx`]'s `Drop`).
+    id: u64,
     name: String,
     mode: ReceiveMode,
     alive: bool,
@@ -91,9 +94,12 @@ impl Transport for LocalTransport {
             });
         }
         let (tx, rx) = bounded(INBOX_DEPTH);
+        static NEXT_ID: AtomicU64 = AtomicU64::new(0);
+        let id = NEXT_ID.fetch_add(1, Ordering::Relaxed);
         d.slots.insert(
             addr.0,
             Slot {
+                id,
                 name: name.to_owned(),
                 mode,
                 alive: true,
@@ -107,6 +113,7 @@ impl Transport for LocalTransport {
             rx: Box::new(LocalRx {
                 domain: self.domain.clone(),
                 me: addr,
+                id,
                 inbox: rx,
                 pending: None,
             }),
@@ -173,6 +180,8 @@ impl Directory for LocalDirectory {
 struct LocalRx {
     domain: Shared,
     me: Addr,
+    /// The id of this endpoint's slot.
+    id: u64,
     inbox: Receiver<Vec<u8>>,
     pending: Option<Vec<u8>>,
 }
@@ -180,8 +189,13 @@ struct LocalRx {
 impl Drop for LocalRx {
     fn drop(&mut self) {
         let mut d = lock(&self.domain);
-        d.slots.remove(&self.me.0);
-        d.snapshots.remove(&self.me.0);
+        // The address may belong to a newer module by now (this one was killed and another
+        // opened in its place): leave that one's slot and snapshot alone.
+        let newer = d.slots.get(&self.me.0).is_some_and(|s| s.id != self.id);
+        if !newer {
+            d.slots.remove(&self.me.0);
+            d.snapshots.remove(&self.me.0);
+        }
     }
 }
 

@@ -12,7 +12,9 @@
 //!   on first use. Full inboxes refuse new frames (no silent overwrite): the sender sees it;
 //! - `wake.N`: event, for modules in blocking mode;
 //! - `bcast` and `group.NAME`: publish-subscribe for broadcast and multicast;
-//! - `bb.N`: module N's blackboard snapshots, history 1.
+//! - `bb.N`: module N's blackboard snapshots, history 1;
+//! - `heartbeat`: publish-subscribe, every module publishes its 48-byte heartbeat there and the
+//!   supervisor subscribes (one publisher per module, few subscribers: it stays small).
 //!
 //! Liveness comes from iceoryx2 nodes: one per module, named `mNNN.MODE.NAME`.
 
@@ -150,6 +152,12 @@ pub trait Tx {
 
     /// Frames this endpoint could not deliver since it opened.
     fn dropped(&self) -> u64;
+
+    /// Publishes this module's heartbeat (a [`modbot_ipc_schema::heartbeat::Heartbeat`]) to
+    /// whoever supervises the domain. Backends without a supervisor ignore it.
+    fn heartbeat(&mut self, _beat: &[u8]) -> Result<(), TransportError> {
+        Ok(())
+    }
 }
 
 /// Blackboard snapshots: publish your own, read the latest of others.

@@ -1,0 +1,317 @@
+//! The message manager: serves one incoming frame.
+//!
+//! EXEC and RETRY go to the module's method table (or to the system methods every module
+//! answers) and are answered with REPLY, ACK or NAK; a RETRY of a request already served is
+//! answered from the [`crate::served`] record instead of executing twice. REPLY, ACK and NAK
+//! complete calls in the method queue; REPORT goes to the module's report hook.
+
+use modbot_ipc_schema::{sysmethod, Args, Frame, FrameKind, FrameSpec, NakCode, Value};
+
+use crate::calls::Purpose;
+use crate::ctx::Ctx;
+use crate::error::{CallError, MethodError};
+use crate::module::{Definition, Reply, Report, Waiter};
+use crate::served::{Replay, KEPT_ANSWER};
+use crate::transport::Dest;
+
+/// Serves one frame.
+pub(crate) fn dispatch<S>(
+    def: &Definition<S>,
+    state: &mut S,
+    ctx: &mut Ctx,
+    reply: &mut Reply,
+    bytes: &[u8],
+    waiter: &mut Waiter<'_>,
+) {
+    let frame = match Frame::decode(bytes) {
+        Ok(f) => f,
+        Err(e) => {
+            ctx.rejected += 1;
+            tracing::debug!("dropped a malformed frame of {} bytes: {e}", bytes.len());
+            return;
+        }
+    };
+    if frame.dst() != ctx.addr && !frame.dst().is_broadcast() {
+        ctx.rejected += 1;
+        tracing::debug!(
+            "dropped a frame for {} that reached {}",
+            frame.dst(),
+            ctx.addr
+        );
+        return;
+    }
+    let src = frame.src();
+    if src == ctx.addr && frame.dst().is_broadcast() {
+        return; // our own broadcast or multicast, back from the shared bus
+    }
+    ctx.caller = src;
+    match frame.kind() {
+        FrameKind::Exec { method } | FrameKind::Retry { method } => {
+            serve_request(def, state, ctx, reply, &frame, method);
+        }
+        FrameKind::Reply | FrameKind::Ack | FrameKind::Nak { .. } => {
+            let Some((handle, purpose)) = ctx.calls.complete(src, frame.seq()) else {
+                ctx.stale += 1;
+                return;
+            };
+            let module = ctx
+                .book
+                .get(src)
+                .map(|e| e.name.clone())
+                .unwrap_or_else(|| format!("module {src}"));
+            let result = match frame.kind() {
+                FrameKind::Nak { code } => {
+                    let detail = match frame.values().next() {
+                        Some(Ok(Value::Text(t))) => t.to_owned(),
+                        _ => String::new(),
+                    };
+                    Err(CallError::Nak {
+                        module,
+                        code,
+                        detail,
+                    })
+                }
+                _ => Args::decode(frame.values()).map_err(|e| CallError::BadAnswer {
+                    module,
+                    detail: e.to_string(),
+                }),
+            };
+            match purpose {
+                Purpose::Describe => {
+                    ctx.describing[usize::from(src.0)] = false;
+                    match &result {
+                        Ok(args) => {
+                            if let Err(e) = ctx.book.learn(src, args) {
+                                tracing::warn!("bad describe answer from {src}: {e}");
+                            }
+                            ctx.flush_pending();
+                        }
+                        Err(e) => tracing::warn!("describe of {src} failed: {e}"),
+                    }
+                }
+                Purpose::User => {
+                    let result = result.as_ref();
+                    match waiter {
+                        Some((h, f)) if *h == handle => f(result),
+                        _ => match def.on_done {
+                            Some(done) => done(state, ctx, handle, result),
+                            None => {
+                                if let Err(e) = result {
+                                    tracing::warn!("call failed: {e}");
+                                }
+                            }
+                        },
+                    }
+                }
+            }
+        }
+        FrameKind::Report { topic } => {
+            if topic == sysmethod::ANNOUNCE_TOPIC {
+                ctx.refresh_book();
+                return;
+            }
+            match Args::decode(frame.values()) {
+                Ok(values) => {
+                    if let Some(f) = def.on_report {
+                        f(
+                            state,
+                            ctx,
+                            &Report {
+                                from: src,
+                                topic,
+                                values,
+                            },
+                        );
+                    }
+                }
+                Err(e) => {
+                    ctx.rejected += 1;
+                    tracing::debug!("dropped a report from {src}: {e}");
+                }
+            }
+        }
+    }
+}
+
+/// Serves an EXEC or RETRY for `method` and answers it (unless it was broadcast).
+fn serve_request<S>(
+    def: &Definition<S>,
+    state: &mut S,
+    ctx: &mut Ctx,
+    reply: &mut Reply,
+    frame: &Frame<'_>,
+    method: u8,
+) {
+    let (src, seq) = (frame.src(), frame.seq());
+    let answer = !frame.dst().is_broadcast();
+    let me = ctx.addr;
+    let spec = |kind| FrameSpec {
+        dst: src,
+        src: me,
+        seq,
+        kind,
+    };
+    if answer && matches!(frame.kind(), FrameKind::Retry { .. }) {
+        let sent = match ctx.served.replay(src, seq, method) {
+            Some(Replay::Answer { kind, payload }) => {
+                let mut kept = [0u8; KEPT_ANSWER];
+                let len = payload.len();
+                kept[..len].copy_from_slice(payload);
+                Some(ctx.send_raw(Dest::Module(src), spec(kind), &kept[..len]))
+            }
+            Some(Replay::NotKept { len }) => {
+                let detail = format!(
+                    "request {seq} was already executed; its answer ({len} bytes) was sent and is not kept for replay"
+                );
+                Some(ctx.send_values(
+                    Dest::Module(src),
+                    spec(FrameKind::Nak {
+                        code: NakCode::DUPLICATE,
+                    }),
+                    &[Value::Text(&detail)],
+                ))
+            }
+            None => None,
+        };
+        if let Some(sent) = sent {
+            ctx.replayed += 1;
+            if let Err(e) = sent {
+                tracing::debug!("replayed answer to {src} not delivered: {e}");
+            }
+            return;
+        }
+    }
+    reply.buf.clear();
+    reply.count = 0;
+    let result: Result<(), UnknownOr> = match Args::decode(frame.values()) {
+        Err(e) => Err(MethodError::from(e).into()),
+        Ok(args) => {
+            if method >= sysmethod::FIRST_RESERVED {
+                system_method(def, ctx, method, &args, reply)
+            } else {
+                match def.methods.get(usize::from(method)) {
+                    Some((_, f)) => f(state, ctx, &args, reply).map_err(UnknownOr::from),
+                    None => Err(unknown_method(method, def)),
+                }
+            }
+        }
+    };
+    if !answer {
+        return;
+    }
+    let kind = match result {
+        Ok(()) if reply.count == 0 => {
+            reply.buf.clear();
+            FrameKind::Ack
+        }
+        Ok(()) => FrameKind::Reply,
+        Err(e) => {
+            let (code, detail) = match e {
+                UnknownOr::Unknown(detail) => (NakCode::UNKNOWN_METHOD, detail),
+                UnknownOr::Method(e) => {
+                    let code = e.code();
+                    let detail = match e {
+                        MethodError::BadArguments(a) => a.to_string(),
+                        MethodError::Busy(s)
+                        | MethodError::Failed(s)
+                        | MethodError::NotReady(s)
+                        | MethodError::UnknownItem(s)
+                        | MethodError::ReadOnly(s) => s,
+                    };
+                    (code, detail)
+                }
+            };
+            reply.buf.clear();
+            reply.count = 0;
+            reply.push(Value::Text(&detail));
+            FrameKind::Nak { code }
+        }
+    };
+    let buf = core::mem::take(&mut reply.buf);
+    ctx.served.record(src, seq, method, kind, &buf);
+    let sent = ctx.send_raw(Dest::Module(src), spec(kind), &buf);
+    reply.buf = buf;
+    if let Err(e) = sent {
+        tracing::debug!("answer to {src} not delivered: {e}");
+    }
+}
+
+/// A method error, or an unknown method (which has its own NAK code).
+enum UnknownOr {
+    Unknown(String),
+    Method(MethodError),
+}
+
+impl From<MethodError> for UnknownOr {
+    fn from(e: MethodError) -> Self {
+        UnknownOr::Method(e)
+    }
+}
+
+fn unknown_method<S>(id: u8, def: &Definition<S>) -> UnknownOr {
+    let known: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
+    UnknownOr::Unknown(format!(
+        "no method with id {id} (known: {})",
+        known.join(", ")
+    ))
+}
+
+fn system_method<S>(
+    def: &Definition<S>,
+    ctx: &mut Ctx,
+    id: u8,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), UnknownOr> {
+    match id {
+        sysmethod::DESCRIBE => {
+            let methods: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
+            reply.push(Value::Text(&ctx.name));
+            reply.push(Value::I64(i64::from(std::process::id())));
+            reply.push(Value::Text(ctx.mode.name()));
+            reply.push(Value::Text(&methods.join(",")));
+            reply.push(Value::Text(&ctx.bb.describe()));
+            reply.push(Value::I64(ctx.tx.dropped() as i64));
+            reply.push(Value::I64(ctx.rejected as i64));
+            reply.push(Value::I64(ctx.replayed as i64));
+            Ok(())
+        }
+        sysmethod::BB_GET => {
+            let name = args.text(0).map_err(MethodError::from)?;
+            let v = ctx.bb.read(name).map_err(bb_refusal)?;
+            reply.push(v);
+            Ok(())
+        }
+        sysmethod::BB_SET => {
+            let name = args.text(0).map_err(MethodError::from)?;
+            let v = args.get(1).ok_or(MethodError::BadArguments(
+                modbot_ipc_schema::ArgError::Missing {
+                    index: 1,
+                    expected: modbot_ipc_schema::ValueKind::F64,
+                },
+            ))?;
+            ctx.bb.write_remote(name, v).map_err(bb_refusal)?;
+            Ok(())
+        }
+        sysmethod::BB_SNAPSHOT => {
+            let len = ctx.bb.snapshot_len();
+            let mut buf = vec![0; len];
+            let now = ctx.now_ns();
+            let addr = ctx.addr;
+            ctx.bb.write_snapshot(&mut buf, addr, now);
+            reply.push(Value::Bytes(&buf));
+            Ok(())
+        }
+        _ => Err(UnknownOr::Unknown(format!("no system method with id {id}"))),
+    }
+}
+
+/// The NAK a blackboard error becomes.
+fn bb_refusal(e: crate::blackboard::BlackboardError) -> MethodError {
+    use crate::blackboard::BlackboardError;
+    match e {
+        BlackboardError::UnknownItem(_) => MethodError::UnknownItem(e.to_string()),
+        BlackboardError::ReadOnly(_) => MethodError::ReadOnly(e.to_string()),
+        other => MethodError::Failed(other.to_string()),
+    }
+}

@@ -1,0 +1,691 @@
+//! The supervisor: starts a robot's module processes from its system description, watches
+//! them, brings them back per their restart policy, and stops them in order.
+//!
+//! - It sweeps what dead processes left of the domain, then spawns every module (each its own
+//!   process, in its own process group, killed if the supervisor dies) and waits until each has
+//!   announced itself with its first heartbeat.
+//! - It watches exits (`waitpid`) and heartbeats: a module whose heartbeat stops for the
+//!   configured time is hung; it is killed and handled like a crash.
+//! - Restart policies (`never`, `on-failure`, `always`, with a maximum per window and an
+//!   exponential backoff) decide what comes back; a module that ends too often is failed, and
+//!   its policy says whether the rest keeps running.
+//! - It is itself a module of the domain, named `supervisor`: `status` answers the table that
+//!   `modbot ls` shows, `down` stops the system (`modbot down`).
+//! - On SIGINT/SIGTERM, `down`, or when its time is up, it stops the modules in reverse order
+//!   (SIGTERM, then SIGKILL after the grace period) and removes the domain's shared memory.
+//!
+//! # Layout
+//! - [`env`]: what a module process learns from its environment.
+//! - `child`: spawning one module process and forwarding its output.
+//! - [`policy`]: restart decisions and exit reasons.
+//! - [`rt`]: CPU affinity and SCHED_FIFO for a module process.
+//! - [`status`]: the status rows and table.
+
+mod child;
+pub mod env;
+pub mod policy;
+pub mod rt;
+pub mod status;
+
+use core::time::Duration;
+use std::io::Write;
+use std::process::Child;
+use std::time::Instant;
+
+use crossbeam::channel::{unbounded, Receiver, Sender};
+use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
+use modbot_ipc_schema::{Addr, Args, Value};
+use nix::sys::signal::{kill, Signal};
+use nix::unistd::Pid;
+use thiserror::Error;
+
+use crate::ctx::Ctx;
+use crate::domain::Domain;
+use crate::error::MethodError;
+use crate::module::{Module, ModuleBuilder, Reply};
+use crate::system::{GiveUp, SystemSpec};
+use crate::transport::ipc::{HeartbeatMonitor, IpcTransport};
+use crate::transport::{Directory, ReceiveMode, Transport, TransportError};
+use child::LogLine;
+use policy::{Decision, ExitReason, RestartTracker};
+use status::{Row, RunState};
+
+/// Why the supervisor could not start or run a system.
+#[derive(Debug, Error)]
+pub enum SupervisorError {
+    #[error("domain '{domain}' is in use by a running system (live modules: {modules}); stop it first with `modbot down --domain {domain}`")]
+    DomainInUse { domain: String, modules: String },
+    #[error("cannot start module '{module}' ({program}): {source}")]
+    Spawn {
+        module: String,
+        program: String,
+        source: std::io::Error,
+    },
+    #[error("module(s) {modules} did not announce themselves within {timeout_ms} ms")]
+    StartTimeout { modules: String, timeout_ms: u64 },
+    #[error("the description uses all 254 addresses; the supervisor needs one free address")]
+    NoAddressLeft,
+    #[error("domain: {0}")]
+    Domain(#[from] crate::domain::DomainNameError),
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+    #[error(transparent)]
+    Module(#[from] crate::error::ModuleError),
+}
+
+/// How long to run.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Stop after this long (`--for`).
+    pub run_for: Option<Duration>,
+    /// Print the status table whenever a module changes state (the live view).
+    pub show_status: bool,
+}
+
+/// How the run ended.
+#[derive(Debug, Clone)]
+pub struct Summary {
+    /// Every module ran within its policy and stopped cleanly.
+    pub ok: bool,
+    /// The final status of every module.
+    pub rows: Vec<Row>,
+    /// What went wrong, one line each.
+    pub problems: Vec<String>,
+    /// How long the system ran.
+    pub ran_for: Duration,
+}
+
+/// The supervisor module's state, shared with its method handlers.
+#[derive(Debug, Default)]
+struct Shared {
+    rows: Vec<Row>,
+    down_requested: bool,
+}
+
+/// One supervised module.
+struct Slot {
+    child: Option<Child>,
+    pid: u32,
+    state: RunState,
+    tracker: RestartTracker,
+    last_exit: Option<ExitReason>,
+    /// Why the supervisor killed it, when it did.
+    killed_for: Option<ExitReason>,
+    started_ns: u64,
+    /// When its last heartbeat arrived; 0 until the first.
+    last_beat_ns: u64,
+    restart_at_ns: u64,
+    counters: Counters,
+}
+
+/// A running system.
+pub struct Supervisor {
+    spec: SystemSpec,
+    domain: Domain,
+    slots: Vec<Slot>,
+    endpoint: Module<Shared>,
+    heartbeats: HeartbeatMonitor,
+    logs_tx: Sender<LogLine>,
+    logs: Receiver<LogLine>,
+    epoch: Instant,
+    name_width: usize,
+    problems: Vec<String>,
+    stop_failed: bool,
+    status_dirty: bool,
+}
+
+impl Supervisor {
+    /// Sweeps the domain, starts every module and waits until all have announced themselves.
+    pub fn start(spec: SystemSpec) -> Result<Supervisor, SupervisorError> {
+        let domain = Domain::new(&spec.domain)?;
+        let transport = IpcTransport::new(&domain)?;
+        let directory = transport.directory()?;
+        let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
+        sweep(&domain, directory.as_ref(), &used)?;
+        let endpoint = open_endpoint(&transport, &used)?;
+        let heartbeats = HeartbeatMonitor::new(&transport)?;
+        let (logs_tx, logs) = unbounded();
+        let slots = spec
+            .modules
+            .iter()
+            .map(|m| Slot {
+                child: None,
+                pid: 0,
+                state: RunState::Starting,
+                tracker: RestartTracker::new(m.restart.clone()),
+                last_exit: None,
+                killed_for: None,
+                started_ns: 0,
+                last_beat_ns: 0,
+                restart_at_ns: 0,
+                counters: Counters::default(),
+            })
+            .collect();
+        let name_width = spec.modules.iter().map(|m| m.name.len()).max().unwrap_or(4);
+        let mut sup = Supervisor {
+            spec,
+            domain,
+            slots,
+            endpoint,
+            heartbeats,
+            logs_tx,
+            logs,
+            epoch: Instant::now(),
+            name_width,
+            problems: Vec::new(),
+            stop_failed: false,
+            status_dirty: true,
+        };
+        sup.say(&format!(
+            "starting {} module(s) in domain '{}'",
+            sup.slots.len(),
+            sup.domain.name()
+        ));
+        for i in 0..sup.slots.len() {
+            if let Err(e) = sup.spawn(i) {
+                sup.shutdown();
+                return Err(e);
+            }
+        }
+        if let Err(e) = sup.await_announcements() {
+            sup.shutdown();
+            return Err(e);
+        }
+        sup.say(&format!(
+            "all {} module(s) up in {} ms",
+            sup.slots.len(),
+            sup.epoch.elapsed().as_millis()
+        ));
+        Ok(sup)
+    }
+
+    /// The domain the system runs in.
+    pub fn domain(&self) -> &Domain {
+        &self.domain
+    }
+
+    /// Supervises until SIGINT/SIGTERM, `modbot down`, the end of `opts.run_for`, or a failed
+    /// module whose policy stops the system; then stops everything and reports.
+    pub fn run(mut self, opts: &RunOptions) -> Summary {
+        if let Err(e) = crate::signals::install_termination_handler() {
+            self.say(&format!("cannot handle SIGTERM/SIGINT: {e}"));
+        }
+        let started = Instant::now();
+        let mut last_table = Instant::now() - Duration::from_secs(1);
+        loop {
+            self.serve();
+            self.watch();
+            self.forward_logs();
+            if opts.show_status
+                && self.status_dirty
+                && last_table.elapsed() > Duration::from_millis(200)
+            {
+                self.status_dirty = false;
+                last_table = Instant::now();
+                self.print_table();
+            }
+            if crate::signals::termination_requested() {
+                self.say("termination requested: stopping");
+                break;
+            }
+            if self.endpoint.state().down_requested {
+                self.say("`modbot down` requested: stopping");
+                break;
+            }
+            if self.stop_failed {
+                self.say("a failed module stops the system: stopping");
+                break;
+            }
+            if opts.run_for.is_some_and(|d| started.elapsed() >= d) {
+                self.say("run time is up: stopping");
+                break;
+            }
+            if let Err(e) = self.endpoint.wait(Duration::from_millis(5)) {
+                tracing::debug!("supervisor wait: {e}");
+            }
+        }
+        let ran_for = started.elapsed();
+        self.shutdown();
+        let rows = self.rows();
+        let ok = self.problems.is_empty();
+        Summary {
+            ok,
+            rows,
+            problems: std::mem::take(&mut self.problems),
+            ran_for,
+        }
+    }
+
+    fn now_ns(&self) -> u64 {
+        self.epoch.elapsed().as_nanos() as u64
+    }
+
+    /// A line of the supervisor's own, on stdout.
+    fn say(&self, text: &str) {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{:>w$} | {text}", "modbot", w = self.name_width);
+    }
+
+    fn print_table(&mut self) {
+        let table = status::table(&self.rows());
+        let mut out = std::io::stdout().lock();
+        let _ = write!(out, "{table}");
+    }
+
+    fn rows(&self) -> Vec<Row> {
+        self.spec
+            .modules
+            .iter()
+            .zip(&self.slots)
+            .map(|(m, s)| Row {
+                name: m.name.clone(),
+                addr: m.addr,
+                state: s.state.name().to_owned(),
+                pid: if s.child.is_some() { s.pid } else { 0 },
+                restarts: s.tracker.total,
+                last_exit: s
+                    .last_exit
+                    .as_ref()
+                    .map(ToString::to_string)
+                    .unwrap_or_default(),
+                counters: s.counters,
+            })
+            .collect()
+    }
+
+    fn spawn(&mut self, i: usize) -> Result<(), SupervisorError> {
+        let m = &self.spec.modules[i];
+        let child = child::spawn(i, m, &self.domain, &self.spec.supervision, &self.logs_tx)
+            .map_err(|source| SupervisorError::Spawn {
+                module: m.name.clone(),
+                program: m.program.display().to_string(),
+                source,
+            })?;
+        let pid = child.id();
+        for w in rt::apply(pid, &m.cpus, m.priority) {
+            self.say(&format!("warning: {}: {w}", m.name));
+        }
+        let now = self.now_ns();
+        let slot = &mut self.slots[i];
+        slot.child = Some(child);
+        slot.pid = pid;
+        slot.state = RunState::Starting;
+        slot.started_ns = now;
+        slot.last_beat_ns = 0;
+        slot.killed_for = None;
+        self.status_dirty = true;
+        Ok(())
+    }
+
+    fn await_announcements(&mut self) -> Result<(), SupervisorError> {
+        let timeout = self.spec.supervision.start_timeout;
+        let deadline = Instant::now() + timeout;
+        loop {
+            self.serve();
+            self.watch();
+            self.forward_logs();
+            if self.slots.iter().all(|s| s.state != RunState::Starting) {
+                return Ok(());
+            }
+            if crate::signals::termination_requested() || Instant::now() >= deadline {
+                let missing: Vec<&str> = self
+                    .spec
+                    .modules
+                    .iter()
+                    .zip(&self.slots)
+                    .filter(|(_, s)| s.state == RunState::Starting)
+                    .map(|(m, _)| m.name.as_str())
+                    .collect();
+                return Err(SupervisorError::StartTimeout {
+                    modules: missing.join(", "),
+                    timeout_ms: timeout.as_millis() as u64,
+                });
+            }
+            let _ = self.endpoint.wait(Duration::from_millis(5));
+        }
+    }
+
+    /// Serves the supervisor's own calls (`status`, `down`) and keeps its phone book fresh.
+    fn serve(&mut self) {
+        let rows = self.rows();
+        self.endpoint.state_mut().rows = rows;
+        for _ in 0..64 {
+            match self.endpoint.poll_once() {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => {
+                    tracing::debug!("supervisor receive: {e}");
+                    break;
+                }
+            }
+        }
+        self.endpoint.housekeeping();
+    }
+
+    /// Heartbeats, exits, hangs and due restarts.
+    fn watch(&mut self) {
+        let now = self.now_ns();
+        let mut beats: Vec<(u8, u32, ModuleState, Counters)> = Vec::new();
+        let drained = self.heartbeats.drain(&mut |bytes| {
+            if let Ok(hb) = Heartbeat::parse(bytes) {
+                beats.push((hb.addr().0, hb.pid(), hb.state(), hb.counters()));
+            }
+        });
+        if let Err(e) = drained {
+            tracing::debug!("heartbeats: {e}");
+        }
+        for (addr, pid, state, counters) in beats {
+            let Some(i) = self.spec.modules.iter().position(|m| m.addr == addr) else {
+                continue;
+            };
+            let slot = &mut self.slots[i];
+            if slot.child.is_none() || slot.pid != pid {
+                continue; // a beat of an earlier incarnation, still in the queue
+            }
+            slot.last_beat_ns = now;
+            slot.counters = counters;
+            if slot.state == RunState::Starting && state == ModuleState::Running {
+                slot.state = RunState::Running;
+                self.status_dirty = true;
+                let name = self.spec.modules[i].name.clone();
+                self.say(&format!("{name} is up (pid {pid})"));
+            }
+        }
+        for i in 0..self.slots.len() {
+            self.check_exit(i, now);
+            self.check_hang(i, now);
+            let slot = &self.slots[i];
+            if slot.state == RunState::Restarting && now >= slot.restart_at_ns {
+                if let Err(e) = self.spawn(i) {
+                    self.say(&format!("{e}"));
+                    self.give_up(i, format!("{e}"));
+                }
+            }
+        }
+    }
+
+    fn check_exit(&mut self, i: usize, now: u64) {
+        let slot = &mut self.slots[i];
+        let Some(child) = slot.child.as_mut() else {
+            return;
+        };
+        let status = match child.try_wait() {
+            Ok(Some(status)) => status,
+            Ok(None) => return,
+            Err(e) => {
+                tracing::debug!("waitpid: {e}");
+                return;
+            }
+        };
+        slot.child = None;
+        let reason = slot.killed_for.take().unwrap_or_else(|| reason_of(status));
+        // The dead process's ports would keep "receiving" until cleaned: clean them now, so
+        // its peers see it gone at once.
+        self.endpoint.reap_dead();
+        let name = self.spec.modules[i].name.clone();
+        let decision = self.slots[i].tracker.on_exit(&reason, now);
+        let slot = &mut self.slots[i];
+        slot.last_exit = Some(reason.clone());
+        self.status_dirty = true;
+        match decision {
+            Decision::RestartAt(at) => {
+                slot.state = RunState::Restarting;
+                slot.restart_at_ns = at;
+                let line = format!(
+                    "{name} ended ({reason}); restart {} in {} ms",
+                    slot.tracker.total,
+                    (at - now) / 1_000_000
+                );
+                self.say(&line);
+            }
+            Decision::StayDown => {
+                slot.state = RunState::Down;
+                self.say(&format!(
+                    "{name} ended ({reason}); not restarted (its policy)"
+                ));
+                if reason.is_failure() {
+                    self.problems
+                        .push(format!("{name}: {reason}, not restarted"));
+                }
+            }
+            Decision::GiveUp => {
+                let window = self.spec.modules[i].restart.window;
+                let max = self.spec.modules[i].restart.max_restarts;
+                self.give_up(
+                    i,
+                    format!(
+                        "ended ({reason}) after {max} restarts within {} s",
+                        window.as_secs_f64()
+                    ),
+                );
+            }
+        }
+    }
+
+    fn give_up(&mut self, i: usize, why: String) {
+        let m = &self.spec.modules[i];
+        let name = m.name.clone();
+        let stop = m.restart.give_up == GiveUp::StopSystem;
+        self.slots[i].state = RunState::Failed;
+        self.status_dirty = true;
+        self.say(&format!(
+            "{name} FAILED: {why}; {}",
+            if stop {
+                "stopping the system"
+            } else {
+                "the other modules keep running"
+            }
+        ));
+        self.problems.push(format!("{name} failed: {why}"));
+        if stop {
+            self.stop_failed = true;
+        }
+    }
+
+    fn check_hang(&mut self, i: usize, now: u64) {
+        let sup = &self.spec.supervision;
+        let slot = &mut self.slots[i];
+        if slot.child.is_none() || slot.killed_for.is_some() {
+            return;
+        }
+        let reason = match slot.state {
+            RunState::Running => {
+                let silent = now.saturating_sub(slot.last_beat_ns);
+                (silent >= sup.heartbeat_timeout.as_nanos() as u64).then_some(ExitReason::Hung {
+                    silent_ms: silent / 1_000_000,
+                })
+            }
+            RunState::Starting => {
+                let waited = now.saturating_sub(slot.started_ns);
+                (waited >= sup.start_timeout.as_nanos() as u64).then_some(ExitReason::NoStart {
+                    waited_ms: waited / 1_000_000,
+                })
+            }
+            _ => None,
+        };
+        if let Some(reason) = reason {
+            let name = &self.spec.modules[i].name;
+            let pid = slot.pid;
+            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGKILL);
+            // A stopped process must be continued for the kill to complete at once.
+            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGCONT);
+            let line = format!("{name} (pid {pid}): {reason}");
+            slot.killed_for = Some(reason);
+            self.say(&line);
+        }
+    }
+
+    fn forward_logs(&mut self) {
+        let mut out = std::io::stdout().lock();
+        while let Ok(LogLine { module, line }) = self.logs.try_recv() {
+            let name = self
+                .spec
+                .modules
+                .get(module)
+                .map_or("?", |m| m.name.as_str());
+            let _ = writeln!(out, "{name:>w$} | {line}", w = self.name_width);
+        }
+    }
+
+    /// Stops every module in reverse order and removes the domain's shared memory.
+    fn shutdown(&mut self) {
+        let grace = self.spec.supervision.stop_grace;
+        for i in (0..self.slots.len()).rev() {
+            let Some(mut child) = self.slots[i].child.take() else {
+                if self.slots[i].state == RunState::Restarting {
+                    self.slots[i].state = RunState::Stopped;
+                }
+                continue;
+            };
+            let name = self.spec.modules[i].name.clone();
+            let pid = Pid::from_raw(child.id() as i32);
+            let _ = kill(pid, Signal::SIGCONT);
+            let _ = kill(pid, Signal::SIGTERM);
+            let deadline = Instant::now() + grace;
+            let status = loop {
+                match child.try_wait() {
+                    Ok(Some(status)) => break Some(status),
+                    Ok(None) if Instant::now() < deadline => {
+                        self.forward_logs();
+                        std::thread::sleep(Duration::from_millis(2));
+                    }
+                    Ok(None) => {
+                        let _ = child.kill();
+                        let status = child.wait().ok();
+                        self.problems.push(format!(
+                            "{name}: did not stop within {} ms of SIGTERM; killed",
+                            grace.as_millis()
+                        ));
+                        break status;
+                    }
+                    Err(_) => break None,
+                }
+            };
+            let slot = &mut self.slots[i];
+            slot.state = RunState::Stopped;
+            if let Some(status) = status {
+                let code = match reason_of(status) {
+                    ExitReason::Exited(c) => c,
+                    ExitReason::Signaled(s) => 128 + s,
+                    _ => -1,
+                };
+                if code != 0 {
+                    self.problems
+                        .push(format!("{name}: {} on SIGTERM", reason_of(status)));
+                }
+                slot.last_exit = Some(ExitReason::Stopped(code));
+            }
+        }
+        self.forward_logs();
+        self.endpoint.reap_dead();
+    }
+}
+
+impl Drop for Supervisor {
+    fn drop(&mut self) {
+        // Modules still running (an error path): stop them before the endpoint goes.
+        if self.slots.iter().any(|s| s.child.is_some()) {
+            self.shutdown();
+        }
+        // The endpoint and the heartbeat monitor are dropped after this body; the caller
+        // removes the domain's files once they are gone (see `modbot up`).
+    }
+}
+
+/// Opens the supervisor's own module endpoint at the highest address the description leaves
+/// free (a tool such as `modbot ls` may hold one for a moment: then the next one).
+fn open_endpoint(transport: &IpcTransport, used: &[u8]) -> Result<Module<Shared>, SupervisorError> {
+    let mut last = SupervisorError::NoAddressLeft;
+    for addr in (Addr::FIRST..=Addr::LAST)
+        .rev()
+        .filter(|a| !used.contains(a))
+    {
+        let opened = ModuleBuilder::new("supervisor", addr)
+            .mode(ReceiveMode::Blocking)
+            .method("status", status_method)
+            .method("down", down_method)
+            .open(transport.clone(), Shared::default());
+        match opened {
+            Ok(m) => return Ok(m),
+            Err(crate::error::ModuleError::Open {
+                source: TransportError::AddressTaken { .. },
+                ..
+            }) => continue,
+            Err(crate::error::ModuleError::Open {
+                source: TransportError::NameTaken { pid, .. },
+                ..
+            }) => {
+                return Err(SupervisorError::DomainInUse {
+                    domain: transport.domain().name().to_owned(),
+                    modules: format!("supervisor (pid {pid})"),
+                })
+            }
+            Err(e) => last = e.into(),
+        }
+    }
+    Err(last)
+}
+
+/// Refuses a domain where another system runs (a live supervisor, or live modules at the
+/// addresses this description needs); cleans what dead processes left, and removes the
+/// domain's files if nothing of it lives.
+fn sweep(domain: &Domain, dir: &dyn Directory, used: &[u8]) -> Result<(), SupervisorError> {
+    let mut conflicts = Vec::new();
+    let mut live = 0;
+    dir.list(&mut |p| {
+        if p.alive {
+            live += 1;
+            if p.name == "supervisor" || used.contains(&p.addr.0) {
+                conflicts.push(format!("{} at address {} (pid {})", p.name, p.addr, p.pid));
+            }
+        }
+    })?;
+    if !conflicts.is_empty() {
+        return Err(SupervisorError::DomainInUse {
+            domain: domain.name().to_owned(),
+            modules: conflicts.join(", "),
+        });
+    }
+    let reaped = dir.reap_dead();
+    let removed = if live == 0 { domain.remove_files() } else { 0 };
+    if reaped + removed > 0 {
+        tracing::info!(
+            "swept domain '{}': {reaped} dead node(s), {removed} stale file(s)",
+            domain.name()
+        );
+    }
+    Ok(())
+}
+
+fn reason_of(status: std::process::ExitStatus) -> ExitReason {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (Some(code), _) => ExitReason::Exited(code),
+        (None, Some(sig)) => ExitReason::Signaled(sig),
+        (None, None) => ExitReason::Exited(-1),
+    }
+}
+
+fn status_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let mut bytes = Vec::with_capacity(64 * shared.rows.len());
+    for r in &shared.rows {
+        r.encode(&mut bytes);
+    }
+    reply.push(Value::Bytes(&bytes));
+    Ok(())
+}
+
+fn down_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    shared.down_requested = true;
+    Ok(())
+}

@@ -1,0 +1,392 @@
+//! The sandboxed evaluation of a description.
+//!
+//! The description is ordinary Lua with four declaration functions added (`domain`,
+//! `supervision`, `module`, `group`) and everything that reaches outside taken away:
+//!
+//! - only the `table`, `string`, `math`, `utf8` and `coroutine` libraries are loaded (no `os`,
+//!   `io`, `package`, `debug`), and `load`, `loadfile`, `dofile`, `require` and
+//!   `collectgarbage` are removed; binary chunks are refused;
+//! - memory is limited to [`MEMORY_LIMIT`], and a hook stops the script after
+//!   [`INSTRUCTION_LIMIT`] instructions (in every coroutine too); past the limit, every
+//!   instruction fails;
+//! - `pcall`, `xpcall`, `coroutine.resume` and `coroutine.close` are wrapped so that they cannot
+//!   swallow the stop: once the description failed (a bad declaration, the instruction limit),
+//!   every protected call re-raises, and the script unwinds to the end;
+//! - `setmetatable` refuses metatables with `__gc`: Lua runs finalizers with hooks disabled, so
+//!   a finalizer could loop forever, out of the instruction limit's reach.
+//!
+//! Each declaration records the line of the Lua code that called it. The first failure is kept
+//! with its line; a Lua syntax or runtime error is translated from Lua's `file:LINE: message`.
+
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use mlua::chunk::ChunkMode;
+use mlua::{HookTriggers, Lua, LuaOptions, MultiValue, StdLib, Value, VmState};
+
+use super::decl::{self, Declarations};
+use super::{GroupSpec, SystemError};
+
+/// The most memory a description may use.
+pub(super) const MEMORY_LIMIT: usize = 16 << 20;
+/// The most Lua instructions a description may execute.
+pub(super) const INSTRUCTION_LIMIT: u64 = 10_000_000;
+/// How often the instruction hook runs.
+const HOOK_EVERY: u32 = 1000;
+/// At most this many `module` declarations (addresses are 1 to 254) and `group` declarations.
+const MAX_MODULES: usize = 254;
+const MAX_GROUPS: usize = 1024;
+
+/// The Lua globals that would reach outside the sandbox (or defeat its limits).
+const REMOVED_GLOBALS: &[&str] = &["load", "loadfile", "dofile", "require", "collectgarbage"];
+
+/// The chunk name of [`PRELUDE`].
+const PRELUDE_NAME: &str = "=modbot prelude";
+/// Runs before the description: protected calls re-raise once the description has failed.
+const PRELUDE: &str = r#"
+local failed_check, pack, unpack = ..., table.pack, table.unpack
+local function guarded(f)
+  return function(...)
+    local results = pack(f(...))
+    failed_check()
+    return unpack(results, 1, results.n)
+  end
+end
+pcall = guarded(pcall)
+xpcall = guarded(xpcall)
+coroutine.resume = guarded(coroutine.resume)
+coroutine.close = guarded(coroutine.close)
+local raw_setmetatable, rawget, type, error = setmetatable, rawget, type, error
+setmetatable = function(t, mt)
+  if type(mt) == "table" and rawget(mt, "__gc") ~= nil then
+    error("__gc metamethods are not available in a system description", 2)
+  end
+  return raw_setmetatable(t, mt)
+end
+"#;
+
+/// The evaluation's record, shared by the declaration functions and the hook.
+///
+/// Borrows of it are short and never span a call into Lua: Lua may run user code (finalizers)
+/// during any allocation, and that code may call a declaration function.
+#[derive(Default)]
+struct Record {
+    decls: Declarations,
+    /// `module "x"` and `group "x"` calls, and whether their table was given.
+    bodies: Vec<Body>,
+    /// The first failure: its line (if any) and message.
+    failure: Option<(Option<u32>, String)>,
+    /// Instructions executed so far, counted by the hook.
+    instructions: u64,
+}
+
+struct Body {
+    kind: &'static str,
+    name: String,
+    line: u32,
+    given: bool,
+}
+
+type Shared = Rc<RefCell<Record>>;
+
+/// Evaluates `source` (called `file` in messages) and returns what it declared.
+pub(super) fn evaluate(file: &str, source: &str) -> Result<Declarations, SystemError> {
+    let record = Shared::default();
+    let lua = sandbox(&record).map_err(|e| {
+        SystemError::new(file, None, format!("cannot prepare the Lua sandbox: {e}"))
+    })?;
+    let result = lua
+        .load(source)
+        .set_name(format!("={file}"))
+        .set_mode(ChunkMode::Text)
+        .exec();
+    let mut record = std::mem::take(&mut *record.borrow_mut());
+    // Closing the state runs pending finalizers (user code, still under the hook).
+    drop(lua);
+    if let Some((line, message)) = record.failure.take() {
+        return Err(SystemError::new(file, line, message));
+    }
+    result.map_err(|e| translate(file, &e))?;
+    if let Some(body) = record.bodies.iter().find(|b| !b.given) {
+        let example = match body.kind {
+            "module" => "{ addr = ..., program = ... }",
+            _ => "{ \"member\", ... }",
+        };
+        return Err(SystemError::new(
+            file,
+            Some(body.line),
+            format!(
+                "{kind} '{name}' is declared without its table: write {kind} \"{name}\" {example}",
+                kind = body.kind,
+                name = body.name
+            ),
+        ));
+    }
+    Ok(record.decls)
+}
+
+/// A Lua state with the safe libraries, the limits and the declaration functions.
+fn sandbox(record: &Shared) -> mlua::Result<Lua> {
+    let libs = StdLib::TABLE | StdLib::STRING | StdLib::MATH | StdLib::UTF8 | StdLib::COROUTINE;
+    let lua = Lua::new_with(libs, LuaOptions::default())?;
+    lua.set_memory_limit(MEMORY_LIMIT)?;
+    let globals = lua.globals();
+    for name in REMOVED_GLOBALS {
+        globals.raw_set(*name, Value::Nil)?;
+    }
+    globals.raw_set("domain", domain_fn(&lua, record)?)?;
+    globals.raw_set("supervision", supervision_fn(&lua, record)?)?;
+    globals.raw_set("module", module_fn(&lua, record)?)?;
+    globals.raw_set("group", group_fn(&lua, record)?)?;
+    let failed = record.clone();
+    let failed_check = lua.create_function(move |_, ()| {
+        let stopped = failed.borrow().failure.is_some();
+        if stopped {
+            Err(stop())
+        } else {
+            Ok(())
+        }
+    })?;
+    lua.load(PRELUDE)
+        .set_name(PRELUDE_NAME)
+        .call::<()>(failed_check)?;
+    let counter = record.clone();
+    lua.set_global_hook(
+        HookTriggers::new().every_nth_instruction(HOOK_EVERY),
+        move |lua, _| {
+            {
+                let mut record = counter.borrow_mut();
+                record.instructions += u64::from(HOOK_EVERY);
+                if record.instructions <= INSTRUCTION_LIMIT {
+                    return Ok(VmState::Continue);
+                }
+                if record.failure.is_none() {
+                    let message = "the description ran too long (instruction limit)".to_owned();
+                    record.failure = Some((None, message));
+                }
+            }
+            // From now on every instruction fails, so code that swallows errors (a finalizer,
+            // whose errors Lua only turns into warnings) cannot keep the script alive.
+            lua.set_global_hook(HookTriggers::new().every_nth_instruction(1), |_, _| {
+                Err(stop())
+            })?;
+            Err(stop())
+        },
+    )?;
+    Ok(lua)
+}
+
+/// `domain "name"`.
+fn domain_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let name = one_arg(&args, "domain \"robot\"")
+            .and_then(decl::domain)
+            .map_err(|m| fail(&record, line, m))?;
+        let first = record.borrow().decls.domain.as_ref().map(|d| d.1);
+        if let Some(first) = first {
+            let message = format!("domain is already declared at line {first}");
+            return Err(fail(&record, line, message));
+        }
+        record.borrow_mut().decls.domain = Some((name, line));
+        Ok(())
+    })
+}
+
+/// `supervision { ... }`.
+fn supervision_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let supervision = one_arg(&args, "supervision { heartbeat_timeout = 1 }")
+            .and_then(decl::supervision)
+            .map_err(|m| fail(&record, line, m))?;
+        let first = record.borrow().decls.supervision.as_ref().map(|s| s.1);
+        if let Some(first) = first {
+            let message = format!("supervision is already declared at line {first}");
+            return Err(fail(&record, line, message));
+        }
+        record.borrow_mut().decls.supervision = Some((supervision, line));
+        Ok(())
+    })
+}
+
+/// `module "name"`, which returns the function that takes the module's table.
+fn module_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let usage = "module \"sonar\" { addr = 2, program = \"modbot-sonar\" }";
+        let name = one_arg(&args, usage)
+            .and_then(|v| decl::name("module", v))
+            .map_err(|m| fail(&record, line, m))?;
+        let index = open_body(&record, "module", &name, line, MAX_MODULES)?;
+        let record = record.clone();
+        lua.create_function(move |lua, args: MultiValue| {
+            given(&record, index);
+            let module = one_arg(&args, usage)
+                .and_then(|v| decl::module(lua, &name, line, v))
+                .map_err(|m| fail(&record, line, m))?;
+            record.borrow_mut().decls.modules.push(module);
+            Ok(())
+        })
+    })
+}
+
+/// `group "name"`, which returns the function that takes the member list.
+fn group_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let usage = "group \"sensors\" { \"sonar\", \"mobility\" }";
+        let name = one_arg(&args, usage)
+            .and_then(|v| decl::name("group", v))
+            .map_err(|m| fail(&record, line, m))?;
+        let index = open_body(&record, "group", &name, line, MAX_GROUPS)?;
+        let record = record.clone();
+        lua.create_function(move |_, args: MultiValue| {
+            given(&record, index);
+            let members = one_arg(&args, usage)
+                .and_then(|v| decl::group_members(&name, v))
+                .map_err(|m| fail(&record, line, m))?;
+            record.borrow_mut().decls.groups.push(GroupSpec {
+                name: name.clone(),
+                members,
+                line,
+            });
+            Ok(())
+        })
+    })
+}
+
+/// Notes a `kind "name"` call whose table is still to come; returns its index.
+fn open_body(
+    record: &Shared,
+    kind: &'static str,
+    name: &str,
+    line: u32,
+    max: usize,
+) -> mlua::Result<usize> {
+    let count = record
+        .borrow()
+        .bodies
+        .iter()
+        .filter(|b| b.kind == kind)
+        .count();
+    if count >= max {
+        let message = format!("too many {kind} declarations (at most {max})");
+        return Err(fail(record, line, message));
+    }
+    let mut record = record.borrow_mut();
+    record.bodies.push(Body {
+        kind,
+        name: name.to_owned(),
+        line,
+        given: false,
+    });
+    Ok(record.bodies.len() - 1)
+}
+
+fn given(record: &Shared, index: usize) {
+    if let Some(body) = record.borrow_mut().bodies.get_mut(index) {
+        body.given = true;
+    }
+}
+
+/// The single argument of a declaration; `usage` shows how it is written.
+fn one_arg<'a>(args: &'a MultiValue, usage: &str) -> Result<&'a Value, String> {
+    match args.len() {
+        1 => args.front().ok_or_else(String::new),
+        n => Err(format!("expected one argument but got {n}: write {usage}")),
+    }
+}
+
+/// Records `message` as the failure (unless there is one already) and returns the Lua error
+/// that stops the script.
+fn fail(record: &Shared, line: u32, message: String) -> mlua::Error {
+    let mut record = record.borrow_mut();
+    if record.failure.is_none() {
+        record.failure = Some((Some(line), message));
+    }
+    stop()
+}
+
+/// The Lua error that unwinds a failed description (its message is never shown: the recorded
+/// failure is).
+fn stop() -> mlua::Error {
+    mlua::Error::runtime("the system description failed")
+}
+
+/// The current line of the nearest function of the description on the stack above the running
+/// callback (skipping C functions such as `pcall`, and the prelude's wrappers).
+fn caller_line(lua: &Lua) -> u32 {
+    for level in 1..64 {
+        let frame = lua.inspect_stack(level, |d| {
+            let prelude = d.source().source.as_deref() == Some(PRELUDE_NAME);
+            (prelude, d.current_line())
+        });
+        match frame {
+            None => break,
+            Some((false, Some(line))) => return u32::try_from(line).unwrap_or(u32::MAX),
+            Some(_) => continue,
+        }
+    }
+    0
+}
+
+/// A Lua error as a [`SystemError`], with the line taken out of Lua's `file:LINE: message`.
+fn translate(file: &str, error: &mlua::Error) -> SystemError {
+    match error {
+        mlua::Error::SyntaxError { message, .. } | mlua::Error::RuntimeError(message) => {
+            let (line, message) = split_position(message);
+            SystemError::new(file, line, message)
+        }
+        mlua::Error::MemoryError(_) => SystemError::new(
+            file,
+            None,
+            format!(
+                "the description used too much memory (limit {} MiB)",
+                MEMORY_LIMIT >> 20
+            ),
+        ),
+        mlua::Error::CallbackError { cause, .. } => translate(file, cause),
+        mlua::Error::WithContext { cause, .. } => translate(file, cause),
+        other => SystemError::new(file, None, other.to_string()),
+    }
+}
+
+/// Splits `chunk:LINE: message` (with any traceback cut off) into the line and the message.
+fn split_position(text: &str) -> (Option<u32>, String) {
+    let text = text
+        .split_once("\nstack traceback:")
+        .map_or(text, |(first, _)| first);
+    for (colon, _) in text.match_indices(':') {
+        let rest = &text[colon + 1..];
+        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+        if digits == 0 || rest.as_bytes().get(digits) != Some(&b':') {
+            continue;
+        }
+        if let Ok(line) = rest[..digits].parse::<u32>() {
+            return (Some(line), rest[digits + 1..].trim_start().to_owned());
+        }
+    }
+    (None, text.to_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::split_position;
+
+    #[test]
+    fn position_is_split_from_a_lua_message() {
+        let sut = split_position("robot.lua:12: attempt to call a nil value");
+        assert_eq!(sut, (Some(12), "attempt to call a nil value".to_owned()));
+    }
+
+    #[test]
+    fn traceback_is_cut_and_a_message_without_position_is_kept() {
+        let sut = split_position("boom\nstack traceback:\n\t[C]: in ?");
+        assert_eq!(sut, (None, "boom".to_owned()));
+    }
+}

@@ -1,0 +1,123 @@
+//! The checks across declarations, and the program lookup: declarations become a
+//! [`SystemSpec`].
+//!
+//! Errors are reported in file order as far as possible: the domain first (it has no line when
+//! it is missing), then module by module, then the groups.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+use super::decl::{Declarations, ModuleDecl};
+use super::{ProgramResolver, SystemError, SystemSpec};
+
+/// Checks `decls` (from the file `file`) and finds every module's program.
+pub(super) fn build(
+    file: &str,
+    decls: Declarations,
+    resolver: &dyn ProgramResolver,
+) -> Result<SystemSpec, SystemError> {
+    let error = |line: u32, message: String| SystemError::new(file, Some(line), message);
+    let Some((domain, _)) = decls.domain else {
+        return Err(SystemError::new(
+            file,
+            None,
+            "no domain declared: add a line such as domain \"robot\"",
+        ));
+    };
+    if decls.modules.is_empty() {
+        return Err(SystemError::new(
+            file,
+            None,
+            "no modules declared: add at least one module \"name\" { addr = ..., program = ... }",
+        ));
+    }
+
+    let mut names: HashMap<&str, u32> = HashMap::new();
+    let mut addrs: HashMap<u8, (&str, u32)> = HashMap::new();
+    for m in &decls.modules {
+        if let Some(first) = names.insert(&m.name, m.line) {
+            return Err(error(
+                m.line,
+                format!(
+                    "module name '{}' is already declared at line {first}",
+                    m.name
+                ),
+            ));
+        }
+        if let Some((other, first)) = addrs.insert(m.addr, (&m.name, m.line)) {
+            return Err(error(
+                m.line,
+                format!(
+                    "address {} is already used by '{other}' (line {first})",
+                    m.addr
+                ),
+            ));
+        }
+    }
+
+    let mut group_lines: HashMap<&str, u32> = HashMap::new();
+    for g in &decls.groups {
+        if let Some(first) = group_lines.insert(&g.name, g.line) {
+            return Err(error(
+                g.line,
+                format!("group '{}' is already declared at line {first}", g.name),
+            ));
+        }
+        if let Some(unknown) = g.members.iter().find(|m| !names.contains_key(m.as_str())) {
+            return Err(error(
+                g.line,
+                format!(
+                    "group '{}': no module is named '{unknown}' (modules: {})",
+                    g.name,
+                    module_list(&decls.modules)
+                ),
+            ));
+        }
+    }
+
+    let mut programs: Vec<PathBuf> = Vec::with_capacity(decls.modules.len());
+    for m in &decls.modules {
+        match resolver.resolve(&m.program) {
+            Some(path) => programs.push(path),
+            None => {
+                return Err(error(
+                    m.line,
+                    format!(
+                        "unknown program '{}' for module '{}': {}",
+                        m.program,
+                        m.name,
+                        resolver.searched(&m.program)
+                    ),
+                ))
+            }
+        }
+    }
+
+    let groups = decls.groups;
+    let modules = decls
+        .modules
+        .into_iter()
+        .zip(programs)
+        .map(|(m, program)| {
+            let member_of = groups
+                .iter()
+                .filter(|g| g.members.contains(&m.name))
+                .map(|g| g.name.clone())
+                .collect();
+            m.into_spec(program, member_of)
+        })
+        .collect();
+    Ok(SystemSpec {
+        file: PathBuf::from(file),
+        domain,
+        supervision: decls.supervision.map(|s| s.0).unwrap_or_default(),
+        modules,
+        groups,
+    })
+}
+
+/// The declared module names, for a message.
+fn module_list(modules: &[ModuleDecl]) -> String {
+    let names: Vec<&str> = modules.iter().map(|m| m.name.as_str()).collect();
+    names.join(", ")
+}

@@ -1,0 +1,118 @@
+//! `modbot check FILE`: load a system description and print what it declares.
+//!
+//! Exit status 0 when the description is valid; 2 with one `file:line: message` line on
+//! stderr when it is not, so scripts and editors can jump to the problem.
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use modbot_runtime::system::{self, DefaultResolver, ModuleSpec, SystemSpec};
+use modbot_runtime::ReceiveMode;
+
+/// `modbot check FILE`.
+pub fn run(file: &Path) -> ExitCode {
+    match system::load(file, &DefaultResolver::for_file(file)) {
+        Ok(spec) => {
+            print!("{}", summary(&spec));
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// The description as `modbot check` prints it.
+fn summary(spec: &SystemSpec) -> String {
+    let s = &spec.supervision;
+    let mut out = format!(
+        "{}: domain {}, {} modules, {} groups\n\
+         supervision: start_timeout {:?}, heartbeat_period {:?}, heartbeat_timeout {:?}, \
+         stop_grace {:?}\n",
+        spec.file.display(),
+        spec.domain,
+        spec.modules.len(),
+        spec.groups.len(),
+        s.start_timeout,
+        s.heartbeat_period,
+        s.heartbeat_timeout,
+        s.stop_grace,
+    );
+    let name_width = spec
+        .modules
+        .iter()
+        .map(|m| m.name.len())
+        .fold(4, usize::max);
+    let groups: Vec<String> = spec.modules.iter().map(|m| list(&m.groups)).collect();
+    let group_width = groups.iter().map(String::len).fold(6, usize::max);
+    out += &format!(
+        "{:>4}  {:<name_width$}  {:<10}  {:<group_width$}  PROGRAM\n",
+        "ADDR", "NAME", "RESTART", "GROUPS"
+    );
+    for (m, groups) in spec.modules.iter().zip(&groups) {
+        out += &format!(
+            "{:>4}  {:<name_width$}  {:<10}  {:<group_width$}  {}\n",
+            m.addr,
+            m.name,
+            m.restart.when,
+            groups,
+            command_line(m)
+        );
+        let settings = settings(m);
+        if !settings.is_empty() {
+            out += &format!("      {}\n", settings.join(", "));
+        }
+    }
+    out
+}
+
+fn list(items: &[String]) -> String {
+    if items.is_empty() {
+        "-".to_owned()
+    } else {
+        items.join(",")
+    }
+}
+
+/// The program and its arguments, quoted where a shell would need it.
+fn command_line(m: &ModuleSpec) -> String {
+    let mut words = vec![m.program.display().to_string()];
+    for arg in &m.args {
+        let plain = !arg.is_empty()
+            && arg
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_.,:/=+@%".contains(c));
+        words.push(if plain {
+            arg.clone()
+        } else {
+            format!("{arg:?}")
+        });
+    }
+    words.join(" ")
+}
+
+/// The settings that differ from the defaults: restart limits, real-time settings, env.
+fn settings(m: &ModuleSpec) -> Vec<String> {
+    let mut out = Vec::new();
+    if m.restart != Default::default() && m.restart.when != system::Restart::Never {
+        out.push(format!("restart {}", m.restart));
+    }
+    if !m.cpus.is_empty() {
+        let cpus: Vec<String> = m.cpus.iter().map(usize::to_string).collect();
+        out.push(format!("cpus {}", cpus.join(",")));
+    }
+    if let Some(p) = m.priority {
+        out.push(format!("SCHED_FIFO {p}"));
+    }
+    if m.mlock {
+        out.push("mlock".to_owned());
+    }
+    if m.mode == ReceiveMode::BusyPoll {
+        out.push("busy-poll".to_owned());
+    }
+    for (k, v) in &m.env {
+        out.push(format!("{k}={v}"));
+    }
+    out
+}

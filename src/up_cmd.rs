@@ -1,0 +1,53 @@
+//! `modbot up FILE` and `modbot down`: run a system under the supervisor, and stop it.
+
+use std::path::Path;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use modbot_runtime::supervisor::{status, RunOptions, Supervisor};
+use modbot_runtime::system::{self, DefaultResolver};
+
+/// `modbot up FILE [--for SECONDS]`.
+pub fn up(file: &Path, run_for: Option<f64>) -> anyhow::Result<ExitCode> {
+    let resolver = DefaultResolver::for_file(file);
+    let spec = match system::load(file, &resolver) {
+        Ok(spec) => spec,
+        Err(e) => {
+            eprintln!("modbot up: {e}");
+            return Ok(ExitCode::from(2));
+        }
+    };
+    let run_for = match run_for {
+        Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
+        Some(s) => anyhow::bail!("--for {s}: expected a number of seconds >= 0"),
+        None => None,
+    };
+    let sup = match Supervisor::start(spec) {
+        Ok(sup) => sup,
+        Err(e) => {
+            eprintln!("modbot up: {e}");
+            return Ok(ExitCode::from(1));
+        }
+    };
+    let domain = sup.domain().clone();
+    let summary = sup.run(&RunOptions {
+        run_for,
+        show_status: true,
+    });
+    domain.remove_files();
+    println!(
+        "modbot up: ran {:.1} s in domain '{}'",
+        summary.ran_for.as_secs_f64(),
+        domain.name()
+    );
+    print!("{}", status::table(&summary.rows));
+    if summary.ok {
+        println!("modbot up: every module stopped cleanly");
+        Ok(ExitCode::SUCCESS)
+    } else {
+        for p in &summary.problems {
+            eprintln!("modbot up: {p}");
+        }
+        Ok(ExitCode::from(1))
+    }
+}

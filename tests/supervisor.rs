@@ -1,0 +1,367 @@
+//! Fault injection under `modbot up`, with real processes: every test runs its own system (its
+//! own domain and description), kills, stops or starves real module processes, and checks that
+//! nothing of the domain is left in /dev/shm or /tmp/iceoryx2 afterwards.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::TestDomain;
+use nix::sys::signal::Signal;
+
+/// Supervision settings that make the tests quick: a hang is detected after 0.6 s.
+const FAST: &str = r#"
+supervision { heartbeat_timeout = 0.6, heartbeat_period = 0.05, start_timeout = 20, stop_grace = 3 }
+"#;
+
+/// Starts `modbot up` on `body` and waits until every module in `modules` runs.
+fn start_up(sut: &mut TestDomain, body: &str, modules: &[&str]) -> u32 {
+    let file = sut.write_system(&format!("{FAST}{body}"));
+    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
+    let start = Instant::now();
+    while !modules
+        .iter()
+        .all(|m| sut.ls_field(m, "STATE").as_deref() == Some("running"))
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the system did not come up; modbot up printed:\n{}\nmodbot ls:\n{}",
+            sut.output_of(up),
+            String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout)
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    up
+}
+
+/// Stops `modbot up` with SIGTERM; returns its exit code and output, and checks the domain is
+/// clean.
+fn stop(sut: &mut TestDomain, up: u32) -> (i32, String) {
+    sut.signal(up, Signal::SIGTERM);
+    let status = sut.wait_exit(up, Duration::from_secs(30));
+    let output = sut.output_of(up);
+    assert_eq!(
+        sut.leftover_files(),
+        Vec::<std::path::PathBuf>::new(),
+        "files left behind; output:\n{output}"
+    );
+    (status.code().unwrap_or(-1), output)
+}
+
+fn pid_of(sut: &TestDomain, module: &str) -> u32 {
+    let pid = sut.ls_field(module, "PID").expect("listed");
+    pid.parse()
+        .unwrap_or_else(|_| panic!("{module} has no pid: {pid}"))
+}
+
+fn restarts_of(sut: &TestDomain, module: &str) -> u32 {
+    sut.ls_field(module, "RESTARTS")
+        .and_then(|r| r.parse().ok())
+        .unwrap_or(0)
+}
+
+fn is_gone(pid: u32) -> bool {
+    // A zombie (killed, not reaped yet by whoever inherited it) counts as gone.
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Err(_) => true,
+        Ok(stat) => stat
+            .rsplit_once(')')
+            .is_some_and(|(_, rest)| rest.trim_start().starts_with('Z')),
+    }
+}
+
+const MRA: &str = r#"
+module "sonar" { addr = 2, program = "modbot-sonar", args = { "--obstacle", "3,0" } }
+module "mobility" { addr = 3, program = "modbot-mobility" }
+"#;
+
+/// SIGKILL of a module under the default policy (on-failure, 100 ms backoff): it comes back
+/// with its address, `modbot ls` shows one restart and the signal, it answers again, and its
+/// peer kept answering throughout.
+#[test]
+fn a_killed_module_is_restarted_and_answers_again_while_its_peer_keeps_working() {
+    let mut sut = TestDomain::new("killedsup");
+    let up = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let sonar = pid_of(&sut, "sonar");
+
+    sut.signal(sonar, Signal::SIGKILL);
+    let killed = Instant::now();
+    assert_eq!(sut.modbot_ok(&["call", "mobility.turn", "10"]).trim(), "ok");
+    sut.wait_for("the sonar to answer again", Duration::from_secs(20), || {
+        sut.modbot(&["call", "sonar.ranges"]).status.success()
+    });
+    println!(
+        "the killed sonar answered again after {:?}",
+        killed.elapsed()
+    );
+    assert_ne!(pid_of(&sut, "sonar"), sonar, "a new process");
+    assert_eq!(restarts_of(&sut, "sonar"), 1);
+    assert_eq!(
+        sut.ls_field("sonar", "LAST EXIT").as_deref(),
+        Some("killed by SIGKILL")
+    );
+    assert_eq!(
+        sut.ls_field("sonar", "ADDR").as_deref(),
+        Some("2"),
+        "same address"
+    );
+    assert_eq!(restarts_of(&sut, "mobility"), 0);
+
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// While a killed module waits out its backoff, a call fails at once with "not available"
+/// — or, if the caller chooses to wait, succeeds when the module is back.
+#[test]
+fn calls_to_a_module_that_is_down_fail_clearly_or_wait_for_it_as_the_caller_chooses() {
+    let mut sut = TestDomain::new("downcalls");
+    let body = r#"
+module "sonar" { addr = 2, program = "modbot-sonar", restart = { policy = "on-failure", backoff = 3 } }
+module "mobility" { addr = 3, program = "modbot-mobility" }
+"#;
+    let up = start_up(&mut sut, body, &["sonar", "mobility"]);
+    sut.signal(pid_of(&sut, "sonar"), Signal::SIGKILL);
+    sut.wait_for("the sonar to be restarting", Duration::from_secs(5), || {
+        sut.ls_field("sonar", "STATE").as_deref() == Some("restarting")
+    });
+
+    let out = sut.modbot(&["call", "sonar.ranges"]);
+    assert_eq!(out.status.code(), Some(1));
+    let reason = String::from_utf8_lossy(&out.stderr);
+    assert!(reason.contains("not available"), "{reason}");
+
+    let waited = sut.modbot(&["call", "sonar.ranges", "--wait", "--timeout-ms", "20000"]);
+    assert!(
+        waited.status.success(),
+        "a waiting call is served once the sonar is back: {}",
+        String::from_utf8_lossy(&waited.stderr)
+    );
+    assert_eq!(restarts_of(&sut, "sonar"), 1);
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// A module stopped with SIGSTOP stops beating: within the heartbeat timeout it is declared
+/// hung, killed and restarted.
+#[test]
+fn a_stopped_module_is_detected_as_hung_killed_and_restarted() {
+    let mut sut = TestDomain::new("hung");
+    let up = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let sonar = pid_of(&sut, "sonar");
+    sut.signal(sonar, Signal::SIGSTOP);
+    sut.wait_for(
+        "the hung sonar to be restarted",
+        Duration::from_secs(20),
+        || {
+            restarts_of(&sut, "sonar") == 1
+                && sut.ls_field("sonar", "STATE").as_deref() == Some("running")
+        },
+    );
+    let last = sut.ls_field("sonar", "LAST EXIT").unwrap_or_default();
+    assert!(last.starts_with("hung"), "{last}");
+    assert!(is_gone(sonar), "the stopped process was killed");
+    assert!(sut.modbot(&["call", "sonar.ranges"]).status.success());
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// A panic and an exit(1) are restarted under `on-failure`; under `never` the module stays
+/// down, and `modbot up` reports it and exits non-zero.
+#[test]
+fn on_failure_restarts_a_panic_and_an_exit_but_never_leaves_the_module_down() {
+    let mut sut = TestDomain::new("policies");
+    let body = r#"
+module "fragile" { addr = 10, program = "modbot-faulty", restart = "on-failure" }
+module "once" { addr = 11, program = "modbot-faulty", restart = "never" }
+"#;
+    let up = start_up(&mut sut, body, &["fragile", "once"]);
+
+    sut.modbot_ok(&["call", "fragile.panic"]);
+    sut.wait_for(
+        "the panicked module to be back",
+        Duration::from_secs(20),
+        || {
+            restarts_of(&sut, "fragile") == 1
+                && sut.modbot(&["call", "fragile.ping"]).status.success()
+        },
+    );
+    assert_eq!(
+        sut.ls_field("fragile", "LAST EXIT").as_deref(),
+        Some("exit 101")
+    );
+
+    sut.modbot_ok(&["call", "fragile.exit", "1"]);
+    sut.wait_for(
+        "the exited module to be back",
+        Duration::from_secs(20),
+        || {
+            restarts_of(&sut, "fragile") == 2
+                && sut.modbot(&["call", "fragile.ping"]).status.success()
+        },
+    );
+    assert_eq!(
+        sut.ls_field("fragile", "LAST EXIT").as_deref(),
+        Some("exit 1")
+    );
+
+    sut.modbot_ok(&["call", "once.exit", "1"]);
+    sut.wait_for(
+        "the `never` module to be down",
+        Duration::from_secs(10),
+        || sut.ls_field("once", "STATE").as_deref() == Some("down"),
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(restarts_of(&sut, "once"), 0, "never is never restarted");
+    assert!(sut.modbot(&["call", "fragile.ping"]).status.success());
+
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(
+        code, 1,
+        "a module down against its will fails the run:\n{output}"
+    );
+    assert!(output.contains("once: exit 1, not restarted"), "{output}");
+}
+
+/// A module that ends more often than its maximum within the window is failed; with
+/// `keep-others` the rest of the system goes on, with `stop-system` the supervisor stops.
+#[test]
+fn more_restarts_than_the_maximum_fail_the_module_and_stop_the_system_only_if_configured() {
+    let mut sut = TestDomain::new("giveup");
+    let body = r#"
+module "flaky" { addr = 10, program = "modbot-faulty",
+  restart = { policy = "always", max_restarts = 2, window = 60, backoff = 0.05, give_up = "keep-others" } }
+module "steady" { addr = 11, program = "modbot-faulty" }
+"#;
+    let up = start_up(&mut sut, body, &["flaky", "steady"]);
+    for round in 1..=3 {
+        sut.wait_for("flaky to answer", Duration::from_secs(20), || {
+            sut.modbot(&["call", "flaky.exit", "0"]).status.success()
+        });
+        if round < 3 {
+            sut.wait_for("flaky to be restarted", Duration::from_secs(20), || {
+                restarts_of(&sut, "flaky") == round
+            });
+        }
+    }
+    sut.wait_for("flaky to be failed", Duration::from_secs(20), || {
+        sut.ls_field("flaky", "STATE").as_deref() == Some("failed")
+    });
+    assert!(
+        sut.modbot(&["call", "steady.ping"]).status.success(),
+        "the rest keeps running"
+    );
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 1, "{output}");
+    assert!(output.contains("flaky FAILED"), "{output}");
+
+    let mut sut = TestDomain::new("giveupstop");
+    let body = r#"
+module "flaky" { addr = 10, program = "modbot-faulty",
+  restart = { policy = "always", max_restarts = 1, window = 60, backoff = 0.05, give_up = "stop-system" } }
+module "steady" { addr = 11, program = "modbot-faulty" }
+"#;
+    let up = start_up(&mut sut, body, &["flaky", "steady"]);
+    sut.modbot_ok(&["call", "flaky.exit", "0"]);
+    sut.wait_for("flaky to be back", Duration::from_secs(20), || {
+        restarts_of(&sut, "flaky") == 1 && sut.modbot(&["call", "flaky.ping"]).status.success()
+    });
+    sut.modbot_ok(&["call", "flaky.exit", "0"]);
+    let status = sut.wait_exit(up, Duration::from_secs(30));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(1), "{output}");
+    assert!(output.contains("stopping the system"), "{output}");
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
+
+/// Garbage frames flooding a module are counted and dropped, and it keeps serving calls.
+#[test]
+fn a_module_flooded_with_garbage_counts_and_drops_it_and_keeps_serving() {
+    let mut sut = TestDomain::new("garbage");
+    let body = r#"
+module "mobility" { addr = 3, program = "modbot-mobility" }
+module "vandal" { addr = 10, program = "modbot-faulty" }
+"#;
+    let up = start_up(&mut sut, body, &["mobility", "vandal"]);
+    let mut delivered = 0;
+    for _ in 0..5 {
+        let out = sut.modbot_ok(&["call", "vandal.flood", "mobility", "100"]);
+        delivered += out.lines().next().unwrap().trim().parse::<u64>().unwrap();
+        assert_eq!(sut.modbot_ok(&["call", "mobility.turn", "5"]).trim(), "ok");
+    }
+    assert!(delivered > 0);
+    sut.wait_for(
+        "every garbage frame counted",
+        Duration::from_secs(10),
+        || {
+            sut.ls_field("mobility", "REJECT")
+                .and_then(|r| r.parse::<u64>().ok())
+                == Some(delivered)
+        },
+    );
+    assert_eq!(restarts_of(&sut, "mobility"), 0);
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// A sender that outpaces a slow receiver is never blocked: frames the full inbox refuses are
+/// counted as dropped at the sender, and visible in `modbot ls`.
+#[test]
+fn a_slow_consumer_does_not_block_its_sender_and_the_loss_is_counted() {
+    let mut sut = TestDomain::new("slow");
+    let body = r#"
+module "consumer" { addr = 10, program = "modbot-faulty", args = { "--slow-ms", "20" } }
+module "producer" { addr = 11, program = "modbot-faulty" }
+"#;
+    let up = start_up(&mut sut, body, &["consumer", "producer"]);
+    // 500 reports take the consumer 10 s; the call returns long before (its timeout is 2 s).
+    let out = sut.modbot_ok(&["call", "producer.spam", "consumer", "500"]);
+    let counts: Vec<u64> = out.lines().map(|l| l.trim().parse().unwrap()).collect();
+    let (sent, refused) = (counts[0], counts[1]);
+    assert_eq!(sent + refused, 500);
+    assert!(refused > 0, "the consumer's inbox filled up: {counts:?}");
+    sut.wait_for("the loss to be visible", Duration::from_secs(10), || {
+        sut.ls_field("producer", "DROPPED")
+            .and_then(|d| d.parse::<u64>().ok())
+            == Some(refused)
+    });
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// SIGKILL of the supervisor itself: every module exits within a second (they die with it),
+/// and the next `modbot up` of the same domain starts clean.
+#[test]
+fn when_the_supervisor_is_killed_its_modules_die_and_the_next_up_starts_clean() {
+    let mut sut = TestDomain::new("supkill");
+    let first = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let pids = [pid_of(&sut, "sonar"), pid_of(&sut, "mobility")];
+    sut.signal(first, Signal::SIGKILL);
+    sut.wait_exit(first, Duration::from_secs(5));
+    let killed = Instant::now();
+    sut.wait_for(
+        "the modules to die with the supervisor",
+        Duration::from_secs(1),
+        || pids.iter().all(|&p| is_gone(p)),
+    );
+    println!("modules gone {:?} after the supervisor", killed.elapsed());
+
+    let second = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    assert!(sut.modbot(&["call", "sonar.ranges"]).status.success());
+    let (code, output) = stop(&mut sut, second);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// `modbot down` stops a running system from another terminal.
+#[test]
+fn modbot_down_stops_the_system_from_another_terminal() {
+    let mut sut = TestDomain::new("down");
+    let up = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let out = sut.modbot_ok(&["down"]);
+    assert!(out.contains("is down"), "{out}");
+    let status = sut.wait_exit(up, Duration::from_secs(20));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert!(output.contains("every module stopped cleanly"), "{output}");
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
