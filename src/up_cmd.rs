@@ -4,8 +4,9 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use modbot_runtime::supervisor::{status, RunOptions, Supervisor};
+use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError};
 use modbot_runtime::system::{self, DefaultResolver};
+use modbot_runtime::Domain;
 
 /// `modbot up FILE [--for SECONDS]`.
 pub fn up(file: &Path, run_for: Option<f64>) -> anyhow::Result<ExitCode> {
@@ -22,14 +23,19 @@ pub fn up(file: &Path, run_for: Option<f64>) -> anyhow::Result<ExitCode> {
         Some(s) => anyhow::bail!("--for {s}: expected a number of seconds >= 0"),
         None => None,
     };
+    let domain = Domain::new(&spec.domain)?;
     let sup = match Supervisor::start(spec) {
         Ok(sup) => sup,
         Err(e) => {
+            // What this run started is stopped by now; a domain another system uses is
+            // left alone.
+            if !matches!(e, SupervisorError::DomainInUse { .. }) {
+                domain.remove_files();
+            }
             eprintln!("modbot up: {e}");
             return Ok(ExitCode::from(1));
         }
     };
-    let domain = sup.domain().clone();
     let summary = sup.run(&RunOptions {
         run_for,
         show_status: true,

@@ -365,3 +365,54 @@ fn modbot_down_stops_the_system_from_another_terminal() {
     assert!(output.contains("every module stopped cleanly"), "{output}");
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }
+
+/// A module that never announces itself fails the start with an error naming it, and nothing
+/// of the domain is left behind.
+#[test]
+fn a_module_that_does_not_come_up_fails_the_start_with_its_name() {
+    let mut sut = TestDomain::new("nostart");
+    let script = std::env::temp_dir().join(format!("{}-lazy.sh", sut.name()));
+    std::fs::write(&script, "#!/bin/sh\nexec sleep 30\n").unwrap();
+    std::fs::set_permissions(&script, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let body = format!(
+        r#"
+supervision {{ start_timeout = 1 }}
+module "sonar" {{ addr = 2, program = "modbot-sonar" }}
+module "lazy" {{ addr = 5, program = "{}" }}
+"#,
+        script.display()
+    );
+    let file = sut.write_system(&body);
+    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
+    let status = sut.wait_exit(up, Duration::from_secs(30));
+    let output = sut.output_of(up);
+    let _ = std::fs::remove_file(&script);
+    assert_eq!(status.code(), Some(1), "{output}");
+    assert!(
+        output.contains("lazy did not announce themselves within 1000 ms"),
+        "{output}"
+    );
+    assert!(!output.contains("sonar did not"), "{output}");
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
+
+/// `modbot check` of a broken description names the file and the line, and exits 2.
+#[test]
+fn modbot_check_names_the_file_and_line_of_a_broken_description() {
+    let mut sut = TestDomain::new("check");
+    let file = sut.write_system(
+        r#"
+module "sonar" { addr = 2, program = "modbot-sonar" }
+module "sonar2" { addr = 2, program = "modbot-sonar" }
+"#,
+    );
+    let out = sut.modbot(&["check", file.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    // line 1 is the `domain` line the fixture writes, line 2 is blank
+    let want = format!(
+        "{}:4: address 2 is already used by 'sonar' (line 3)",
+        file.display()
+    );
+    assert_eq!(err.trim(), want);
+}

@@ -61,6 +61,8 @@ pub enum SupervisorError {
         program: String,
         source: std::io::Error,
     },
+    #[error("module {module} ended before it announced itself ({reason})")]
+    EndedAtStart { module: String, reason: String },
     #[error("module(s) {modules} did not announce themselves within {timeout_ms} ms")]
     StartTimeout { modules: String, timeout_ms: u64 },
     #[error("the description uses all 254 addresses; the supervisor needs one free address")]
@@ -324,7 +326,23 @@ impl Supervisor {
             self.serve();
             self.watch();
             self.forward_logs();
-            if self.slots.iter().all(|s| s.state != RunState::Starting) {
+            let ended = self
+                .spec
+                .modules
+                .iter()
+                .zip(&self.slots)
+                .find(|(_, s)| matches!(s.state, RunState::Down | RunState::Failed));
+            if let Some((m, s)) = ended {
+                return Err(SupervisorError::EndedAtStart {
+                    module: m.name.clone(),
+                    reason: s
+                        .last_exit
+                        .as_ref()
+                        .map(ToString::to_string)
+                        .unwrap_or_default(),
+                });
+            }
+            if self.slots.iter().all(|s| s.state == RunState::Running) {
                 return Ok(());
             }
             if crate::signals::termination_requested() || Instant::now() >= deadline {
@@ -333,7 +351,7 @@ impl Supervisor {
                     .modules
                     .iter()
                     .zip(&self.slots)
-                    .filter(|(_, s)| s.state == RunState::Starting)
+                    .filter(|(_, s)| s.state != RunState::Running)
                     .map(|(m, _)| m.name.as_str())
                     .collect();
                 return Err(SupervisorError::StartTimeout {
