@@ -9,11 +9,15 @@ use std::process::ExitCode;
 use modbot_runtime::system::{self, DefaultResolver, ModuleSpec, SystemSpec};
 use modbot_runtime::ReceiveMode;
 
-/// `modbot check FILE`.
-pub fn run(file: &Path) -> ExitCode {
-    match system::load(file, &DefaultResolver::for_file(file)) {
+/// `modbot check FILE [--var KEY=VALUE]...`.
+pub fn run(file: &Path, vars: &[(String, String)]) -> ExitCode {
+    match system::load_with_vars(file, &DefaultResolver::for_file(file), vars) {
         Ok(spec) => {
             print!("{}", summary(&spec));
+            if !vars.is_empty() {
+                let given: Vec<String> = vars.iter().map(|(k, v)| format!("{k}={v:?}")).collect();
+                println!("vars: {}", given.join(", "));
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -1,7 +1,8 @@
 //! `modbot`: the command line of the modbot runtime.
 //!
 //! - `rvmf encode|decode`: build and read RVMF* frames (see `rvmf_cmd`).
-//! - `ls`, `call`, `bb`: look at and talk to a running system (see `tool`).
+//! - `ls`, `call`, `bb`, `activate`, `deactivate`: look at and talk to a running system (see
+//!   `tool`).
 //! - `check FILE`: load and check a system description (see `check_cmd`).
 //! - `up FILE`, `down`: run a system under the supervisor, and stop it (see `up_cmd`).
 
@@ -39,6 +40,9 @@ enum Command {
     Check {
         /// The system description.
         file: PathBuf,
+        /// A variable for the description (its table `vars`); repeatable.
+        #[arg(long = "var", value_name = "KEY=VALUE", value_parser = parse_var)]
+        vars: Vec<(String, String)>,
     },
     /// Start a system: every module of the description as its own process, supervised.
     ///
@@ -51,6 +55,9 @@ enum Command {
         /// Stop after this many seconds.
         #[arg(long = "for", value_name = "SECONDS")]
         run_for: Option<f64>,
+        /// A variable for the description, which reads it as `vars.KEY` (a string); repeatable.
+        #[arg(long = "var", value_name = "KEY=VALUE", value_parser = parse_var)]
+        vars: Vec<(String, String)>,
     },
     /// Stop the system running in the domain (from another terminal).
     Down,
@@ -64,7 +71,9 @@ enum Command {
     /// Call a method: `modbot call MODULE.METHOD [ARGS...]`.
     ///
     /// Arguments: `1.5` is f64, `3` i64, `true` bool, `[1,2]` f64 array, `0x0a0b` bytes,
-    /// anything else text; `f64:3` or `text:true` force a kind.
+    /// anything else text; `f64:3` or `text:true` force a kind. Every module also answers the
+    /// system methods `describe`, `bb_get`, `bb_set`, `bb_snapshot`, `stats` (shown as a
+    /// table: traffic, calls, latency percentiles), `activate` and `deactivate`.
     Call {
         /// MODULE.METHOD
         target: String,
@@ -79,6 +88,13 @@ enum Command {
         #[arg(long)]
         wait: bool,
     },
+    /// Activate a module the operator deactivated: it serves its methods and runs its tasks
+    /// again (`modbot call MODULE.activate`).
+    Activate { module: String },
+    /// Deactivate a module: until `modbot activate`, it answers its own methods with NAK
+    /// "not ready" and pauses its periodic tasks; its system methods, heartbeats and snapshots
+    /// go on (`modbot call MODULE.deactivate`).
+    Deactivate { module: String },
     /// Read a module's blackboard (one snapshot), read one item, or write one.
     Bb {
         module: String,
@@ -86,6 +102,11 @@ enum Command {
         #[arg(allow_hyphen_values = true)]
         value: Option<String>,
     },
+}
+
+/// `--var KEY=VALUE`; a malformed one is a usage error (exit 2).
+fn parse_var(text: &str) -> Result<(String, String), String> {
+    modbot_runtime::system::parse_var(text)
 }
 
 fn main() -> ExitCode {
@@ -99,8 +120,12 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Rvmf { command } => return rvmf_cmd::run(command),
-        Command::Check { file } => return check_cmd::run(&file),
-        Command::Up { file, run_for } => up_cmd::up(&file, run_for),
+        Command::Check { file, vars } => return check_cmd::run(&file, &vars),
+        Command::Up {
+            file,
+            run_for,
+            vars,
+        } => up_cmd::up(&file, run_for, &vars),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),
         Command::Call {
@@ -109,6 +134,16 @@ fn main() -> ExitCode {
             timeout_ms,
             wait,
         } => tool::call(&cli.domain, &target, &args, timeout_ms, wait),
+        Command::Activate { module } => {
+            tool::call(&cli.domain, &format!("{module}.activate"), &[], 2000, false)
+        }
+        Command::Deactivate { module } => tool::call(
+            &cli.domain,
+            &format!("{module}.deactivate"),
+            &[],
+            2000,
+            false,
+        ),
         Command::Bb {
             module,
             item,

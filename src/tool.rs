@@ -4,9 +4,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context};
-use modbot_ipc_schema::{sysmethod, OwnedValue, SnapshotView, Value};
+use modbot_ipc_schema::{sysmethod, Args, OwnedValue, SnapshotView, Value};
 use modbot_runtime::supervisor::status::Row;
-use modbot_runtime::{CallError, CallOptions, Domain, IpcTransport, Module, ModuleBuilder};
+use modbot_runtime::{CallError, CallOptions, Domain, IpcTransport, Module, ModuleBuilder, Stats};
 
 fn open(domain: &str) -> anyhow::Result<Module<()>> {
     let domain = Domain::new(domain)?;
@@ -97,15 +97,20 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
                     Ok(a) => {
                         let count = |i| a.i64(i).map(|n| n.to_string()).unwrap_or("-".into());
                         let methods = a.text(3).map(str::to_owned).map_err(|e| e.to_string())?;
-                        Ok(([count(5), count(6), count(7)], methods))
+                        // Modules older than `active` do not send it: active.
+                        let active = !matches!(a.get(8), Some(Value::Bool(false)));
+                        Ok(([count(5), count(6), count(7)], methods, active))
                     }
                     Err(e) => Err(e.to_string()),
                 },
             );
             match described {
-                Ok((counters, methods)) => {
+                Ok((counters, methods, active)) => {
                     line.counters = counters;
                     line.methods = methods.replace(',', " ");
+                    if !active {
+                        line.state = "deactivated".into();
+                    }
                 }
                 Err(e) => line.methods = format!("(no answer: {e})"),
             }
@@ -261,6 +266,19 @@ pub fn call(
     };
     match result {
         Ok(values) if values.is_empty() => println!("ok"),
+        Ok(values) if sysmethod::id(method) == Some(sysmethod::STATS) => {
+            let shown: Vec<Value<'_>> = values.iter().map(OwnedValue::as_value).collect();
+            let stats = Args::from_values(&shown)
+                .map_err(|e| anyhow!("{e}"))
+                .and_then(|a| Stats::from_answer(&a).map_err(|e| anyhow!("{e}")));
+            match stats {
+                Ok(stats) => print!("{}", stats_table(&stats)),
+                Err(e) => {
+                    eprintln!("modbot call {target}: {e}");
+                    return Ok(ExitCode::from(1));
+                }
+            }
+        }
         Ok(values) => {
             for v in values {
                 println!("{v}");
@@ -272,6 +290,38 @@ pub fn call(
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A `stats` answer as `modbot call MODULE.stats` prints it.
+fn stats_table(s: &Stats) -> String {
+    let h = &s.latency;
+    let latency = if h.is_empty() {
+        "-".to_owned()
+    } else {
+        format!(
+            "p50 {}  p90 {}  p99 {}  max {}  ({} answers)",
+            duration(h.percentile(50.0)),
+            duration(h.percentile(90.0)),
+            duration(h.percentile(99.0)),
+            duration(h.max()),
+            h.count()
+        )
+    };
+    format!(
+        "frames sent      {}\nframes received  {}\ncalls            {}\nanswered         {}\n\
+         failed           {}\nlatency          {latency}\n",
+        s.frames_sent, s.frames_received, s.calls, s.answered, s.failed
+    )
+}
+
+/// `ns` in the unit that reads best.
+fn duration(ns: u64) -> String {
+    match ns {
+        n if n < 1_000 => format!("{n} ns"),
+        n if n < 1_000_000 => format!("{:.1} µs", n as f64 / 1e3),
+        n if n < 1_000_000_000 => format!("{:.1} ms", n as f64 / 1e6),
+        n => format!("{:.2} s", n as f64 / 1e9),
+    }
 }
 
 /// `modbot bb MODULE [ITEM [VALUE]]`.

@@ -8,10 +8,14 @@ use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError
 use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::Domain;
 
-/// `modbot up FILE [--for SECONDS]`.
-pub fn up(file: &Path, run_for: Option<f64>) -> anyhow::Result<ExitCode> {
+/// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]...`.
+pub fn up(
+    file: &Path,
+    run_for: Option<f64>,
+    vars: &[(String, String)],
+) -> anyhow::Result<ExitCode> {
     let resolver = DefaultResolver::for_file(file);
-    let spec = match system::load(file, &resolver) {
+    let spec = match system::load_with_vars(file, &resolver, vars) {
         Ok(spec) => spec,
         Err(e) => {
             eprintln!("modbot up: {e}");

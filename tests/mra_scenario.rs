@@ -62,7 +62,8 @@ fn the_base_stops_short_of_the_obstacle_when_the_sonar_reports() {
     });
     assert_eq!(
         sut.modbot_ok(&["call", "mobility.forward", "10"]).trim(),
-        "ok"
+        "1",
+        "the first motion command"
     );
     sut.wait_for("the base to stop", Duration::from_secs(20), || {
         sut.modbot_ok(&["bb", "mobility", "moving"]).trim() == "false"

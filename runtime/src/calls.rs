@@ -139,6 +139,8 @@ struct Slot {
     wait_for_peer: bool,
     /// Whether the payload was kept for retransmission.
     kept: bool,
+    /// When the request was first sent, for the call's latency.
+    first_sent_ns: Option<u64>,
 }
 
 impl Slot {
@@ -172,6 +174,16 @@ pub struct Expired {
     pub timeout: Duration,
     /// How many times the request was sent.
     pub sends: u8,
+}
+
+/// A call that got its answer, as [`MethodQueue::answer`] hands it back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Answered {
+    pub handle: CallHandle,
+    pub purpose: Purpose,
+    /// When the request was first sent (`None` if the answer came to a call never sent, which
+    /// a well-behaved peer cannot cause).
+    pub first_sent_ns: Option<u64>,
 }
 
 /// A request to send again, lent by [`MethodQueue::expire`] and [`MethodQueue::resend_to`].
@@ -265,6 +277,7 @@ impl MethodQueue {
             sends: 0,
             wait_for_peer: opts.wait_for_peer,
             kept: false,
+            first_sent_ns: None,
         });
         self.payloads[free_slot].clear();
         self.earliest_ns = self.earliest_ns.min(deadline_ns);
@@ -296,6 +309,7 @@ impl MethodQueue {
         };
         slot.method = Some(method);
         slot.sends = slot.sends.saturating_add(1);
+        slot.first_sent_ns.get_or_insert(now_ns);
         slot.kept = kept;
         if kept && slot.retry_every_ns > 0 && slot.retries_left > 0 {
             slot.next_retry_ns = now_ns.saturating_add(slot.retry_every_ns);
@@ -307,12 +321,21 @@ impl MethodQueue {
     ///
     /// `None` means no call waits for it: a late answer to a call that timed out, or a stray.
     pub fn complete(&mut self, peer: Addr, seq: Seq) -> Option<(CallHandle, Purpose)> {
+        self.answer(peer, seq).map(|a| (a.handle, a.purpose))
+    }
+
+    /// Like [`MethodQueue::complete`], with when the request was first sent.
+    pub fn answer(&mut self, peer: Addr, seq: Seq) -> Option<Answered> {
         let i = self.slots.iter().position(|s| {
             s.is_some_and(|s| s.peer == peer && s.seq == seq && s.state == SlotState::Waiting)
         })?;
         let slot = self.slots[i].take().expect("found above");
         self.release(slot);
-        Some((slot.handle, slot.purpose))
+        Some(Answered {
+            handle: slot.handle,
+            purpose: slot.purpose,
+            first_sent_ns: slot.first_sent_ns,
+        })
     }
 
     /// Ends a call without an answer (its send failed, say).
@@ -586,6 +609,31 @@ mod tests {
         sut.resend_to(Addr(4), |r| resent.push((r.seq, r.payload.to_vec())));
         assert_eq!(resent, vec![(seq, vec![7])]);
         assert_eq!(sut.complete(Addr(4), seq), Some((patient, Purpose::User)));
+    }
+
+    #[test]
+    fn an_answer_tells_when_its_request_was_first_sent_even_after_retransmissions() {
+        let mut sut = MethodQueue::default();
+        let opts =
+            CallOptions::timeout(Duration::from_secs(3)).with_retry(RetryPolicy { retries: 2 });
+        let (handle, seq) = sut.begin(Addr(4), 5, opts, Purpose::User).unwrap();
+        sut.sent(handle, 1, 7, true);
+        sut.expire(SEC + 7, |_| {}, |_| {});
+        sut.sent(handle, 1, SEC + 8, true); // sent again from a pending queue, say
+        assert_eq!(
+            sut.answer(Addr(4), seq),
+            Some(Answered {
+                handle,
+                purpose: Purpose::User,
+                first_sent_ns: Some(7)
+            })
+        );
+        let (never_sent, seq) = sut.begin(Addr(4), 5, opts, Purpose::User).unwrap();
+        assert_eq!(
+            sut.answer(Addr(4), seq)
+                .map(|a| (a.handle, a.first_sent_ns)),
+            Some((never_sent, None))
+        );
     }
 
     #[test]

@@ -11,6 +11,7 @@ use crate::clock::Clock;
 use crate::error::CallError;
 use crate::phonebook::PhoneBook;
 use crate::served::ServedLog;
+use crate::stats::Stats;
 use crate::transport::{Dest, Directory, ReceiveMode, SendError, Snapshots, Tx};
 
 /// A call that waits to be sent: its peer's method table is not learned yet, or the peer is
@@ -56,6 +57,11 @@ pub struct Ctx {
     pub(crate) stop: bool,
     /// The module whose frame is being served.
     pub(crate) caller: Addr,
+    /// Traffic and call counters and the call latency histogram (the `stats` system method).
+    pub(crate) stats: Stats,
+    /// Whether the operator left the module active (`activate`/`deactivate`): while not, its
+    /// own methods answer NAK not-ready and its tasks do not run.
+    pub(crate) active: bool,
 }
 
 impl Ctx {
@@ -95,6 +101,18 @@ impl Ctx {
         self.tx.dropped()
     }
 
+    /// This module's traffic and call counters and its call latencies, as the `stats` system
+    /// method answers them.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// Whether the module is active: an operator can deactivate it (the `deactivate` system
+    /// method), and then it refuses its own methods and pauses its periodic tasks.
+    pub fn is_active(&self) -> bool {
+        self.active
+    }
+
     /// Calls `method` of `module` with the default options; the answer comes to the module's
     /// `on_done` hook (or to [`crate::Module::call_blocking`]).
     pub fn call(
@@ -108,6 +126,20 @@ impl Ctx {
 
     /// Calls `method` of `module`.
     pub fn call_with(
+        &mut self,
+        module: &str,
+        method: &str,
+        args: &[Value<'_>],
+        opts: CallOptions,
+    ) -> Result<CallHandle, CallError> {
+        let started = self.start_call(module, method, args, opts);
+        if started.is_ok() {
+            self.stats.calls += 1;
+        }
+        started
+    }
+
+    fn start_call(
         &mut self,
         module: &str,
         method: &str,
@@ -295,7 +327,9 @@ impl Ctx {
     /// (a receiver must count and drop what is malformed).
     pub fn send_bytes(&mut self, to: Dest<'_>, bytes: &[u8]) -> Result<(), SendError> {
         self.tx
-            .send(to, bytes.len(), &mut |buf| buf.copy_from_slice(bytes))
+            .send(to, bytes.len(), &mut |buf| buf.copy_from_slice(bytes))?;
+        self.stats.frames_sent += 1;
+        Ok(())
     }
 
     /// Resolves a module name to its address through the phone book.
@@ -340,6 +374,7 @@ impl Ctx {
         let mut result = Ok(0);
         self.tx
             .send(to, len, &mut |buf| result = spec.encode_values(values, buf))?;
+        self.stats.frames_sent += 1;
         result
             .map(|_| ())
             .map_err(|e| CallError::Encode(e.to_string()))
@@ -356,6 +391,7 @@ impl Ctx {
         let mut result = Ok(0);
         self.tx
             .send(to, len, &mut |buf| result = spec.encode(payload, buf))?;
+        self.stats.frames_sent += 1;
         result
             .map(|_| ())
             .map_err(|e| CallError::Encode(e.to_string()))

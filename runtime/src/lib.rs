@@ -17,6 +17,8 @@
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
 //! - [`run`]: the default application controller (main loop, signals, receive modes).
+//! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
+//! - [`sim`]: the simulated time all processes of a system share (`MODBOT_EPOCH_NS`).
 //! - [`system`]: the system description: the Lua file that lists a robot's module processes,
 //!   loaded in a sandbox and checked ([`system::load`]).
 //! - [`supervisor`]: `modbot up`: starts, watches and restarts a system's module processes.
@@ -34,6 +36,8 @@ pub mod phonebook;
 pub mod run;
 pub mod served;
 pub mod signals;
+pub mod sim;
+pub mod stats;
 pub mod supervisor;
 pub mod system;
 pub mod transport;
@@ -45,6 +49,8 @@ pub use domain::Domain;
 pub use error::{CallError, MethodError, ModuleError};
 pub use module::{Module, ModuleBuilder, Reply, Report};
 pub use run::run;
+pub use sim::SimTime;
+pub use stats::{Histogram, Stats};
 pub use transport::ipc::IpcTransport;
 pub use transport::local::LocalTransport;
 pub use transport::{Dest, ReceiveMode};

@@ -4,6 +4,10 @@
 //! answers) and are answered with REPLY, ACK or NAK; a RETRY of a request already served is
 //! answered from the [`crate::served`] record instead of executing twice. REPLY, ACK and NAK
 //! complete calls in the method queue; REPORT goes to the module's report hook.
+//!
+//! While the operator has deactivated the module, its own methods are answered with NAK
+//! not-ready; the system methods are always served. Every frame received is counted, and
+//! every answer to a call of the module's code records the call's latency ([`crate::stats`]).
 
 use modbot_ipc_schema::{sysmethod, Args, Frame, FrameKind, FrameSpec, NakCode, Value};
 
@@ -23,6 +27,7 @@ pub(crate) fn dispatch<S>(
     bytes: &[u8],
     waiter: &mut Waiter<'_>,
 ) {
+    ctx.stats.frames_received += 1;
     let frame = match Frame::decode(bytes) {
         Ok(f) => f,
         Err(e) => {
@@ -50,10 +55,11 @@ pub(crate) fn dispatch<S>(
             serve_request(def, state, ctx, reply, &frame, method);
         }
         FrameKind::Reply | FrameKind::Ack | FrameKind::Nak { .. } => {
-            let Some((handle, purpose)) = ctx.calls.complete(src, frame.seq()) else {
+            let Some(answered) = ctx.calls.answer(src, frame.seq()) else {
                 ctx.stale += 1;
                 return;
             };
+            let (handle, purpose) = (answered.handle, answered.purpose);
             let module = ctx
                 .book
                 .get(src)
@@ -90,6 +96,14 @@ pub(crate) fn dispatch<S>(
                     }
                 }
                 Purpose::User => {
+                    if let Some(sent) = answered.first_sent_ns {
+                        let latency = ctx.now_ns().saturating_sub(sent);
+                        ctx.stats.latency.record(latency);
+                    }
+                    match &result {
+                        Ok(_) => ctx.stats.answered += 1,
+                        Err(_) => ctx.stats.failed += 1,
+                    }
                     let result = result.as_ref();
                     match waiter {
                         Some((h, f)) if *h == handle => f(result),
@@ -187,9 +201,12 @@ fn serve_request<S>(
         Err(e) => Err(MethodError::from(e).into()),
         Ok(args) => {
             if method >= sysmethod::FIRST_RESERVED {
-                system_method(def, ctx, method, &args, reply)
+                system_method(def, state, ctx, method, &args, reply)
             } else {
                 match def.methods.get(usize::from(method)) {
+                    Some(_) if !ctx.active => Err(UnknownOr::Method(MethodError::NotReady(
+                        format!("module '{}' is deactivated by the operator", ctx.name),
+                    ))),
                     Some((_, f)) => f(state, ctx, &args, reply).map_err(UnknownOr::from),
                     None => Err(unknown_method(method, def)),
                 }
@@ -258,6 +275,7 @@ fn unknown_method<S>(id: u8, def: &Definition<S>) -> UnknownOr {
 
 fn system_method<S>(
     def: &Definition<S>,
+    state: &mut S,
     ctx: &mut Ctx,
     id: u8,
     args: &Args<'_>,
@@ -274,6 +292,7 @@ fn system_method<S>(
             reply.push(Value::I64(ctx.tx.dropped() as i64));
             reply.push(Value::I64(ctx.rejected as i64));
             reply.push(Value::I64(ctx.replayed as i64));
+            reply.push(Value::Bool(ctx.active));
             Ok(())
         }
         sysmethod::BB_GET => {
@@ -300,6 +319,26 @@ fn system_method<S>(
             let addr = ctx.addr;
             ctx.bb.write_snapshot(&mut buf, addr, now);
             reply.push(Value::Bytes(&buf));
+            Ok(())
+        }
+        sysmethod::STATS => {
+            ctx.stats.write_answer(reply);
+            Ok(())
+        }
+        sysmethod::ACTIVATE | sysmethod::DEACTIVATE => {
+            let active = id == sysmethod::ACTIVATE;
+            if ctx.active != active {
+                ctx.active = active;
+                let (name, by) = (&ctx.name, ctx.caller);
+                if active {
+                    tracing::info!("module {name} activated by {by}");
+                } else {
+                    tracing::warn!("module {name} deactivated by {by}: it refuses its methods and pauses its tasks");
+                }
+                if let Some(f) = def.on_activation {
+                    f(state, ctx, active);
+                }
+            }
             Ok(())
         }
         _ => Err(UnknownOr::Unknown(format!("no system method with id {id}"))),

@@ -15,6 +15,7 @@ use crate::ctx::Ctx;
 use crate::error::{CallError, MethodError, ModuleError};
 use crate::manager;
 use crate::phonebook::PhoneBook;
+use crate::stats::Stats;
 use crate::transport::{
     Dest, PeerInfo, ReceiveMode, Rx, SendError, Snapshots, Transport, TransportError, Tx,
 };
@@ -28,6 +29,8 @@ pub type ReportFn<S> = fn(&mut S, &mut Ctx, &Report<'_>);
 pub type DoneFn<S> = fn(&mut S, &mut Ctx, CallHandle, Result<&Args<'_>, &CallError>);
 /// Periodic work.
 pub type TaskFn<S> = fn(&mut S, &mut Ctx);
+/// Told that the operator activated (`true`) or deactivated (`false`) the module.
+pub type ActivationFn<S> = fn(&mut S, &mut Ctx, bool);
 
 /// A REPORT as the receiver sees it.
 #[derive(Debug)]
@@ -75,6 +78,7 @@ pub struct ModuleBuilder<S> {
     methods: Vec<(String, MethodFn<S>)>,
     on_report: Option<ReportFn<S>>,
     on_done: Option<DoneFn<S>>,
+    on_activation: Option<ActivationFn<S>>,
     tasks: Vec<(Duration, TaskFn<S>)>,
     groups: Vec<String>,
     peers: Vec<String>,
@@ -93,6 +97,7 @@ impl<S> ModuleBuilder<S> {
             methods: Vec::new(),
             on_report: None,
             on_done: None,
+            on_activation: None,
             tasks: Vec::new(),
             groups: Vec::new(),
             peers: Vec::new(),
@@ -118,7 +123,16 @@ impl<S> ModuleBuilder<S> {
         self
     }
 
-    /// Runs `f` every `period`.
+    /// Calls `f` when the operator activates or deactivates the module (the `activate` and
+    /// `deactivate` system methods), after the change and only when the state changes. While
+    /// deactivated, the module answers its own methods with NAK not-ready and its tasks do not
+    /// run ([`Ctx::is_active`]).
+    pub fn on_activation(mut self, f: ActivationFn<S>) -> Self {
+        self.on_activation = Some(f);
+        self
+    }
+
+    /// Runs `f` every `period` (not while the operator has deactivated the module).
     pub fn every(mut self, period: Duration, f: TaskFn<S>) -> Self {
         self.tasks.push((period, f));
         self
@@ -173,12 +187,7 @@ impl<S> ModuleBuilder<S> {
                 }
             }
         }
-        if self.methods.len() > usize::from(sysmethod::FIRST_RESERVED) {
-            return Err(ModuleError::Definition(format!(
-                "{} methods; at most 240",
-                self.methods.len()
-            )));
-        }
+        self.check_methods()?;
         let endpoint = transport
             .open(self.addr, &self.name, self.mode, &self.groups)
             .map_err(|source| ModuleError::Open {
@@ -195,8 +204,32 @@ impl<S> ModuleBuilder<S> {
         transport: T,
         state: S,
     ) -> Result<Module<S>, ModuleError> {
+        self.check_methods()?;
         let endpoint = transport.open_tool(&self.name, self.mode)?;
         Self::assemble(self, Box::new(transport), endpoint, state)
+    }
+
+    /// At most 240 methods, none named like a system method (a caller could not reach it:
+    /// names resolve to the system method first).
+    fn check_methods(&self) -> Result<(), ModuleError> {
+        if self.methods.len() > usize::from(sysmethod::FIRST_RESERVED) {
+            return Err(ModuleError::Definition(format!(
+                "{} methods; at most 240",
+                self.methods.len()
+            )));
+        }
+        if let Some((name, _)) = self
+            .methods
+            .iter()
+            .find(|(name, _)| sysmethod::id(name).is_some())
+        {
+            return Err(ModuleError::Definition(format!(
+                "method '{name}' of module '{}' has the name of a system method every module \
+                 answers; choose another name",
+                self.name
+            )));
+        }
+        Ok(())
     }
 
     fn assemble(
@@ -226,6 +259,8 @@ impl<S> ModuleBuilder<S> {
             replayed: 0,
             stop: false,
             caller: Addr::NONE,
+            stats: Stats::default(),
+            active: true,
         };
         let tasks = b
             .tasks
@@ -241,6 +276,7 @@ impl<S> ModuleBuilder<S> {
                 methods: b.methods,
                 on_report: b.on_report,
                 on_done: b.on_done,
+                on_activation: b.on_activation,
                 tasks: b.tasks,
                 peers: b.peers,
                 snapshot_period_ns: b.snapshot_period.as_nanos() as u64,
@@ -278,6 +314,7 @@ pub(crate) struct Definition<S> {
     pub(crate) methods: Vec<(String, MethodFn<S>)>,
     pub(crate) on_report: Option<ReportFn<S>>,
     pub(crate) on_done: Option<DoneFn<S>>,
+    pub(crate) on_activation: Option<ActivationFn<S>>,
     tasks: Vec<(Duration, TaskFn<S>)>,
     peers: Vec<String>,
     snapshot_period_ns: u64,
@@ -365,12 +402,15 @@ impl<S> Module<S> {
                 } else {
                     self.next_task_ns[i] + period
                 };
-                f(&mut self.state, &mut self.ctx);
+                // Deactivated: the beat is skipped, so the task resumes on its grid.
+                if self.ctx.active {
+                    f(&mut self.state, &mut self.ctx);
+                }
             }
         }
         let ctx = &mut self.ctx;
         let (failures, book, describing) = (&mut ctx.failures, &ctx.book, &mut ctx.describing);
-        let (tx, me) = (&mut ctx.tx, ctx.addr);
+        let (tx, me, sent) = (&mut ctx.tx, ctx.addr, &mut ctx.stats.frames_sent);
         ctx.calls.expire(
             now,
             |e| {
@@ -392,8 +432,9 @@ impl<S> Module<S> {
             },
             |r| {
                 let peer = r.peer;
-                if let Err(e) = crate::ctx::send_retry(tx.as_mut(), me, r) {
-                    tracing::debug!("retransmission to {peer} not delivered: {e}");
+                match crate::ctx::send_retry(tx.as_mut(), me, r) {
+                    Ok(()) => *sent += 1,
+                    Err(e) => tracing::debug!("retransmission to {peer} not delivered: {e}"),
                 }
             },
         );
@@ -434,12 +475,12 @@ impl<S> Module<S> {
                 // and calls that wait for it go out again.
                 let ctx = &mut self.ctx;
                 ctx.served.forget(addr);
-                let (tx, me) = (&mut ctx.tx, ctx.addr);
-                ctx.calls.resend_to(addr, |r| {
-                    if let Err(e) = crate::ctx::send_retry(tx.as_mut(), me, r) {
-                        tracing::debug!("resend to {addr} not delivered: {e}");
-                    }
-                });
+                let (tx, me, sent) = (&mut ctx.tx, ctx.addr, &mut ctx.stats.frames_sent);
+                ctx.calls
+                    .resend_to(addr, |r| match crate::ctx::send_retry(tx.as_mut(), me, r) {
+                        Ok(()) => *sent += 1,
+                        Err(e) => tracing::debug!("resend to {addr} not delivered: {e}"),
+                    });
             }
             if !changes.appeared.is_empty() {
                 self.look_up_peers();
@@ -462,6 +503,7 @@ impl<S> Module<S> {
 
     fn deliver_failures(&mut self, waiter: &mut Waiter<'_>) {
         while let Some((handle, err)) = self.ctx.failures.pop() {
+            self.ctx.stats.failed += 1;
             match waiter {
                 Some((h, f)) if *h == handle => f(Err(&err)),
                 _ => match self.def.on_done {

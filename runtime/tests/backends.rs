@@ -24,7 +24,8 @@ use modbot_runtime::blackboard::Blackboard;
 use modbot_runtime::calls::RetryPolicy;
 use modbot_runtime::transport::{Dest, ReceiveMode, Transport, TransportError};
 use modbot_runtime::{
-    CallError, CallOptions, Ctx, MethodError, ModuleBuilder, ModuleError, Reply, Report,
+    CallError, CallOptions, Ctx, MethodError, Module, ModuleBuilder, ModuleError, Reply, Report,
+    Stats,
 };
 use support::{crash, eventually, pump, stopping, Backend, Heard, TestDomain};
 
@@ -85,6 +86,9 @@ on_both_backends! {
     a_refused_device_write_leaves_the_item_unchanged,
     bb_set_refusals_carry_the_read_only_and_unknown_item_codes,
     malformed_frames_are_counted_as_rejected_and_the_module_keeps_serving,
+    stats_count_frames_and_calls_and_record_the_latency_of_each_answered_call,
+    an_operator_can_deactivate_a_module_and_activate_it_again,
+    a_method_named_like_a_system_method_is_refused_at_open,
     a_busy_poll_module_answers_and_is_listed_with_its_mode,
     the_last_module_to_leave_removes_the_domains_files,
 }
@@ -1120,6 +1124,213 @@ fn malformed_frames_are_counted_as_rejected_and_the_module_keeps_serving<B: Back
         caller.call_owned("calc", "square", &[Value::I64(9)], opts()),
         Ok(i64s(&[81]))
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Statistics and operator activation.
+
+/// A module with a periodic task that counts (`n` on its blackboard and `count()`), and a hook
+/// that records the operator's activation changes (`active`, `switches`).
+#[derive(Debug, Default)]
+struct Ticker {
+    n: i64,
+    switches: i64,
+}
+
+fn ticker(b: ModuleBuilder<Ticker>) -> ModuleBuilder<Ticker> {
+    let bb = Blackboard::builder()
+        .item("n", OwnedValue::I64(0))
+        .item("active", OwnedValue::Bool(true))
+        .item("switches", OwnedValue::I64(0))
+        .build()
+        .expect("a valid blackboard");
+    b.blackboard(bb)
+        .snapshot_period(Duration::from_millis(20))
+        .method("count", count)
+        .every(Duration::from_millis(2), tick)
+        .on_activation(switched)
+}
+
+fn tick(s: &mut Ticker, ctx: &mut Ctx) {
+    s.n += 1;
+    ctx.bb.write("n", Value::I64(s.n)).expect("n is an i64");
+}
+
+fn count(s: &mut Ticker, _: &mut Ctx, _: &Args<'_>, r: &mut Reply) -> Result<(), MethodError> {
+    r.push(Value::I64(s.n));
+    Ok(())
+}
+
+fn switched(s: &mut Ticker, ctx: &mut Ctx, active: bool) {
+    assert_eq!(ctx.is_active(), active, "the hook runs after the change");
+    s.switches += 1;
+    ctx.bb
+        .write("active", Value::Bool(active))
+        .expect("active is a bool");
+    ctx.bb
+        .write("switches", Value::I64(s.switches))
+        .expect("switches is an i64");
+}
+
+/// The `stats` answer of `module`.
+fn stats_of(caller: &mut Module<support::Caller>, module: &str) -> Stats {
+    caller.call_blocking(module, "stats", &[], opts(), |r| {
+        Stats::from_answer(r.expect("stats answers")).expect("a valid stats answer")
+    })
+}
+
+/// A module counts the frames it sends and receives and the calls it makes; each answered
+/// call's latency goes into its histogram (a NAK is an answer, a timeout is not). `stats`
+/// answers the same counters for any module.
+fn stats_count_frames_and_calls_and_record_the_latency_of_each_answered_call<B: Backend>(
+    fx: &mut TestDomain<B>,
+) {
+    const N: u64 = 20;
+    fx.start("calc", 3, Calc::default(), calc);
+    let mut caller = fx.caller();
+    for i in 0..N as i64 {
+        assert_eq!(
+            caller.call_owned("calc", "square", &[Value::I64(i)], opts()),
+            Ok(i64s(&[i * i]))
+        );
+    }
+    let sut = caller.ctx().stats().clone();
+    assert_eq!((sut.calls, sut.answered, sut.failed), (N, N, 0), "{sut:?}");
+    assert_eq!(sut.latency.count(), N);
+    let (p50, p99) = (sut.latency.percentile(50.0), sut.latency.percentile(99.0));
+    assert!(0 < p50 && p50 <= p99 && p99 <= sut.latency.max(), "{sut:?}");
+    assert!(
+        sut.latency.max() < 5_000_000_000,
+        "no answer took longer than the timeout: {sut:?}"
+    );
+    // N requests and a `describe` out, their answers back.
+    assert!(sut.frames_sent > N && sut.frames_received > N, "{sut:?}");
+
+    let served = stats_of(&mut caller, "calc");
+    assert!(
+        served.frames_received >= N + 2,
+        "describe, N requests and stats received: {served:?}"
+    );
+    assert!(served.frames_sent > N, "{served:?}");
+    assert_eq!(
+        (served.calls, served.latency.count()),
+        (0, 0),
+        "calc made no call"
+    );
+
+    // Refused: answered by a NAK, so failed, but its latency counts.
+    assert!(caller.call_owned("calc", "busy", &[], opts()).is_err());
+    // Timed out: failed, no latency.
+    let hasty = CallOptions::timeout(Duration::from_millis(100)).with_retry(RetryPolicy::NONE);
+    assert!(matches!(
+        caller.call_owned("calc", "stall", &[Value::I64(300)], hasty),
+        Err(CallError::Timeout { .. })
+    ));
+    let sut = caller.ctx().stats().clone();
+    assert_eq!(
+        (sut.calls, sut.answered, sut.failed),
+        (N + 3, N + 1, 2),
+        "the stats call answered, busy and stall failed: {sut:?}"
+    );
+    assert_eq!(sut.latency.count(), N + 2);
+
+    let later = stats_of(&mut caller, "calc");
+    assert!(
+        later.frames_received > served.frames_received && later.frames_sent > served.frames_sent,
+        "{served:?} then {later:?}"
+    );
+}
+
+/// `deactivate` makes a module refuse its own methods with NAK not-ready and pause its tasks;
+/// its system methods and snapshots go on; `activate` brings it back. The hook hears each
+/// change once.
+fn an_operator_can_deactivate_a_module_and_activate_it_again<B: Backend>(fx: &mut TestDomain<B>) {
+    fx.start("ticker", 3, Ticker::default(), ticker);
+    let mut caller = fx.caller();
+    let item = |caller: &mut Module<support::Caller>, name: &str| -> OwnedValue {
+        let mut got = caller
+            .call_owned("ticker", "bb_get", &[Value::Text(name)], opts())
+            .unwrap_or_else(|e| panic!("bb_get {name}: {e}"));
+        assert_eq!(got.len(), 1);
+        got.remove(0)
+    };
+    let n = |v: OwnedValue| match v {
+        OwnedValue::I64(n) => n,
+        other => panic!("n is {other:?}"),
+    };
+    assert!(eventually(Duration::from_secs(2), || n(item(
+        &mut caller,
+        "n"
+    )) > 2));
+    assert!(caller.call_owned("ticker", "count", &[], opts()).is_ok());
+
+    assert_eq!(
+        caller.call_owned("ticker", "deactivate", &[], opts()),
+        Ok(vec![])
+    );
+    assert_eq!(
+        caller.call_owned("ticker", "count", &[], opts()),
+        Err(CallError::Nak {
+            module: "ticker".into(),
+            code: NakCode::NOT_READY,
+            detail: "module 'ticker' is deactivated by the operator".into(),
+        })
+    );
+    let paused = n(item(&mut caller, "n"));
+    std::thread::sleep(Duration::from_millis(60));
+    assert_eq!(n(item(&mut caller, "n")), paused, "the task is paused");
+    assert_eq!(item(&mut caller, "active"), OwnedValue::Bool(false));
+    assert_eq!(item(&mut caller, "switches"), OwnedValue::I64(1));
+    let described = caller
+        .call_owned("ticker", "describe", &[], opts())
+        .expect("describe answers while deactivated");
+    assert_eq!(described.get(8), Some(&OwnedValue::Bool(false)));
+    assert!(stats_of(&mut caller, "ticker").frames_received > 0);
+    assert!(
+        eventually(Duration::from_secs(2), || {
+            caller
+                .ctx()
+                .snapshot_of("ticker", |v| v.bool("active"))
+                .ok()
+                .flatten()
+                == Some(Ok(false))
+        }),
+        "snapshots go on while deactivated"
+    );
+    assert_eq!(
+        caller.call_owned("ticker", "deactivate", &[], opts()),
+        Ok(vec![])
+    );
+    assert_eq!(
+        item(&mut caller, "switches"),
+        OwnedValue::I64(1),
+        "no change, no hook"
+    );
+
+    assert_eq!(
+        caller.call_owned("ticker", "activate", &[], opts()),
+        Ok(vec![])
+    );
+    assert!(caller.call_owned("ticker", "count", &[], opts()).is_ok());
+    assert!(
+        eventually(Duration::from_secs(2), || n(item(&mut caller, "n"))
+            > paused),
+        "the task runs again"
+    );
+    assert_eq!(item(&mut caller, "active"), OwnedValue::Bool(true));
+    assert_eq!(item(&mut caller, "switches"), OwnedValue::I64(2));
+}
+
+/// A module's own method cannot take a system method's name: callers could never reach it.
+fn a_method_named_like_a_system_method_is_refused_at_open<B: Backend>(fx: &mut TestDomain<B>) {
+    let sut = ModuleBuilder::new("shadow", 5)
+        .method("stats", nothing)
+        .open(fx.transport.clone(), Calc::default());
+    match sut {
+        Err(ModuleError::Definition(why)) => assert!(why.contains("'stats'"), "{why}"),
+        Err(e) => panic!("expected a definition error, got {e}"),
+        Ok(_) => panic!("a method named stats was accepted"),
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 //! Starting one module process: its command line and environment, its death with the
 //! supervisor, and its log lines.
 
+use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
@@ -18,7 +19,37 @@ pub struct LogLine {
     pub line: String,
 }
 
-/// Starts the module process of `spec`, with its output sent line by line to `logs`.
+/// The environment variables a module process gets on top of the supervisor's own: the
+/// description's `env`, then the supervisor's settings (see [`env`]), which win over a
+/// description that sets the same names.
+///
+/// `epoch_ns` is the system's start ([`env::EPOCH_NS`]): the same for every module and every
+/// restart.
+pub(super) fn environment(
+    spec: &ModuleSpec,
+    domain: &Domain,
+    supervision: &Supervision,
+    epoch_ns: u64,
+) -> BTreeMap<String, String> {
+    let mut vars: BTreeMap<String, String> = spec.env.iter().cloned().collect();
+    let ours = [
+        (env::DOMAIN, domain.name().to_owned()),
+        (env::GROUPS, spec.groups.join(",")),
+        (
+            env::HEARTBEAT_MS,
+            supervision.heartbeat_period.as_millis().max(1).to_string(),
+        ),
+        (env::MLOCKALL, if spec.mlock { "1" } else { "0" }.to_owned()),
+        (env::EPOCH_NS, epoch_ns.to_string()),
+    ];
+    for (name, value) in ours {
+        vars.insert(name.to_owned(), value);
+    }
+    vars
+}
+
+/// Starts the module process of `spec`, with its output sent line by line to `logs`, and the
+/// [`environment`] for the system started at `epoch_ns`.
 ///
 /// The child is in a process group of its own (a Ctrl-C at the terminal reaches only the
 /// supervisor, which stops the modules in order) and gets SIGKILL when the supervisor dies,
@@ -28,6 +59,7 @@ pub fn spawn(
     spec: &ModuleSpec,
     domain: &Domain,
     supervision: &Supervision,
+    epoch_ns: u64,
     logs: &Sender<LogLine>,
 ) -> std::io::Result<Child> {
     let mut cmd = Command::new(&spec.program);
@@ -43,14 +75,7 @@ pub fn spawn(
             crate::ReceiveMode::Blocking => "blocking",
         })
         .args(&spec.args)
-        .envs(spec.env.iter().map(|(k, v)| (k, v)))
-        .env(env::DOMAIN, domain.name())
-        .env(env::GROUPS, spec.groups.join(","))
-        .env(
-            env::HEARTBEAT_MS,
-            supervision.heartbeat_period.as_millis().max(1).to_string(),
-        )
-        .env(env::MLOCKALL, if spec.mlock { "1" } else { "0" })
+        .envs(environment(spec, domain, supervision, epoch_ns))
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -103,5 +128,71 @@ fn forward_lines(module: usize, stream: impl Read + Send + 'static, logs: Sender
         });
     if let Err(e) = spawned {
         tracing::warn!("module {module}'s output is not shown: no thread to read it ({e})");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use super::*;
+    use crate::system::RestartPolicy;
+
+    fn module(name: &str, env: &[(&str, &str)]) -> ModuleSpec {
+        ModuleSpec {
+            name: name.into(),
+            addr: 2,
+            program: PathBuf::from("/bin/true"),
+            program_name: "true".into(),
+            args: vec![],
+            restart: RestartPolicy::default(),
+            cpus: vec![],
+            priority: None,
+            mlock: false,
+            env: env
+                .iter()
+                .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+                .collect(),
+            mode: crate::ReceiveMode::Blocking,
+            groups: vec!["sensors".into(), "all".into()],
+            line: 1,
+        }
+    }
+
+    #[test]
+    fn every_module_gets_the_systems_epoch_and_the_supervisors_settings() {
+        let domain = Domain::new("envtest").unwrap();
+        let supervision = Supervision::default();
+        let sonar = environment(
+            &module("sonar", &[("MODBOT_SIM_SPEED", "2")]),
+            &domain,
+            &supervision,
+            123_456_789,
+        );
+        let mobility = environment(&module("mobility", &[]), &domain, &supervision, 123_456_789);
+        assert_eq!(sonar[env::EPOCH_NS], "123456789");
+        assert_eq!(mobility[env::EPOCH_NS], sonar[env::EPOCH_NS]);
+        assert_eq!(
+            sonar[env::SIM_SPEED],
+            "2",
+            "the description's env passes through"
+        );
+        assert_eq!(sonar[env::DOMAIN], "envtest");
+        assert_eq!(sonar[env::GROUPS], "sensors,all");
+        assert_eq!(sonar[env::HEARTBEAT_MS], "100");
+        assert_eq!(sonar[env::MLOCKALL], "0");
+    }
+
+    #[test]
+    fn the_supervisors_settings_win_over_the_description() {
+        let domain = Domain::new("envtest").unwrap();
+        let sut = environment(
+            &module("sonar", &[(env::EPOCH_NS, "1"), (env::DOMAIN, "other")]),
+            &domain,
+            &Supervision::default(),
+            99,
+        );
+        assert_eq!(sut[env::EPOCH_NS], "99");
+        assert_eq!(sut[env::DOMAIN], "envtest");
     }
 }

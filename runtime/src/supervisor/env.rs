@@ -14,6 +14,12 @@ pub const HEARTBEAT_MS: &str = "MODBOT_HEARTBEAT_MS";
 pub const MLOCKALL: &str = "MODBOT_MLOCKALL";
 /// The system's domain (module programs also take `--domain`).
 pub const DOMAIN: &str = "MODBOT_DOMAIN";
+/// When `modbot up` started the system, ns of CLOCK_MONOTONIC: the same for every module of
+/// the system, restarted ones included. The epoch of simulated time ([`crate::sim::SimTime`]).
+pub const EPOCH_NS: &str = "MODBOT_EPOCH_NS";
+/// Simulated seconds per real second (default 1); descriptions set it in a module's `env`.
+/// Read by [`crate::sim::SimTime::from_env`].
+pub const SIM_SPEED: &str = "MODBOT_SIM_SPEED";
 
 /// The heartbeat period without a supervisor's setting.
 pub const DEFAULT_HEARTBEAT: Duration = Duration::from_millis(100);

@@ -4,6 +4,8 @@
 //! - It sweeps what dead processes left of the domain, then spawns every module (each its own
 //!   process, in its own process group, killed if the supervisor dies) and waits until each has
 //!   announced itself with its first heartbeat.
+//! - Every module gets the same `MODBOT_EPOCH_NS`, the instant (CLOCK_MONOTONIC) the system
+//!   started, restarts included: the epoch of the system's simulated time ([`crate::sim`]).
 //! - It watches exits (`waitpid`) and heartbeats: a module whose heartbeat stops for the
 //!   configured time is hung; it is killed and handled like a crash.
 //! - Restart policies (`never`, `on-failure`, `always`, with a maximum per window and an
@@ -39,6 +41,7 @@ use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 use thiserror::Error;
 
+use crate::clock::{Clock, MonotonicClock};
 use crate::ctx::Ctx;
 use crate::domain::Domain;
 use crate::error::MethodError;
@@ -130,6 +133,8 @@ pub struct Supervisor {
     logs_tx: Sender<LogLine>,
     logs: Receiver<LogLine>,
     epoch: Instant,
+    /// The same instant on CLOCK_MONOTONIC, which every module gets as `MODBOT_EPOCH_NS`.
+    epoch_ns: u64,
     name_width: usize,
     problems: Vec<String>,
     stop_failed: bool,
@@ -173,6 +178,7 @@ impl Supervisor {
             logs_tx,
             logs,
             epoch: Instant::now(),
+            epoch_ns: MonotonicClock.now_ns(),
             name_width,
             problems: Vec::new(),
             stop_failed: false,
@@ -297,12 +303,19 @@ impl Supervisor {
 
     fn spawn(&mut self, i: usize) -> Result<(), SupervisorError> {
         let m = &self.spec.modules[i];
-        let child = child::spawn(i, m, &self.domain, &self.spec.supervision, &self.logs_tx)
-            .map_err(|source| SupervisorError::Spawn {
-                module: m.name.clone(),
-                program: m.program.display().to_string(),
-                source,
-            })?;
+        let child = child::spawn(
+            i,
+            m,
+            &self.domain,
+            &self.spec.supervision,
+            self.epoch_ns,
+            &self.logs_tx,
+        )
+        .map_err(|source| SupervisorError::Spawn {
+            module: m.name.clone(),
+            program: m.program.display().to_string(),
+            source,
+        })?;
         let pid = child.id();
         for w in rt::apply(pid, &m.cpus, m.priority) {
             self.say(&format!("warning: {}: {w}", m.name));

@@ -1,7 +1,9 @@
 //! The sandboxed evaluation of a description.
 //!
 //! The description is ordinary Lua with four declaration functions added (`domain`,
-//! `supervision`, `module`, `group`) and everything that reaches outside taken away:
+//! `supervision`, `module`, `group`), the table `vars` of the variables given on the command
+//! line (`modbot up FILE --var speed=2`: `vars.speed == "2"`; strings, read-only, empty when none
+//! were given), and everything that reaches outside taken away:
 //!
 //! - only the `table`, `string`, `math`, `utf8` and `coroutine` libraries are loaded (no `os`,
 //!   `io`, `package`, `debug`), and `load`, `loadfile`, `dofile`, `require` and
@@ -42,9 +44,27 @@ const REMOVED_GLOBALS: &[&str] = &["load", "loadfile", "dofile", "require", "col
 
 /// The chunk name of [`PRELUDE`].
 const PRELUDE_NAME: &str = "=modbot prelude";
+/// The chunk name of [`VARS`].
+const VARS_NAME: &str = "=modbot vars";
+/// Makes the global `vars`: a read-only view of the table of variables it is given. Writing to
+/// it is an error at the line that writes; `pairs(vars)` lists the variables. (`rawset` could
+/// still write to the empty proxy: read-only against mistakes, not against intent, which the
+/// sandbox does not need.)
+const VARS: &str = r#"
+local given, next, error, tostring, setmetatable = ..., next, error, tostring, setmetatable
+vars = setmetatable({}, {
+  __index = given,
+  __newindex = function(_, key)
+    error("vars is read-only (vars." .. tostring(key) .. "): give variables with --var KEY=VALUE", 2)
+  end,
+  __pairs = function() return next, given, nil end,
+  __metatable = false,
+})
+"#;
+
 /// Runs before the description: protected calls re-raise once the description has failed.
 const PRELUDE: &str = r#"
-local failed_check, pack, unpack = ..., table.pack, table.unpack
+local failed_check, pack, unpack, raw_pcall = ..., table.pack, table.unpack, pcall
 local function guarded(f)
   return function(...)
     local results = pack(f(...))
@@ -61,7 +81,12 @@ setmetatable = function(t, mt)
   if type(mt) == "table" and rawget(mt, "__gc") ~= nil then
     error("__gc metamethods are not available in a system description", 2)
   end
-  return raw_setmetatable(t, mt)
+  -- A refusal (a protected metatable, a bad argument) names the description's line, not ours.
+  local ok, result = raw_pcall(raw_setmetatable, t, mt)
+  if not ok then
+    error(result, 2)
+  end
+  return result
 end
 "#;
 
@@ -89,10 +114,15 @@ struct Body {
 
 type Shared = Rc<RefCell<Record>>;
 
-/// Evaluates `source` (called `file` in messages) and returns what it declared.
-pub(super) fn evaluate(file: &str, source: &str) -> Result<Declarations, SystemError> {
+/// Evaluates `source` (called `file` in messages) with the variables `vars` (later entries
+/// win over earlier ones with the same key) and returns what it declared.
+pub(super) fn evaluate(
+    file: &str,
+    source: &str,
+    vars: &[(String, String)],
+) -> Result<Declarations, SystemError> {
     let record = Shared::default();
-    let lua = sandbox(&record).map_err(|e| {
+    let lua = sandbox(&record, vars).map_err(|e| {
         SystemError::new(file, None, format!("cannot prepare the Lua sandbox: {e}"))
     })?;
     let result = lua
@@ -125,8 +155,8 @@ pub(super) fn evaluate(file: &str, source: &str) -> Result<Declarations, SystemE
     Ok(record.decls)
 }
 
-/// A Lua state with the safe libraries, the limits and the declaration functions.
-fn sandbox(record: &Shared) -> mlua::Result<Lua> {
+/// A Lua state with the safe libraries, the limits, the declaration functions and `vars`.
+fn sandbox(record: &Shared, vars: &[(String, String)]) -> mlua::Result<Lua> {
     let libs = StdLib::TABLE | StdLib::STRING | StdLib::MATH | StdLib::UTF8 | StdLib::COROUTINE;
     let lua = Lua::new_with(libs, LuaOptions::default())?;
     lua.set_memory_limit(MEMORY_LIMIT)?;
@@ -150,6 +180,11 @@ fn sandbox(record: &Shared) -> mlua::Result<Lua> {
     lua.load(PRELUDE)
         .set_name(PRELUDE_NAME)
         .call::<()>(failed_check)?;
+    let given = lua.create_table()?;
+    for (key, value) in vars {
+        given.raw_set(key.as_str(), value.as_str())?;
+    }
+    lua.load(VARS).set_name(VARS_NAME).call::<()>(given)?;
     let counter = record.clone();
     lua.set_global_hook(
         HookTriggers::new().every_nth_instruction(HOOK_EVERY),

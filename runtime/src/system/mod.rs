@@ -6,6 +6,14 @@
 //! into a checked [`SystemSpec`], which the supervisor (`modbot up`) starts and `modbot check`
 //! prints. Every error names the file and the line ([`SystemError`]).
 //!
+//! A description can take variables from the command line (`modbot up FILE --var speed=2`),
+//! as strings in the read-only table `vars` ([`load_with_vars`]):
+//!
+//! ```lua
+//! local speed = tonumber(vars.speed or "1")
+//! module "plant" { addr = 4, program = "modbot-plant", env = { MODBOT_SIM_SPEED = tostring(speed) } }
+//! ```
+//!
 //! ```lua
 //! domain "mra_demo"
 //! supervision { heartbeat_timeout = 1.0 }
@@ -15,8 +23,9 @@
 //! ```
 //!
 //! # Layout
-//! - this file: the checked description ([`SystemSpec`] and its parts), [`SystemError`], and the
-//!   entry points [`load`] and [`load_str`].
+//! - this file: the checked description ([`SystemSpec`] and its parts), [`SystemError`], the
+//!   entry points [`load`], [`load_str`], [`load_with_vars`] and [`load_str_with_vars`], and
+//!   [`parse_var`] for `--var KEY=VALUE`.
 //! - `lua`: the sandboxed evaluation: which Lua libraries exist, the memory and instruction
 //!   budgets, the declaration functions (`domain`, `supervision`, `module`, `group`) and the
 //!   translation of Lua errors into [`SystemError`].
@@ -280,6 +289,16 @@ impl SystemError {
 
 /// Reads, evaluates and checks the system description in the file `path`.
 pub fn load(path: &Path, resolver: &dyn ProgramResolver) -> Result<SystemSpec, SystemError> {
+    load_with_vars(path, resolver, &[])
+}
+
+/// Like [`load`], with the variables `vars` in the description's table `vars` (a later entry
+/// wins over an earlier one with the same key).
+pub fn load_with_vars(
+    path: &Path,
+    resolver: &dyn ProgramResolver,
+    vars: &[(String, String)],
+) -> Result<SystemSpec, SystemError> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path)
         .map_err(|e| SystemError::new(&file, None, format!("cannot read the description: {e}")))?;
@@ -293,7 +312,7 @@ pub fn load(path: &Path, resolver: &dyn ProgramResolver) -> Result<SystemSpec, S
             ),
         )
     })?;
-    load_str(&file, &source, resolver)
+    load_str_with_vars(&file, &source, resolver, vars)
 }
 
 /// Evaluates and checks the system description `source`; messages call it `file_name`.
@@ -302,6 +321,38 @@ pub fn load_str(
     source: &str,
     resolver: &dyn ProgramResolver,
 ) -> Result<SystemSpec, SystemError> {
-    let declarations = lua::evaluate(file_name, source)?;
+    load_str_with_vars(file_name, source, resolver, &[])
+}
+
+/// Like [`load_str`], with the variables `vars` (see [`load_with_vars`]).
+pub fn load_str_with_vars(
+    file_name: &str,
+    source: &str,
+    resolver: &dyn ProgramResolver,
+    vars: &[(String, String)],
+) -> Result<SystemSpec, SystemError> {
+    let declarations = lua::evaluate(file_name, source, vars)?;
     validate::build(file_name, declarations, resolver)
+}
+
+/// Reads one `--var KEY=VALUE`: the key is what comes before the first `=`, made of ASCII
+/// letters, digits, `_`, `-` and `.`; the value is the rest (it may be empty, and contain `=`).
+pub fn parse_var(text: &str) -> Result<(String, String), String> {
+    let Some((key, value)) = text.split_once('=') else {
+        return Err(format!("'{text}' is not KEY=VALUE (no '=')"));
+    };
+    if key.is_empty() {
+        return Err(format!(
+            "'{text}' has no key before the '=': write KEY=VALUE"
+        ));
+    }
+    if let Some(c) = key
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || "_-.".contains(*c)))
+    {
+        return Err(format!(
+            "key '{key}' contains {c:?}: a key is made of ASCII letters, digits, '_', '-' and '.'"
+        ));
+    }
+    Ok((key.to_owned(), value.to_owned()))
 }

@@ -220,6 +220,96 @@ fn system_error_displays_file_and_line() {
     assert_eq!(sut.to_string(), "robot.lua: bad");
 }
 
+// ---- variables (`--var KEY=VALUE`) ----
+
+fn vars(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
+    pairs
+        .iter()
+        .map(|(k, v)| ((*k).to_owned(), (*v).to_owned()))
+        .collect()
+}
+
+/// The description of the brief: a speed variable that becomes a module's environment.
+const WITH_SPEED: &str = r#"domain "t"
+local speed = tonumber(vars.speed or "1")
+module "a" { addr = 1, program = "modbot-sonar", env = { MODBOT_SIM_SPEED = tostring(speed) } }
+"#;
+
+#[test]
+fn variables_reach_the_description_as_strings_and_default_when_absent() {
+    let sut =
+        load_str_with_vars("robot.lua", WITH_SPEED, &known, &vars(&[("speed", "2.5")])).unwrap();
+    assert_eq!(
+        sut.modules[0].env,
+        [("MODBOT_SIM_SPEED".to_owned(), "2.5".to_owned())]
+    );
+    let sut = load_text(WITH_SPEED).unwrap();
+    assert_eq!(
+        sut.modules[0].env,
+        [("MODBOT_SIM_SPEED".to_owned(), "1".to_owned())],
+        "vars is an empty table without variables"
+    );
+    let source = r#"domain "t"
+assert(type(vars.n) == "string" and vars.n == "3", "a string")
+local names = {}
+for k, v in pairs(vars) do names[#names + 1] = k .. "=" .. v end
+table.sort(names)
+module "a" { addr = tonumber(vars.n), program = "modbot-sonar", args = names }
+"#;
+    let sut = load_str_with_vars(
+        "robot.lua",
+        source,
+        &known,
+        &vars(&[("n", "1"), ("mode", "sim"), ("n", "3")]),
+    )
+    .unwrap();
+    assert_eq!(sut.modules[0].addr, 3, "the later of two equal keys wins");
+    assert_eq!(
+        sut.modules[0].args,
+        ["mode=sim", "n=3"],
+        "pairs(vars) lists them"
+    );
+}
+
+#[test]
+fn variables_are_read_only_and_a_write_names_its_line() {
+    let source = "domain \"t\"\n\nvars.speed = \"3\"\n";
+    let sut =
+        load_str_with_vars("robot.lua", source, &known, &vars(&[("speed", "2")])).unwrap_err();
+    assert_eq!(sut.line, Some(3), "{sut}");
+    assert!(
+        sut.message.contains("vars is read-only (vars.speed)"),
+        "{sut}"
+    );
+    assert_error(
+        "domain \"t\"\nsetmetatable(vars, nil)",
+        Some(2),
+        "protected metatable",
+    );
+}
+
+#[test]
+fn a_description_file_loads_with_variables() {
+    let path = std::env::temp_dir().join(format!("modbot-vars-{}.lua", std::process::id()));
+    std::fs::write(&path, WITH_SPEED).unwrap();
+    let sut = load_with_vars(&path, &known, &vars(&[("speed", "4")]));
+    let _ = std::fs::remove_file(&path);
+    assert_eq!(sut.unwrap().modules[0].env[0].1, "4");
+}
+
+#[test]
+fn a_var_argument_is_key_equals_value() {
+    assert_eq!(parse_var("speed=2"), Ok(("speed".into(), "2".into())));
+    assert_eq!(parse_var("a.b-c_1="), Ok(("a.b-c_1".into(), "".into())));
+    assert_eq!(parse_var("url=x=y"), Ok(("url".into(), "x=y".into())));
+    let no_eq = parse_var("speed").unwrap_err();
+    assert!(no_eq.contains("no '='"), "{no_eq}");
+    let no_key = parse_var("=2").unwrap_err();
+    assert!(no_key.contains("no key"), "{no_key}");
+    let bad_key = parse_var("my speed=2").unwrap_err();
+    assert!(bad_key.contains("' '"), "{bad_key}");
+}
+
 // ---- errors, each with its line ----
 
 #[test]

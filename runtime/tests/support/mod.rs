@@ -151,6 +151,9 @@ pub fn stopping() -> bool {
 }
 
 /// A task every module thread runs: ends the main loop once the thread is asked to stop.
+///
+/// Tasks do not run while a module is deactivated (`deactivate`): a test that deactivates a
+/// module activates it again before it ends, or its thread cannot stop.
 fn stop_when_asked<S>(_: &mut S, ctx: &mut Ctx) {
     if stopping() {
         ctx.stop();

@@ -1,0 +1,99 @@
+//! MOSER, the MRA paper's security robot, end to end: `modbot up examples/moser.lua` with every
+//! module its own process, in simulated time sped up five times, in a domain of its own.
+
+mod common;
+
+use std::time::Duration;
+
+use common::TestDomain;
+use nix::sys::signal::Signal;
+
+/// How much faster than real time the tests run the scenario.
+const SPEED: &str = "5";
+
+fn moser(sut: &mut TestDomain) -> u32 {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/moser.lua");
+    let domain = format!("domain={}", sut.name());
+    let speed = format!("speed={SPEED}");
+    sut.spawn_logged(
+        "modbot",
+        &[
+            "up", file, "--var", &domain, "--var", &speed, "--for", "240",
+        ],
+    )
+}
+
+/// What the summary says about `line` (the text after its label).
+fn summary_line(output: &str, label: &str) -> String {
+    output
+        .lines()
+        .find_map(|l| l.split_once(label).map(|(_, rest)| rest.trim().to_owned()))
+        .unwrap_or_else(|| panic!("no '{label}' line in:\n{output}"))
+}
+
+fn assert_scenario_completed(output: &str) {
+    assert!(output.contains("*** ALERT: intruder at"), "{output}");
+    assert!(output.contains("==== MOSER summary ===="), "{output}");
+    assert_eq!(summary_line(output, "collisions "), "0", "{output}");
+    let driven: f64 = summary_line(output, "distance patrolled ")
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(driven > 10.0, "patrolled only {driven} m:\n{output}");
+    assert!(
+        summary_line(output, "alert ").starts_with("at "),
+        "{output}"
+    );
+    assert!(output.contains("every module stopped cleanly"), "{output}");
+}
+
+/// The robot patrols wing 3, goes around the box its map does not know, detects the intruder,
+/// the control station shows the alert and the summary, and every module exits cleanly.
+#[test]
+fn moser_patrols_detects_the_intruder_without_a_collision_and_ends_cleanly() {
+    let mut sut = TestDomain::new("moser");
+    let up = moser(&mut sut);
+    let status = sut.wait_exit(up, Duration::from_secs(200));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert_scenario_completed(&output);
+    assert!(
+        output.contains("replan"),
+        "the box in the server room was found and avoided:\n{output}"
+    );
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
+
+/// The navigation sonar is killed mid-patrol: the supervisor restarts it and the patrol carries
+/// on to the intruder.
+#[test]
+fn nav_sonar_killed_mid_patrol_is_restarted_and_the_patrol_carries_on() {
+    let mut sut = TestDomain::new("moserkill");
+    let up = moser(&mut sut);
+    sut.wait_for(
+        "the patrol to be under way",
+        Duration::from_secs(60),
+        || sut.output_of(up).contains("patrolling wing 3  point"),
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let pid: u32 = sut
+        .ls_field("nav_sonar", "PID")
+        .and_then(|p| p.parse().ok())
+        .expect("nav_sonar runs");
+    sut.signal(pid, Signal::SIGKILL);
+    sut.wait_for("nav_sonar to be back", Duration::from_secs(30), || {
+        sut.ls_field("nav_sonar", "RESTARTS").as_deref() == Some("1")
+            && sut.ls_field("nav_sonar", "STATE").as_deref() == Some("running")
+    });
+    let status = sut.wait_exit(up, Duration::from_secs(200));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert!(
+        output.contains("nav_sonar ended (killed by SIGKILL)"),
+        "{output}"
+    );
+    assert_scenario_completed(&output);
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
