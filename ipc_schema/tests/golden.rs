@@ -65,6 +65,32 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 v[0].as_value().encode(&mut out).unwrap();
                 out
             }
+            "heartbeat" => {
+                use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
+                use zerocopy::IntoBytes;
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let state = match n("state") {
+                    1 => ModuleState::Starting,
+                    2 => ModuleState::Running,
+                    _ => ModuleState::Stopping,
+                };
+                let counters = Counters {
+                    dropped: n("dropped"),
+                    rejected: n("rejected"),
+                    replayed: n("replayed"),
+                };
+                let hb = Heartbeat::new(
+                    Addr(n("addr") as u8),
+                    n("pid") as u32,
+                    state,
+                    n("beat"),
+                    counters,
+                );
+                let bytes = hb.as_bytes().to_vec();
+                let back = Heartbeat::parse(&bytes).unwrap();
+                assert_eq!((back.beat(), back.counters()), (n("beat"), counters));
+                bytes
+            }
             "snapshot" => {
                 let layout = SnapshotLayout::new(vec![
                     ItemSpec {
