@@ -69,6 +69,14 @@ fn stats(h: &Histogram<u64>) -> (u64, u64, u64, u64) {
     )
 }
 
+/// Removes a domain's files when dropped.
+struct Cleanup(Domain);
+impl Drop for Cleanup {
+    fn drop(&mut self) {
+        self.0.remove_files();
+    }
+}
+
 struct Guard(Child);
 impl Drop for Guard {
     fn drop(&mut self) {
@@ -85,6 +93,8 @@ fn rtt(quick: bool) -> anyhow::Result<()> {
     let warm = n / 10;
     let name = format!("bench_{}", std::process::id());
     let domain = Domain::new(&name)?;
+    // Declared first, dropped last: whatever happens, nothing of the run stays in /dev/shm.
+    let _cleanup = Cleanup(domain.clone());
     let me = std::env::current_exe()?;
     let cores = std::thread::available_parallelism()
         .map(|n| n.get())
@@ -149,6 +159,7 @@ fn rtt(quick: bool) -> anyhow::Result<()> {
                 .spawn()?,
         );
         let (publisher, subscriber, _node) = raw_ports(&name, "ping", "pong", max)?;
+        handshake(&publisher, &subscriber)?;
         let mut sink = vec![0u8; max];
         for size in SIZES {
             let payload = vec![0x5a_u8; size];
@@ -198,6 +209,32 @@ fn rtt(quick: bool) -> anyhow::Result<()> {
     }
     // Every process of the run has exited: nothing of the domain may stay behind.
     domain.remove_files();
+    Ok(())
+}
+
+/// Pings until the pong process answers (its ports may not be connected yet), then drains what
+/// the extra pings brought back.
+fn handshake(publisher: &RawPub, subscriber: &RawSub) -> anyhow::Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    'ping: loop {
+        publisher
+            .loan_slice_uninit(1)?
+            .write_from_slice(&[0])
+            .send()?;
+        let wait = Instant::now() + Duration::from_millis(20);
+        while Instant::now() < wait {
+            if subscriber.receive()?.is_some() {
+                break 'ping;
+            }
+        }
+        if Instant::now() > deadline {
+            bail!("the raw pong process does not answer");
+        }
+    }
+    let settle = Instant::now() + Duration::from_millis(50);
+    while Instant::now() < settle {
+        let _ = subscriber.receive()?;
+    }
     Ok(())
 }
 
