@@ -58,6 +58,20 @@ enum Command {
         /// A variable for the description, which reads it as `vars.KEY` (a string); repeatable.
         #[arg(long = "var", value_name = "KEY=VALUE", value_parser = parse_var)]
         vars: Vec<(String, String)>,
+        /// Run exactly this many base ticks of the grid, then stop.
+        #[arg(long)]
+        ticks: Option<u64>,
+        /// Write every component output at every tick to this file (see the README's trace
+        /// format), so runs can be compared byte for byte.
+        #[arg(long, value_name = "OUT")]
+        trace: Option<PathBuf>,
+    },
+    /// A live table of the grid: per component its host, period, execution time, overruns
+    /// and jitter, and the measured tick rate. Refreshes in place until Ctrl-C.
+    Top {
+        /// Print one table and exit.
+        #[arg(long)]
+        once: bool,
     },
     /// Stop the system running in the domain (from another terminal).
     Down,
@@ -125,7 +139,15 @@ fn main() -> ExitCode {
             file,
             run_for,
             vars,
-        } => up_cmd::up(&file, run_for, &vars),
+            ticks,
+            trace,
+        } => up_cmd::up(
+            &file,
+            run_for,
+            &vars,
+            &modbot_runtime::grid::processes::GridRun { ticks, trace },
+        ),
+        Command::Top { once } => tool::top(&cli.domain, once),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),
         Command::Call {

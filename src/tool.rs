@@ -386,3 +386,39 @@ pub fn bb(
         }
     }
 }
+
+/// `modbot top`: the coordinator's ledger as a table, refreshed in place.
+pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
+    use modbot_runtime::grid::ledger;
+    let mut tool = open(domain)?;
+    loop {
+        let frame = tool.call_blocking(
+            "coordinator",
+            "ledger",
+            &[],
+            CallOptions::timeout(Duration::from_secs(1)),
+            |r| -> Result<String, String> {
+                let args = r.map_err(|e| e.to_string())?;
+                let bytes = args.bytes(0).map_err(|e| e.to_string())?;
+                let (grid, rows) = ledger::decode(bytes)?;
+                Ok(ledger::render(&grid, &rows))
+            },
+        );
+        let frame = match frame {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("modbot top: no ledger from the coordinator of '{domain}': {e}");
+                return Ok(ExitCode::from(1));
+            }
+        };
+        if once {
+            print!("{frame}");
+            return Ok(ExitCode::SUCCESS);
+        }
+        // Home the cursor and clear: the table refreshes in place.
+        print!("\x1b[H\x1b[2J{frame}");
+        use std::io::Write;
+        std::io::stdout().flush()?;
+        std::thread::sleep(Duration::from_millis(500));
+    }
+}

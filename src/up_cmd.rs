@@ -4,24 +4,30 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
+use modbot_runtime::grid::processes::{self, GridRun};
 use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError};
 use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::Domain;
 
-/// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]...`.
+/// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]... [--ticks N] [--trace OUT]`.
 pub fn up(
     file: &Path,
     run_for: Option<f64>,
     vars: &[(String, String)],
+    grid_run: &GridRun,
 ) -> anyhow::Result<ExitCode> {
     let resolver = DefaultResolver::for_file(file);
-    let spec = match system::load_with_vars(file, &resolver, vars) {
+    let mut spec = match system::load_with_vars(file, &resolver, vars) {
         Ok(spec) => spec,
         Err(e) => {
             eprintln!("modbot up: {e}");
             return Ok(ExitCode::from(2));
         }
     };
+    if let Err(e) = processes::add_processes(&mut spec, &resolver, file, vars, grid_run) {
+        eprintln!("modbot up: {e}");
+        return Ok(ExitCode::from(2));
+    }
     let run_for = match run_for {
         Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
         Some(s) => anyhow::bail!("--for {s}: expected a number of seconds >= 0"),

@@ -13,6 +13,7 @@
 //! - [`args`]: a decoded argument list with typed accessors, without allocating.
 //! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
 //!   readable in place.
+//! - [`grid`]: the time grid's port values, output records and release/done notices.
 //! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
 //! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set, stats,
 //!   activate/deactivate).
@@ -26,6 +27,7 @@ compile_error!("modbot's wire formats are little-endian and are read in place: b
 
 pub mod addr;
 pub mod args;
+pub mod grid;
 pub mod heartbeat;
 pub mod hex;
 pub mod rvmf;

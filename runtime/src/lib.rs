@@ -16,6 +16,7 @@
 //! - [`served`]: the requests served lately, so a retransmission is not executed twice.
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
+//! - [`grid`]: the time grid's components, their description and the reference LET run.
 //! - [`run`]: the default application controller (main loop, signals, receive modes).
 //! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
 //! - [`sim`]: the simulated time all processes of a system share (`MODBOT_EPOCH_NS`).
@@ -30,6 +31,7 @@ pub mod clock;
 pub mod ctx;
 pub mod domain;
 pub mod error;
+pub mod grid;
 mod manager;
 pub mod module;
 pub mod phonebook;

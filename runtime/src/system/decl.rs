@@ -16,6 +16,7 @@ use super::read::{
     coerce, integer, integer_in, list, seconds, show, string, string_list, text, Fields,
 };
 use super::{GiveUp, GroupSpec, ModuleSpec, Restart, RestartPolicy, Supervision};
+use crate::grid::spec::{ComponentDecl, ConnectDecl, GridDecl};
 use crate::transport::{check_name, ReceiveMode};
 
 /// Everything the description declared, in order, before the cross-checks.
@@ -29,6 +30,12 @@ pub(super) struct Declarations {
     pub modules: Vec<ModuleDecl>,
     /// The `group` declarations in order; members are not checked yet.
     pub groups: Vec<GroupSpec>,
+    /// The `grid` declaration.
+    pub grid: Option<GridDecl>,
+    /// The `component` declarations in order (their indices on the grid).
+    pub components: Vec<ComponentDecl>,
+    /// The `connect` declarations in order.
+    pub connections: Vec<ConnectDecl>,
 }
 
 /// A `module` declaration: a [`ModuleSpec`] whose program is not looked up yet and whose
@@ -315,7 +322,7 @@ fn restart(module: &str, v: &Value) -> Result<RestartPolicy, String> {
 }
 
 /// `cpus = { 0, 2 }`: sorted, without repeats.
-fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
+pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
     let bad = || {
         format!(
             "{what}: field 'cpus' must be a list of CPU indices 0 to {MAX_CPU}, not {}",

@@ -1,9 +1,10 @@
 //! The sandboxed evaluation of a description.
 //!
-//! The description is ordinary Lua with four declaration functions added (`domain`,
-//! `supervision`, `module`, `group`), the table `vars` of the variables given on the command
-//! line (`modbot up FILE --var speed=2`: `vars.speed == "2"`; strings, read-only, empty when none
-//! were given), and everything that reaches outside taken away:
+//! The description is ordinary Lua with seven declaration functions added (`domain`,
+//! `supervision`, `module`, `group`, and the grid's `grid`, `component` and `connect` from
+//! `grid_decl`), the table `vars` of the variables given on the command line (`modbot up FILE
+//! --var speed=2`: `vars.speed == "2"`; strings, read-only, empty when none were given), and
+//! everything that reaches outside taken away:
 //!
 //! - only the `table`, `string`, `math`, `utf8` and `coroutine` libraries are loaded (no `os`,
 //!   `io`, `package`, `debug`), and `load`, `loadfile`, `dofile`, `require` and
@@ -27,6 +28,7 @@ use mlua::chunk::ChunkMode;
 use mlua::{HookTriggers, Lua, LuaOptions, MultiValue, StdLib, Value, VmState};
 
 use super::decl::{self, Declarations};
+use super::grid_decl;
 use super::{GroupSpec, SystemError};
 
 /// The most memory a description may use.
@@ -95,10 +97,13 @@ end
 /// Borrows of it are short and never span a call into Lua: Lua may run user code (finalizers)
 /// during any allocation, and that code may call a declaration function.
 #[derive(Default)]
-struct Record {
-    decls: Declarations,
-    /// `module "x"` and `group "x"` calls, and whether their table was given.
+pub(super) struct Record {
+    pub(super) decls: Declarations,
+    /// `module "x"`, `group "x"` and `component "x"` calls, and whether their table was given.
     bodies: Vec<Body>,
+    /// How many `bodies` there are of each kind (a declaration loop must not count them all
+    /// at every call).
+    counts: Vec<(&'static str, usize)>,
     /// The first failure: its line (if any) and message.
     failure: Option<(Option<u32>, String)>,
     /// Instructions executed so far, counted by the hook.
@@ -112,7 +117,7 @@ struct Body {
     given: bool,
 }
 
-type Shared = Rc<RefCell<Record>>;
+pub(super) type Shared = Rc<RefCell<Record>>;
 
 /// Evaluates `source` (called `file` in messages) with the variables `vars` (later entries
 /// win over earlier ones with the same key) and returns what it declared.
@@ -140,6 +145,7 @@ pub(super) fn evaluate(
     if let Some(body) = record.bodies.iter().find(|b| !b.given) {
         let example = match body.kind {
             "module" => "{ addr = ..., program = ... }",
+            "component" => "{ type = ..., host = ... }",
             _ => "{ \"member\", ... }",
         };
         return Err(SystemError::new(
@@ -168,6 +174,7 @@ fn sandbox(record: &Shared, vars: &[(String, String)]) -> mlua::Result<Lua> {
     globals.raw_set("supervision", supervision_fn(&lua, record)?)?;
     globals.raw_set("module", module_fn(&lua, record)?)?;
     globals.raw_set("group", group_fn(&lua, record)?)?;
+    grid_decl::register(&lua, &globals, record)?;
     let failed = record.clone();
     let failed_check = lua.create_function(move |_, ()| {
         let stopped = failed.borrow().failure.is_some();
@@ -296,7 +303,7 @@ fn group_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
 }
 
 /// Notes a `kind "name"` call whose table is still to come; returns its index.
-fn open_body(
+pub(super) fn open_body(
     record: &Shared,
     kind: &'static str,
     name: &str,
@@ -305,15 +312,19 @@ fn open_body(
 ) -> mlua::Result<usize> {
     let count = record
         .borrow()
-        .bodies
+        .counts
         .iter()
-        .filter(|b| b.kind == kind)
-        .count();
+        .find(|(k, _)| *k == kind)
+        .map_or(0, |(_, n)| *n);
     if count >= max {
         let message = format!("too many {kind} declarations (at most {max})");
         return Err(fail(record, line, message));
     }
     let mut record = record.borrow_mut();
+    match record.counts.iter_mut().find(|(k, _)| *k == kind) {
+        Some((_, n)) => *n += 1,
+        None => record.counts.push((kind, 1)),
+    }
     record.bodies.push(Body {
         kind,
         name: name.to_owned(),
@@ -323,14 +334,14 @@ fn open_body(
     Ok(record.bodies.len() - 1)
 }
 
-fn given(record: &Shared, index: usize) {
+pub(super) fn given(record: &Shared, index: usize) {
     if let Some(body) = record.borrow_mut().bodies.get_mut(index) {
         body.given = true;
     }
 }
 
 /// The single argument of a declaration; `usage` shows how it is written.
-fn one_arg<'a>(args: &'a MultiValue, usage: &str) -> Result<&'a Value, String> {
+pub(super) fn one_arg<'a>(args: &'a MultiValue, usage: &str) -> Result<&'a Value, String> {
     match args.len() {
         1 => args.front().ok_or_else(String::new),
         n => Err(format!("expected one argument but got {n}: write {usage}")),
@@ -339,7 +350,7 @@ fn one_arg<'a>(args: &'a MultiValue, usage: &str) -> Result<&'a Value, String> {
 
 /// Records `message` as the failure (unless there is one already) and returns the Lua error
 /// that stops the script.
-fn fail(record: &Shared, line: u32, message: String) -> mlua::Error {
+pub(super) fn fail(record: &Shared, line: u32, message: String) -> mlua::Error {
     let mut record = record.borrow_mut();
     if record.failure.is_none() {
         record.failure = Some((Some(line), message));
@@ -355,7 +366,7 @@ fn stop() -> mlua::Error {
 
 /// The current line of the nearest function of the description on the stack above the running
 /// callback (skipping C functions such as `pcall`, and the prelude's wrappers).
-fn caller_line(lua: &Lua) -> u32 {
+pub(super) fn caller_line(lua: &Lua) -> u32 {
     for level in 1..64 {
         let frame = lua.inspect_stack(level, |d| {
             let prelude = d.source().source.as_deref() == Some(PRELUDE_NAME);

@@ -22,27 +22,44 @@
 //! group "sensors" { "sonar" }
 //! ```
 //!
+//! A description may also declare a time grid: components on host processes, their periods
+//! and the connections between their ports (see [`crate::grid`]; the grid alone, without
+//! modules, is a valid system):
+//!
+//! ```lua
+//! grid { base_period = 0.001, cpus = { 0 }, priority = 80, mlock = true }
+//! component "A" { type = "counter", host = "h1", period = 1, params = { start = 0 } }
+//! component "B" { type = "gain", host = "h2", period = 2, params = { k = 0.5 }, policy = "fault" }
+//! connect "A.y -> B.u"
+//! ```
+//!
 //! # Layout
 //! - this file: the checked description ([`SystemSpec`] and its parts), [`SystemError`], the
-//!   entry points [`load`], [`load_str`], [`load_with_vars`] and [`load_str_with_vars`], and
+//!   entry points [`load`], [`load_str`], [`load_with_vars`], [`load_str_with_vars`] and, with
+//!   a [`Registry`] of component types, [`load_with_registry`] and [`load_str_with_registry`];
 //!   [`parse_var`] for `--var KEY=VALUE`.
 //! - `lua`: the sandboxed evaluation: which Lua libraries exist, the memory and instruction
 //!   budgets, the declaration functions (`domain`, `supervision`, `module`, `group`) and the
 //!   translation of Lua errors into [`SystemError`].
+//! - `grid_decl`: the grid's declaration functions (`grid`, `component`, `connect`) and what
+//!   each one says; the checks against the component types are [`GridSpec::build`]'s.
 //! - `decl`: what one declaration says, read field by field from its Lua table, with the
 //!   checks that need nothing but that table (ranges, policies, unknown fields).
 //! - `read`: typed values out of Lua values (strings, integers, seconds, lists, field tables),
 //!   each refusal a message that shows the value.
-//! - `validate`: the checks across declarations (duplicates, group members, timings) and the
-//!   program lookup, which produce the [`SystemSpec`].
+//! - `validate`: the checks across declarations (duplicates, group members, timings), the
+//!   program lookup and the grid's checks, which produce the [`SystemSpec`].
 //! - [`program`]: how a program name becomes an executable path ([`DefaultResolver`]).
 
 mod decl;
+mod grid_decl;
 mod lua;
 pub mod program;
 mod read;
 mod validate;
 
+#[cfg(test)]
+mod grid_tests;
 #[cfg(test)]
 mod tests;
 
@@ -52,6 +69,7 @@ use std::time::Duration;
 
 use thiserror::Error;
 
+use crate::grid::{GridSpec, Registry};
 use crate::transport::ReceiveMode;
 
 pub use program::{DefaultResolver, ProgramResolver};
@@ -69,6 +87,8 @@ pub struct SystemSpec {
     pub modules: Vec<ModuleSpec>,
     /// The multicast groups, in declaration order.
     pub groups: Vec<GroupSpec>,
+    /// The time grid, if the description declares one.
+    pub grid: Option<GridSpec>,
 }
 
 /// The supervisor's timings.
@@ -299,6 +319,17 @@ pub fn load_with_vars(
     resolver: &dyn ProgramResolver,
     vars: &[(String, String)],
 ) -> Result<SystemSpec, SystemError> {
+    load_with_registry(path, resolver, vars, &Registry::builtin())
+}
+
+/// Like [`load_with_vars`], with the grid's component types taken from `registry` (the others
+/// use the built-in ones, [`Registry::builtin`]).
+pub fn load_with_registry(
+    path: &Path,
+    resolver: &dyn ProgramResolver,
+    vars: &[(String, String)],
+    registry: &Registry,
+) -> Result<SystemSpec, SystemError> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path)
         .map_err(|e| SystemError::new(&file, None, format!("cannot read the description: {e}")))?;
@@ -312,7 +343,7 @@ pub fn load_with_vars(
             ),
         )
     })?;
-    load_str_with_vars(&file, &source, resolver, vars)
+    load_str_with_registry(&file, &source, resolver, vars, registry)
 }
 
 /// Evaluates and checks the system description `source`; messages call it `file_name`.
@@ -331,8 +362,19 @@ pub fn load_str_with_vars(
     resolver: &dyn ProgramResolver,
     vars: &[(String, String)],
 ) -> Result<SystemSpec, SystemError> {
+    load_str_with_registry(file_name, source, resolver, vars, &Registry::builtin())
+}
+
+/// Like [`load_str_with_vars`], with the grid's component types taken from `registry`.
+pub fn load_str_with_registry(
+    file_name: &str,
+    source: &str,
+    resolver: &dyn ProgramResolver,
+    vars: &[(String, String)],
+    registry: &Registry,
+) -> Result<SystemSpec, SystemError> {
     let declarations = lua::evaluate(file_name, source, vars)?;
-    validate::build(file_name, declarations, resolver)
+    validate::build(file_name, declarations, resolver, registry)
 }
 
 /// Reads one `--var KEY=VALUE`: the key is what comes before the first `=`, made of ASCII

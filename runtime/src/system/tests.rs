@@ -353,8 +353,12 @@ fn missing_or_repeated_or_bad_domain_is_refused() {
 }
 
 #[test]
-fn no_modules_at_all_is_refused() {
-    assert_error("domain \"t\"\n", None, "no modules declared");
+fn no_modules_and_no_grid_is_refused() {
+    assert_error(
+        "domain \"t\"\n",
+        None,
+        "nothing to run: declare at least one module",
+    );
 }
 
 #[test]

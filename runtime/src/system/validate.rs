@@ -2,19 +2,23 @@
 //! [`SystemSpec`].
 //!
 //! Errors are reported in file order as far as possible: the domain first (it has no line when
-//! it is missing), then module by module, then the groups.
+//! it is missing), then module by module, then the groups, then the grid (whose checks are
+//! [`GridSpec::build`]'s).
 
 use std::collections::HashMap;
 use std::path::PathBuf;
 
 use super::decl::{Declarations, ModuleDecl};
 use super::{ProgramResolver, SystemError, SystemSpec};
+use crate::grid::{GridSpec, Registry};
 
-/// Checks `decls` (from the file `file`) and finds every module's program.
+/// Checks `decls` (from the file `file`), finds every module's program and checks the grid
+/// against the component types of `registry`.
 pub(super) fn build(
     file: &str,
     decls: Declarations,
     resolver: &dyn ProgramResolver,
+    registry: &Registry,
 ) -> Result<SystemSpec, SystemError> {
     let error = |line: u32, message: String| SystemError::new(file, Some(line), message);
     let Some((domain, _)) = decls.domain else {
@@ -24,12 +28,16 @@ pub(super) fn build(
             "no domain declared: add a line such as domain \"robot\"",
         ));
     };
-    if decls.modules.is_empty() {
-        return Err(SystemError::new(
-            file,
-            None,
-            "no modules declared: add at least one module \"name\" { addr = ..., program = ... }",
-        ));
+    if decls.grid.is_none() {
+        let first = (decls.components.first().map(|c| c.line))
+            .or_else(|| decls.connections.first().map(|c| c.line));
+        if let Some(line) = first {
+            return Err(error(
+                line,
+                "there is no grid for the components: declare it, as in grid { base_period = 0.001 }"
+                    .into(),
+            ));
+        }
     }
 
     let mut names: HashMap<&str, u32> = HashMap::new();
@@ -53,6 +61,14 @@ pub(super) fn build(
                 ),
             ));
         }
+    }
+    if decls.modules.is_empty() && decls.grid.is_none() {
+        return Err(SystemError::new(
+            file,
+            None,
+            "nothing to run: declare at least one module \"name\" { addr = ..., program = ... } \
+             or a grid { ... } with its components",
+        ));
     }
 
     let mut group_lines: HashMap<&str, u32> = HashMap::new();
@@ -93,6 +109,14 @@ pub(super) fn build(
         }
     }
 
+    let grid = match decls.grid {
+        Some(grid) => Some(
+            GridSpec::build(grid, decls.components, decls.connections, registry)
+                .map_err(|e| SystemError::new(file, e.line, e.message))?,
+        ),
+        None => None,
+    };
+
     let groups = decls.groups;
     let modules = decls
         .modules
@@ -113,6 +137,7 @@ pub(super) fn build(
         supervision: decls.supervision.map(|s| s.0).unwrap_or_default(),
         modules,
         groups,
+        grid,
     })
 }
 

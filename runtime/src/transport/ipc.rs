@@ -71,7 +71,8 @@ impl IpcTransport {
         &self.domain
     }
 
-    fn node(&self, node_name: &str) -> Result<Node<ipc::Service>, TransportError> {
+    /// A node of this domain that is not a module (the grid's channels use one).
+    pub fn node(&self, node_name: &str) -> Result<Node<ipc::Service>, TransportError> {
         let name = ipc!("node name", NodeName::new(node_name))?;
         ipc!(
             "node creation",

@@ -1,0 +1,383 @@
+//! The time grid's wire formats: port values, the output record a component publishes, and
+//! the notices between the coordinator and the component hosts.
+//!
+//! # Port values
+//! A port has a fixed type: bool, i64, f64, or an f64 array of fixed length. On the wire every
+//! scalar takes 8 bytes little-endian (bool: 0 or 1 as u64; f64: its IEEE bits) and an array of
+//! n takes 8·n bytes, so a component's outputs pack into one record of fixed size.
+//!
+//! # Output sample (`grid.out.<component>`)
+//! ```text
+//! offset size field
+//!  0     8    valid_from: the logical tick from which these outputs are valid (release + period)
+//!  8     8    release: the tick at which the component was released
+//! 16     …    the outputs, packed in port order
+//! ```
+//!
+//! # Release notice (coordinator → host, `grid.release.<host>`), 152 bytes
+//! ```text
+//!  0     8    tick: the release tick n
+//!  8     8    when the coordinator released it, CLOCK_MONOTONIC ns
+//! 16     2    component index (in the grid description's order)
+//! 18     2    number of sources that follow (≤ 16)
+//! 20     4    reserved, 0
+//! 24   8·16   versions: for each source component of the inputs (in the order the host was
+//!             told at load), the valid_from of the outputs to read: LET says "as valid at n"
+//! ```
+//!
+//! # Done notice (host → coordinator, `grid.done`), 32 bytes
+//! ```text
+//!  0     8    tick: the release tick it answers
+//!  8     2    component index
+//! 10     2    status: 0 ok, 1 the step failed
+//! 12     4    reserved, 0
+//! 16     8    execution time of the step, ns
+//! 24     8    release latency: from the coordinator's release to the step's start, ns
+//! ```
+
+use thiserror::Error;
+use zerocopy::byteorder::little_endian::{U16, U32, U64};
+use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
+
+/// The component index of a warm-up release: the host answers it at once with a done notice
+/// of the same index, so that the notice channels and the host's paths are warm before tick 0.
+pub const PING: u16 = u16::MAX;
+
+/// The most source components one component's inputs come from.
+pub const MAX_SOURCES: usize = 16;
+/// Size of the output sample header.
+pub const OUT_HEADER_LEN: usize = 16;
+
+/// A port's type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PortType {
+    Bool,
+    I64,
+    F64,
+    /// An array of exactly this many f64.
+    F64s(usize),
+}
+
+impl PortType {
+    /// Bytes on the wire.
+    pub fn wire_len(self) -> usize {
+        match self {
+            PortType::F64s(n) => 8 * n,
+            _ => 8,
+        }
+    }
+
+    /// The value a port holds before anything was written: false, 0, 0.0, zeros.
+    pub fn zero(self) -> PortValue {
+        match self {
+            PortType::Bool => PortValue::Bool(false),
+            PortType::I64 => PortValue::I64(0),
+            PortType::F64 => PortValue::F64(0.0),
+            PortType::F64s(n) => PortValue::F64s(vec![0.0; n]),
+        }
+    }
+}
+
+impl core::fmt::Display for PortType {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PortType::Bool => f.write_str("bool"),
+            PortType::I64 => f.write_str("i64"),
+            PortType::F64 => f.write_str("f64"),
+            PortType::F64s(n) => write!(f, "f64[{n}]"),
+        }
+    }
+}
+
+/// A port's value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PortValue {
+    Bool(bool),
+    I64(i64),
+    F64(f64),
+    F64s(Vec<f64>),
+}
+
+impl PortValue {
+    pub fn port_type(&self) -> PortType {
+        match self {
+            PortValue::Bool(_) => PortType::Bool,
+            PortValue::I64(_) => PortType::I64,
+            PortValue::F64(_) => PortType::F64,
+            PortValue::F64s(v) => PortType::F64s(v.len()),
+        }
+    }
+
+    pub fn as_f64(&self) -> f64 {
+        match self {
+            PortValue::Bool(b) => f64::from(u8::from(*b)),
+            PortValue::I64(i) => *i as f64,
+            PortValue::F64(x) => *x,
+            PortValue::F64s(v) => v.first().copied().unwrap_or(0.0),
+        }
+    }
+
+    /// Copies `other` into `self` without allocating when both are arrays of one length.
+    pub fn assign(&mut self, other: &PortValue) {
+        match (self, other) {
+            (PortValue::F64s(a), PortValue::F64s(b)) if a.len() == b.len() => a.copy_from_slice(b),
+            (me, other) => *me = other.clone(),
+        }
+    }
+}
+
+impl core::fmt::Display for PortValue {
+    /// Exact: f64 values print as the shortest text that reads back to the same bits.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            PortValue::Bool(b) => write!(f, "{b}"),
+            PortValue::I64(i) => write!(f, "{i}"),
+            PortValue::F64(x) => write!(f, "{x:?}"),
+            PortValue::F64s(v) => {
+                f.write_str("[")?;
+                for (i, x) in v.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(",")?;
+                    }
+                    write!(f, "{x:?}")?;
+                }
+                f.write_str("]")
+            }
+        }
+    }
+}
+
+/// Why bytes are not a valid grid record or notice.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum GridWireError {
+    #[error("record of {got} bytes, expected {expected}")]
+    Length { expected: usize, got: usize },
+    #[error("release notice with {0} sources; at most {MAX_SOURCES}")]
+    TooManySources(usize),
+    #[error("bool port holds {0}, not 0 or 1")]
+    BadBool(u64),
+}
+
+/// The bytes the outputs of these types take.
+pub fn record_len(types: &[PortType]) -> usize {
+    types.iter().map(|t| t.wire_len()).sum()
+}
+
+/// Packs `values` into `out` (exactly [`record_len`] bytes).
+pub fn write_record(values: &[PortValue], out: &mut [u8]) -> Result<(), GridWireError> {
+    let expected: usize = values.iter().map(|v| v.port_type().wire_len()).sum();
+    if out.len() != expected {
+        return Err(GridWireError::Length {
+            expected,
+            got: out.len(),
+        });
+    }
+    let mut at = 0;
+    let mut put = |word: u64| {
+        out[at..at + 8].copy_from_slice(&word.to_le_bytes());
+        at += 8;
+    };
+    for v in values {
+        match v {
+            PortValue::Bool(b) => put(u64::from(*b)),
+            PortValue::I64(i) => put(*i as u64),
+            PortValue::F64(x) => put(x.to_bits()),
+            PortValue::F64s(xs) => xs.iter().for_each(|x| put(x.to_bits())),
+        }
+    }
+    Ok(())
+}
+
+/// Unpacks a record into `values`, whose types say how to read it; no allocation when the
+/// arrays already have their lengths.
+pub fn read_record(bytes: &[u8], values: &mut [PortValue]) -> Result<(), GridWireError> {
+    let expected: usize = values.iter().map(|v| v.port_type().wire_len()).sum();
+    if bytes.len() != expected {
+        return Err(GridWireError::Length {
+            expected,
+            got: bytes.len(),
+        });
+    }
+    let mut words = bytes
+        .chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().unwrap_or([0; 8])));
+    let mut next = || words.next().unwrap_or(0);
+    for v in values.iter_mut() {
+        match v {
+            PortValue::Bool(b) => {
+                *b = match next() {
+                    0 => false,
+                    1 => true,
+                    other => return Err(GridWireError::BadBool(other)),
+                }
+            }
+            PortValue::I64(i) => *i = next() as i64,
+            PortValue::F64(x) => *x = f64::from_bits(next()),
+            PortValue::F64s(xs) => xs.iter_mut().for_each(|x| *x = f64::from_bits(next())),
+        }
+    }
+    Ok(())
+}
+
+/// The header of an output sample, read in place.
+#[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub struct OutHeader {
+    pub valid_from: U64,
+    pub release: U64,
+}
+
+/// A release notice.
+#[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub struct Release {
+    pub tick: U64,
+    pub released_ns: U64,
+    pub component: U16,
+    pub sources: U16,
+    reserved: U32,
+    pub versions: [U64; MAX_SOURCES],
+}
+
+impl Release {
+    pub fn new(
+        tick: u64,
+        released_ns: u64,
+        component: u16,
+        versions: &[u64],
+    ) -> Result<Release, GridWireError> {
+        if versions.len() > MAX_SOURCES {
+            return Err(GridWireError::TooManySources(versions.len()));
+        }
+        let mut r = Release {
+            tick: U64::new(tick),
+            released_ns: U64::new(released_ns),
+            component: U16::new(component),
+            sources: U16::new(versions.len() as u16),
+            reserved: U32::new(0),
+            versions: [U64::new(0); MAX_SOURCES],
+        };
+        for (slot, v) in r.versions.iter_mut().zip(versions) {
+            *slot = U64::new(*v);
+        }
+        Ok(r)
+    }
+
+    /// Reads a notice in place.
+    pub fn parse(bytes: &[u8]) -> Result<&Release, GridWireError> {
+        let r = Release::ref_from_bytes(bytes).map_err(|_| GridWireError::Length {
+            expected: core::mem::size_of::<Release>(),
+            got: bytes.len(),
+        })?;
+        if usize::from(r.sources.get()) > MAX_SOURCES {
+            return Err(GridWireError::TooManySources(usize::from(r.sources.get())));
+        }
+        Ok(r)
+    }
+
+    /// The version to read of each source.
+    pub fn versions(&self) -> impl Iterator<Item = u64> + '_ {
+        self.versions[..usize::from(self.sources.get()).min(MAX_SOURCES)]
+            .iter()
+            .map(|v| v.get())
+    }
+}
+
+/// A done notice.
+#[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub struct Done {
+    pub tick: U64,
+    pub component: U16,
+    pub status: U16,
+    reserved: U32,
+    pub exec_ns: U64,
+    pub latency_ns: U64,
+}
+
+impl Done {
+    pub const OK: u16 = 0;
+    pub const FAILED: u16 = 1;
+
+    pub fn new(tick: u64, component: u16, status: u16, exec_ns: u64, latency_ns: u64) -> Done {
+        Done {
+            tick: U64::new(tick),
+            component: U16::new(component),
+            status: U16::new(status),
+            reserved: U32::new(0),
+            exec_ns: U64::new(exec_ns),
+            latency_ns: U64::new(latency_ns),
+        }
+    }
+
+    /// Reads a notice in place.
+    pub fn parse(bytes: &[u8]) -> Result<&Done, GridWireError> {
+        Done::ref_from_bytes(bytes).map_err(|_| GridWireError::Length {
+            expected: core::mem::size_of::<Done>(),
+            got: bytes.len(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hex;
+
+    #[test]
+    fn a_record_packs_every_port_into_8_byte_words_and_reads_back() {
+        let values = vec![
+            PortValue::Bool(true),
+            PortValue::I64(-2),
+            PortValue::F64(1.5),
+            PortValue::F64s(vec![1.0, -0.0]),
+        ];
+        let types: Vec<PortType> = values.iter().map(PortValue::port_type).collect();
+        let mut out = vec![0; record_len(&types)];
+        write_record(&values, &mut out).unwrap();
+        assert_eq!(
+            hex::encode(&out),
+            concat!(
+                "0100000000000000",
+                "feffffffffffffff",
+                "000000000000f83f",
+                "000000000000f03f",
+                "0000000000000080"
+            )
+        );
+        let mut back: Vec<PortValue> = types.iter().map(|t| t.zero()).collect();
+        read_record(&out, &mut back).unwrap();
+        assert_eq!(back, values);
+        assert!(read_record(&out[1..], &mut back).is_err());
+    }
+
+    #[test]
+    fn notices_have_the_documented_sizes_and_read_back() {
+        assert_eq!(core::mem::size_of::<Release>(), 152);
+        assert_eq!(core::mem::size_of::<Done>(), 32);
+        let r = Release::new(7, 99, 3, &[5, 6]).unwrap();
+        let back = Release::parse(r.as_bytes()).unwrap();
+        assert_eq!((back.tick.get(), back.component.get()), (7, 3));
+        assert_eq!(back.versions().collect::<Vec<_>>(), vec![5, 6]);
+        let d = Done::new(7, 3, Done::OK, 1200, 40);
+        assert_eq!(
+            hex::encode(d.as_bytes()),
+            concat!(
+                "0700000000000000",
+                "0300",
+                "0000",
+                "00000000",
+                "b004000000000000",
+                "2800000000000000"
+            )
+        );
+        assert_eq!(Done::parse(d.as_bytes()).unwrap().exec_ns.get(), 1200);
+        assert!(Release::new(0, 0, 0, &[0; 17]).is_err());
+    }
+
+    #[test]
+    fn values_print_exactly() {
+        assert_eq!(PortValue::F64(0.1).to_string(), "0.1");
+        assert_eq!(PortValue::F64s(vec![1.0, 2.5]).to_string(), "[1.0,2.5]");
+    }
+}

@@ -1,0 +1,64 @@
+//! `modbot-host`: a component host of the time grid — steps the components of one host name.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use clap::Parser;
+use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_runtime::clock::{Clock, MonotonicClock};
+use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::host::Host;
+use modbot_runtime::grid::processes::host_module;
+use modbot_runtime::system::{self, DefaultResolver};
+use modbot_runtime::{signals, ModuleBuilder};
+
+/// Steps the components the system description puts on `--host`, whenever the coordinator
+/// releases them. The supervisor starts one per host name of the grid.
+#[derive(Debug, Parser)]
+#[command(name = "modbot-host", version)]
+struct Cli {
+    #[command(flatten)]
+    module: ModuleArgs,
+    /// The system description with the grid.
+    #[arg(long)]
+    system: PathBuf,
+    /// The host name whose components this process steps.
+    #[arg(long)]
+    host: String,
+    /// A variable for the description (`vars.KEY`); repeatable.
+    #[arg(long = "var", value_parser = system::parse_var)]
+    vars: Vec<(String, String)>,
+}
+
+fn main() -> anyhow::Result<()> {
+    init_logging();
+    let cli = Cli::parse();
+    let resolver = DefaultResolver::for_file(&cli.system);
+    let spec = system::load_with_vars(&cli.system, &resolver, &cli.vars)?;
+    let grid = spec
+        .grid
+        .ok_or_else(|| anyhow::anyhow!("{}: no grid", cli.system.display()))?;
+    let transport = cli.module.transport()?;
+    let node = transport.node(&format!("grid.host.{}", cli.host))?;
+    let mut host = Host::new(&node, &grid, &Registry::builtin(), &cli.host)?;
+    let mut module = ModuleBuilder::new(
+        cli.module
+            .name
+            .as_deref()
+            .unwrap_or(&host_module(&cli.host)),
+        cli.module.addr.unwrap_or(200),
+    )
+    .mode(cli.module.receive_mode())
+    .open(transport, ())?;
+    signals::install_termination_handler()?;
+    let now = || MonotonicClock.now_ns();
+    while !signals::termination_requested() {
+        host.wait_and_serve(Duration::from_millis(5), &now)?;
+        while module.poll_once()? {}
+        module.housekeeping();
+    }
+    if host.missing > 0 {
+        tracing::warn!("{} input version(s) were missing", host.missing);
+    }
+    Ok(())
+}

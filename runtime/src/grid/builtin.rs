@@ -1,0 +1,462 @@
+//! The built-in component types: sources, arithmetic and test helpers for the time grid.
+//!
+//! All are deterministic (their outputs depend only on their parameters, the release ticks and
+//! their inputs) and none allocates in `step`, except `sleeper`, whose whole point is to sleep
+//! so that tests can provoke an overrun.
+//!
+//! | type | inputs | outputs | parameters |
+//! |---|---|---|---|
+//! | `counter` | | `y: i64` = start + number of releases so far (1, 2, 3, …) | `start` (i64, 0) |
+//! | `ramp` | | `y: f64` = slope · tick · base_period_s | `slope` (f64, 1) |
+//! | `sine` | | `y: f64` = amplitude · sin(2π · freq · tick · base_period_s) | `amplitude` (1), `freq` (Hz, 1) |
+//! | `gain` | `u: f64` | `y: f64` = k · u | `k` (f64, required) |
+//! | `sum` | `a: f64`, `b: f64` | `y: f64` = a + b | |
+//! | `integrator` | `u: f64` | `y: f64` += u · period_s at each release | `initial` (f64, 0) |
+//! | `delay` | `u: f64` | `y: f64` = the u of the previous release | `initial` (f64, 0) |
+//! | `vec_gain` | `u: f64[n]` | `y: f64[n]` = k · u | `n` (i64 1..=64, required), `k` (f64, required) |
+//! | `pack` | `a: f64`, `b: f64` | `v: f64[2]` = [a, b] | |
+//! | `sleeper` | `u: f64` | `y: f64` = u | `sleep_ms` (f64 ≥ 0, 0), `sleep_at` (i64, -1: never) |
+
+use std::f64::consts::PI;
+use std::time::Duration;
+
+use super::component::{
+    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
+    PortValue, Registry, BASE_PERIOD_S, PERIOD_S,
+};
+
+/// Adds every built-in type to `registry`.
+pub fn register_all(registry: &mut Registry) {
+    registry.register(counter_info, |p| {
+        Ok(Box::new(Counter { y: p.i64("start")? }))
+    });
+    registry.register(ramp_info, |p| {
+        Ok(Box::new(Ramp {
+            slope: p.f64("slope")?,
+            dt: p.f64(BASE_PERIOD_S)?,
+        }))
+    });
+    registry.register(sine_info, |p| {
+        Ok(Box::new(Sine {
+            amplitude: p.f64("amplitude")?,
+            freq: p.f64("freq")?,
+            dt: p.f64(BASE_PERIOD_S)?,
+        }))
+    });
+    registry.register(gain_info, |p| Ok(Box::new(Gain { k: p.f64("k")? })));
+    registry.register(sum_info, |_| Ok(Box::new(Sum)));
+    registry.register(integrator_info, |p| {
+        Ok(Box::new(Integrator {
+            y: p.f64("initial")?,
+            h: p.f64(PERIOD_S)?,
+        }))
+    });
+    registry.register(delay_info, |p| {
+        Ok(Box::new(Delay {
+            last: p.f64("initial")?,
+        }))
+    });
+    registry.register(vec_gain_info, |p| {
+        vec_len(p)?;
+        Ok(Box::new(VecGain { k: p.f64("k")? }))
+    });
+    registry.register(pack_info, |_| Ok(Box::new(Pack)));
+    registry.register(sleeper_info, |p| {
+        Ok(Box::new(Sleeper {
+            sleep: sleep_of(p)?,
+            at: u64::try_from(p.i64("sleep_at")?).ok(),
+        }))
+    });
+}
+
+fn f64_param(name: &'static str, default: f64) -> ParamDecl {
+    ParamDecl::optional(name, ParamType::F64, ParamValue::F64(default))
+}
+
+/// The description of a type whose ports are all f64 (the common case).
+fn f64_info(
+    type_name: &'static str,
+    doc: &'static str,
+    inputs: &[&'static str],
+    outputs: &[&'static str],
+    params: Vec<ParamDecl>,
+) -> Result<ComponentInfo, String> {
+    let ports = |names: &[&'static str]| {
+        let port = |&name| PortDecl::new(name, PortType::F64);
+        names.iter().map(port).collect()
+    };
+    Ok(ComponentInfo {
+        type_name,
+        doc,
+        inputs: ports(inputs),
+        outputs: ports(outputs),
+        params,
+    })
+}
+
+/// Writes `y` to an f64 output (no allocation: the slot holds an f64 already).
+fn put(slot: &mut PortValue, y: f64) {
+    *slot = PortValue::F64(y);
+}
+
+// ---- sources: counter, ramp, sine ----
+
+fn counter_info(_: &Params) -> Result<ComponentInfo, String> {
+    let start = ParamDecl::optional("start", ParamType::I64, ParamValue::I64(0));
+    let mut info = f64_info(
+        "counter",
+        "y = start + number of releases",
+        &[],
+        &[],
+        vec![start],
+    )?;
+    info.outputs.push(PortDecl::new("y", PortType::I64));
+    Ok(info)
+}
+
+struct Counter {
+    /// The last output: start plus the releases so far.
+    y: i64,
+}
+
+impl Component for Counter {
+    fn step(&mut self, _: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+        self.y = self.y.wrapping_add(1);
+        outputs[0] = PortValue::I64(self.y);
+    }
+}
+
+fn ramp_info(_: &Params) -> Result<ComponentInfo, String> {
+    let doc = "a ramp in time: y = slope * tick * base_period_s";
+    f64_info("ramp", doc, &[], &["y"], vec![f64_param("slope", 1.0)])
+}
+
+struct Ramp {
+    slope: f64,
+    /// The base tick in seconds: a tick number times this is the time.
+    dt: f64,
+}
+
+impl Component for Ramp {
+    fn step(&mut self, tick: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+        put(&mut outputs[0], self.slope * tick as f64 * self.dt);
+    }
+}
+
+fn sine_info(_: &Params) -> Result<ComponentInfo, String> {
+    let doc = "a sine in time: y = amplitude * sin(2 pi * freq * tick * base_period_s)";
+    let params = vec![f64_param("amplitude", 1.0), f64_param("freq", 1.0)];
+    f64_info("sine", doc, &[], &["y"], params)
+}
+
+struct Sine {
+    amplitude: f64,
+    freq: f64,
+    /// The base tick in seconds.
+    dt: f64,
+}
+
+impl Component for Sine {
+    fn step(&mut self, tick: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+        let y = self.amplitude * (2.0 * PI * self.freq * tick as f64 * self.dt).sin();
+        put(&mut outputs[0], y);
+    }
+}
+
+// ---- arithmetic: gain, sum ----
+
+fn gain_info(_: &Params) -> Result<ComponentInfo, String> {
+    let k = ParamDecl::required("k", ParamType::F64);
+    f64_info("gain", "y = k * u", &["u"], &["y"], vec![k])
+}
+
+struct Gain {
+    k: f64,
+}
+
+impl Component for Gain {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        put(&mut outputs[0], self.k * inputs[0].as_f64());
+    }
+}
+
+fn sum_info(_: &Params) -> Result<ComponentInfo, String> {
+    f64_info("sum", "y = a + b", &["a", "b"], &["y"], vec![])
+}
+
+struct Sum;
+
+impl Component for Sum {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        put(&mut outputs[0], inputs[0].as_f64() + inputs[1].as_f64());
+    }
+}
+
+// ---- state: integrator, delay ----
+
+fn integrator_info(_: &Params) -> Result<ComponentInfo, String> {
+    let doc = "forward Euler at its own period: y += u * period_s at each release";
+    let params = vec![f64_param("initial", 0.0)];
+    f64_info("integrator", doc, &["u"], &["y"], params)
+}
+
+struct Integrator {
+    /// The integral so far.
+    y: f64,
+    /// The component's own period in seconds: the step of the integration.
+    h: f64,
+}
+
+impl Component for Integrator {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.y += inputs[0].as_f64() * self.h;
+        put(&mut outputs[0], self.y);
+    }
+}
+
+fn delay_info(_: &Params) -> Result<ComponentInfo, String> {
+    let doc = "y = the u of the previous release (initial at the first)";
+    f64_info(
+        "delay",
+        doc,
+        &["u"],
+        &["y"],
+        vec![f64_param("initial", 0.0)],
+    )
+}
+
+struct Delay {
+    /// The input of the previous release.
+    last: f64,
+}
+
+impl Component for Delay {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        put(&mut outputs[0], self.last);
+        self.last = inputs[0].as_f64();
+    }
+}
+
+// ---- arrays: vec_gain, pack ----
+
+/// The longest array `vec_gain` takes.
+const MAX_VEC: i64 = 64;
+
+/// `vec_gain`'s length; a placeholder of 1 when asked without parameters.
+fn vec_len(p: &Params) -> Result<usize, String> {
+    let n = if p.is_empty() { 1 } else { p.i64("n")? };
+    if !(1..=MAX_VEC).contains(&n) {
+        return Err(format!("param 'n' must be from 1 to {MAX_VEC}, not {n}"));
+    }
+    Ok(usize::try_from(n).unwrap_or(1))
+}
+
+fn vec_gain_info(p: &Params) -> Result<ComponentInfo, String> {
+    let ty = PortType::F64s(vec_len(p)?);
+    let params = vec![
+        ParamDecl::required("n", ParamType::I64),
+        ParamDecl::required("k", ParamType::F64),
+    ];
+    let mut info = f64_info("vec_gain", "y = k * u for arrays of n", &[], &[], params)?;
+    info.inputs.push(PortDecl::new("u", ty));
+    info.outputs.push(PortDecl::new("y", ty));
+    Ok(info)
+}
+
+struct VecGain {
+    k: f64,
+}
+
+impl Component for VecGain {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        if let (PortValue::F64s(y), PortValue::F64s(u)) = (&mut outputs[0], &inputs[0]) {
+            for (y, u) in y.iter_mut().zip(u) {
+                *y = self.k * u;
+            }
+        }
+    }
+}
+
+fn pack_info(_: &Params) -> Result<ComponentInfo, String> {
+    let mut info = f64_info("pack", "v = [a, b]", &["a", "b"], &[], vec![])?;
+    info.outputs.push(PortDecl::new("v", PortType::F64s(2)));
+    Ok(info)
+}
+
+struct Pack;
+
+impl Component for Pack {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        if let PortValue::F64s(v) = &mut outputs[0] {
+            v[0] = inputs[0].as_f64();
+            v[1] = inputs[1].as_f64();
+        }
+    }
+}
+
+// ---- sleeper ----
+
+fn sleeper_info(p: &Params) -> Result<ComponentInfo, String> {
+    if !p.is_empty() {
+        sleep_of(p)?;
+    }
+    let doc = "y = u; sleeps sleep_ms when released at tick sleep_at, to provoke an overrun";
+    let params = vec![
+        f64_param("sleep_ms", 0.0),
+        ParamDecl::optional("sleep_at", ParamType::I64, ParamValue::I64(-1)),
+    ];
+    f64_info("sleeper", doc, &["u"], &["y"], params)
+}
+
+fn sleep_of(p: &Params) -> Result<Duration, String> {
+    let ms = p.f64("sleep_ms")?;
+    Duration::try_from_secs_f64(ms / 1000.0)
+        .map_err(|_| format!("param 'sleep_ms' must be 0 or more milliseconds, not {ms}"))
+}
+
+/// A pass-through that sleeps once, at one release: a test helper that blocks in `step` on
+/// purpose (the one built-in that breaks the real-time rules, to check they are enforced).
+struct Sleeper {
+    sleep: Duration,
+    /// The release tick that sleeps; none when negative.
+    at: Option<u64>,
+}
+
+impl Component for Sleeper {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        if self.at == Some(tick) && !self.sleep.is_zero() {
+            std::thread::sleep(self.sleep);
+        }
+        put(&mut outputs[0], inputs[0].as_f64());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(type_name: &str, params: Params, ticks: &[(u64, Vec<PortValue>)]) -> Vec<PortValue> {
+        let registry = Registry::builtin();
+        let info = registry.info(type_name, &params).unwrap();
+        let mut sut = registry.instantiate(type_name, &params).unwrap();
+        let mut outputs = info.zero_outputs();
+        let mut seen = Vec::new();
+        for (tick, inputs) in ticks {
+            sut.step(*tick, inputs, &mut outputs);
+            seen.push(outputs[0].clone());
+        }
+        sut.terminate();
+        seen
+    }
+
+    fn timing(period: u64) -> Params {
+        let mut p = Params::new();
+        p.set_timing(0.5, period);
+        p
+    }
+
+    #[test]
+    fn sources_follow_their_formulas() {
+        let no_inputs = |ticks: &[u64]| ticks.iter().map(|t| (*t, vec![])).collect::<Vec<_>>();
+        let counter = run(
+            "counter",
+            Params::new().with("start", ParamValue::I64(10)),
+            &no_inputs(&[0, 1, 2]),
+        );
+        assert_eq!(counter, [11, 12, 13].map(PortValue::I64));
+        let ramp = run(
+            "ramp",
+            timing(1).with("slope", ParamValue::I64(2)),
+            &no_inputs(&[0, 3]),
+        );
+        assert_eq!(ramp, [0.0, 3.0].map(PortValue::F64));
+        let sine = run("sine", timing(1), &no_inputs(&[1]));
+        assert_eq!(sine, [PortValue::F64((PI).sin())]);
+    }
+
+    #[test]
+    fn stateful_components_integrate_and_delay_at_their_own_period() {
+        let u = |tick: u64, x: f64| (tick, vec![PortValue::F64(x)]);
+        let integrated = run("integrator", timing(2), &[u(0, 1.0), u(2, 3.0)]);
+        assert_eq!(integrated, [1.0, 4.0].map(PortValue::F64));
+        let delayed = run("delay", Params::new(), &[u(0, 1.0), u(1, 2.0), u(2, 3.0)]);
+        assert_eq!(delayed, [0.0, 1.0, 2.0].map(PortValue::F64));
+    }
+
+    #[test]
+    fn array_components_take_their_length_from_a_param() {
+        let registry = Registry::builtin();
+        let params = Params::new()
+            .with("n", ParamValue::I64(3))
+            .with("k", ParamValue::F64(2.0));
+        let info = registry.info("vec_gain", &params).unwrap();
+        assert_eq!(info.output_types(), [PortType::F64s(3)]);
+        let y = run(
+            "vec_gain",
+            params,
+            &[(0, vec![PortValue::F64s(vec![1.0, 2.0, 3.0])])],
+        );
+        assert_eq!(y, [PortValue::F64s(vec![2.0, 4.0, 6.0])]);
+        let too_long = Params::new()
+            .with("n", ParamValue::I64(65))
+            .with("k", ParamValue::F64(1.0));
+        let sut = registry.info("vec_gain", &too_long).unwrap_err();
+        assert_eq!(sut, "param 'n' must be from 1 to 64, not 65");
+        let v = run(
+            "pack",
+            Params::new(),
+            &[(0, vec![PortValue::F64(1.0), PortValue::F64(2.0)])],
+        );
+        assert_eq!(v, [PortValue::F64s(vec![1.0, 2.0])]);
+    }
+
+    #[test]
+    fn sleeper_sleeps_only_at_its_tick() {
+        let params = Params::new()
+            .with("sleep_ms", ParamValue::F64(30.0))
+            .with("sleep_at", ParamValue::I64(1));
+        let started = std::time::Instant::now();
+        let y = run(
+            "sleeper",
+            params,
+            &[
+                (0, vec![PortValue::F64(1.0)]),
+                (1, vec![PortValue::F64(2.0)]),
+            ],
+        );
+        assert!(started.elapsed() >= Duration::from_millis(30));
+        assert_eq!(y, [1.0, 2.0].map(PortValue::F64));
+        let negative = Params::new().with("sleep_ms", ParamValue::F64(-1.0));
+        assert!(Registry::builtin().info("sleeper", &negative).is_err());
+    }
+
+    #[test]
+    fn registry_checks_params_against_the_declarations() {
+        let sut = Registry::builtin();
+        assert_eq!(sut.type_names().len(), 10);
+        let err = sut.info("gain", &Params::new()).unwrap_err();
+        assert_eq!(err, "param 'k' (f64) is required for type 'gain'");
+        let err = sut
+            .info("gain", &Params::new().with("q", ParamValue::F64(1.0)))
+            .unwrap_err();
+        assert_eq!(err, "unknown param 'q' for type 'gain' (params: k)");
+        let err = sut
+            .info(
+                "gain",
+                &Params::new().with("k", ParamValue::Text("x".into())),
+            )
+            .unwrap_err();
+        assert_eq!(err, "param 'k' must be f64, not \"x\"");
+        let err = sut.info("gian", &Params::new()).unwrap_err();
+        assert!(err.starts_with("unknown component type 'gian' (known: counter, ramp,"));
+        let complete = sut
+            .complete(
+                "counter",
+                &Params::new().with(BASE_PERIOD_S, ParamValue::I64(1)),
+            )
+            .unwrap();
+        let names: Vec<&str> = complete.iter().map(|(n, _)| n).collect();
+        assert_eq!(names, ["start", BASE_PERIOD_S]);
+        assert_eq!(complete.f64(BASE_PERIOD_S), Ok(1.0));
+    }
+}

@@ -1,0 +1,486 @@
+//! The component model: typed ports and parameters, the FMI-style lifecycle, and the registry
+//! of component types.
+//!
+//! A component type is two functions: one that describes it ([`ComponentInfo`]: its ports and
+//! parameters, where a port's type may depend on a parameter, such as an array's length) and
+//! one that makes an instance. The [`Registry`] holds them by type name, checks parameters
+//! against their declarations (unknown, missing, wrongly typed), fills in the defaults, and
+//! instantiates: instantiate (the registry) → [`Component::initialise`] →
+//! [`Component::step`] at every release → [`Component::terminate`].
+//!
+//! Every component's parameters also hold two *automatic* parameters, which the grid
+//! description fills in and a description may not set: [`BASE_PERIOD_S`], the base tick in
+//! seconds, and [`PERIOD_S`], the component's own period in seconds. Components never read a
+//! clock: their time is the tick number they are released at.
+
+use std::fmt;
+
+use super::builtin;
+
+pub use modbot_ipc_schema::grid::{PortType, PortValue};
+
+/// The automatic parameter holding the base tick, in seconds (f64).
+pub const BASE_PERIOD_S: &str = "base_period_s";
+/// The automatic parameter holding the component's own period, in seconds (f64).
+pub const PERIOD_S: &str = "period_s";
+/// The names of the automatic parameters.
+pub const AUTOMATIC_PARAMS: [&str; 2] = [BASE_PERIOD_S, PERIOD_S];
+
+/// A named input or output port and its type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PortDecl {
+    /// The name used in connections (`A.y`).
+    pub name: &'static str,
+    /// The port's type; an array's length may come from a parameter.
+    pub ty: PortType,
+}
+
+impl PortDecl {
+    pub const fn new(name: &'static str, ty: PortType) -> PortDecl {
+        PortDecl { name, ty }
+    }
+}
+
+/// A parameter's type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamType {
+    Bool,
+    I64,
+    F64,
+    /// A list of f64 of any length.
+    F64s,
+    Text,
+}
+
+impl fmt::Display for ParamType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ParamType::Bool => "bool",
+            ParamType::I64 => "i64",
+            ParamType::F64 => "f64",
+            ParamType::F64s => "f64 list",
+            ParamType::Text => "text",
+        })
+    }
+}
+
+/// A parameter's value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamValue {
+    Bool(bool),
+    I64(i64),
+    F64(f64),
+    F64s(Vec<f64>),
+    Text(String),
+}
+
+impl ParamValue {
+    pub fn param_type(&self) -> ParamType {
+        match self {
+            ParamValue::Bool(_) => ParamType::Bool,
+            ParamValue::I64(_) => ParamType::I64,
+            ParamValue::F64(_) => ParamType::F64,
+            ParamValue::F64s(_) => ParamType::F64s,
+            ParamValue::Text(_) => ParamType::Text,
+        }
+    }
+
+    /// This value as type `ty`, where that loses nothing: an integer is an f64 (when exactly
+    /// representable), an f64 with an integer value is an i64; otherwise only the same type.
+    pub fn coerce(&self, ty: ParamType) -> Option<ParamValue> {
+        const EXACT: i64 = 1 << 53;
+        match (self, ty) {
+            (ParamValue::I64(i), ParamType::F64) if (-EXACT..=EXACT).contains(i) => {
+                Some(ParamValue::F64(*i as f64))
+            }
+            (ParamValue::F64(x), ParamType::I64) if x.fract() == 0.0 && x.abs() <= 9.0e15 => {
+                Some(ParamValue::I64(*x as i64))
+            }
+            (v, ty) if v.param_type() == ty => Some(v.clone()),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ParamValue {
+    /// As a description writes it: `true`, `3`, `0.5`, `{1.0, 2.0}`, `"text"`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamValue::Bool(b) => write!(f, "{b}"),
+            ParamValue::I64(i) => write!(f, "{i}"),
+            ParamValue::F64(x) => write!(f, "{x:?}"),
+            ParamValue::F64s(xs) => {
+                f.write_str("{")?;
+                for (i, x) in xs.iter().enumerate() {
+                    let sep = if i > 0 { ", " } else { "" };
+                    write!(f, "{sep}{x:?}")?;
+                }
+                f.write_str("}")
+            }
+            ParamValue::Text(s) => write!(f, "{s:?}"),
+        }
+    }
+}
+
+/// A declared parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamDecl {
+    pub name: &'static str,
+    pub ty: ParamType,
+    /// The value when the description does not set it; `None`: the parameter is required.
+    pub default: Option<ParamValue>,
+}
+
+impl ParamDecl {
+    /// A parameter that must be given.
+    pub const fn required(name: &'static str, ty: ParamType) -> ParamDecl {
+        ParamDecl {
+            name,
+            ty,
+            default: None,
+        }
+    }
+
+    /// A parameter with a default.
+    pub const fn optional(name: &'static str, ty: ParamType, default: ParamValue) -> ParamDecl {
+        ParamDecl {
+            name,
+            ty,
+            default: Some(default),
+        }
+    }
+}
+
+/// Parameter values by name, in a fixed order (the registry puts declared ones first, in
+/// declaration order, then the automatic ones).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Params(Vec<(String, ParamValue)>);
+
+impl Params {
+    pub fn new() -> Params {
+        Params::default()
+    }
+
+    /// Sets `name` (replacing its value, or adding it at the end).
+    pub fn set(&mut self, name: impl Into<String>, value: ParamValue) {
+        let name = name.into();
+        match self.0.iter_mut().find(|(n, _)| *n == name) {
+            Some(slot) => slot.1 = value,
+            None => self.0.push((name, value)),
+        }
+    }
+
+    /// `self` with `name` set.
+    pub fn with(mut self, name: impl Into<String>, value: ParamValue) -> Params {
+        self.set(name, value);
+        self
+    }
+
+    /// Sets the automatic parameters for a component of period `period_ticks` on a grid whose
+    /// base tick is `base_period_s` seconds.
+    pub fn set_timing(&mut self, base_period_s: f64, period_ticks: u64) {
+        self.set(BASE_PERIOD_S, ParamValue::F64(base_period_s));
+        self.set(
+            PERIOD_S,
+            ParamValue::F64(period_ticks as f64 * base_period_s),
+        );
+    }
+
+    pub fn get(&self, name: &str) -> Option<&ParamValue> {
+        self.0.iter().find(|(n, _)| n == name).map(|(_, v)| v)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &ParamValue)> {
+        self.0.iter().map(|(n, v)| (n.as_str(), v))
+    }
+
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    fn typed<'a, T>(
+        &'a self,
+        name: &str,
+        ty: ParamType,
+        pick: impl FnOnce(&'a ParamValue) -> Option<T>,
+    ) -> Result<T, String> {
+        match self.get(name) {
+            None => Err(format!("param '{name}' is missing")),
+            Some(v) => pick(v).ok_or_else(|| format!("param '{name}' must be {ty}, not {v}")),
+        }
+    }
+
+    pub fn f64(&self, name: &str) -> Result<f64, String> {
+        self.typed(name, ParamType::F64, |v| match v {
+            ParamValue::F64(x) => Some(*x),
+            _ => None,
+        })
+    }
+
+    pub fn i64(&self, name: &str) -> Result<i64, String> {
+        self.typed(name, ParamType::I64, |v| match v {
+            ParamValue::I64(i) => Some(*i),
+            _ => None,
+        })
+    }
+
+    pub fn bool(&self, name: &str) -> Result<bool, String> {
+        self.typed(name, ParamType::Bool, |v| match v {
+            ParamValue::Bool(b) => Some(*b),
+            _ => None,
+        })
+    }
+
+    pub fn f64s(&self, name: &str) -> Result<&[f64], String> {
+        self.typed(name, ParamType::F64s, |v| match v {
+            ParamValue::F64s(xs) => Some(xs.as_slice()),
+            _ => None,
+        })
+    }
+
+    pub fn text(&self, name: &str) -> Result<&str, String> {
+        self.typed(name, ParamType::Text, |v| match v {
+            ParamValue::Text(s) => Some(s.as_str()),
+            _ => None,
+        })
+    }
+}
+
+impl FromIterator<(String, ParamValue)> for Params {
+    fn from_iter<I: IntoIterator<Item = (String, ParamValue)>>(iter: I) -> Params {
+        let mut params = Params::new();
+        for (name, value) in iter {
+            params.set(name, value);
+        }
+        params
+    }
+}
+
+/// What a component type is: its ports and parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComponentInfo {
+    /// The name descriptions use (`type = "gain"`).
+    pub type_name: &'static str,
+    /// One sentence on what it computes, for `modbot check` and error messages.
+    pub doc: &'static str,
+    /// Inputs in port order (the order of `step`'s `inputs`).
+    pub inputs: Vec<PortDecl>,
+    /// Outputs in port order (the order of `step`'s `outputs` and of the output record).
+    pub outputs: Vec<PortDecl>,
+    /// The parameters a description may set (the automatic ones are not listed).
+    pub params: Vec<ParamDecl>,
+}
+
+impl ComponentInfo {
+    pub fn input(&self, name: &str) -> Option<usize> {
+        self.inputs.iter().position(|p| p.name == name)
+    }
+
+    pub fn output(&self, name: &str) -> Option<usize> {
+        self.outputs.iter().position(|p| p.name == name)
+    }
+
+    pub fn input_types(&self) -> Vec<PortType> {
+        self.inputs.iter().map(|p| p.ty).collect()
+    }
+
+    pub fn output_types(&self) -> Vec<PortType> {
+        self.outputs.iter().map(|p| p.ty).collect()
+    }
+
+    /// The zero value of every output: what the outputs are before the first release's
+    /// results become valid.
+    pub fn zero_outputs(&self) -> Vec<PortValue> {
+        self.outputs.iter().map(|p| p.ty.zero()).collect()
+    }
+
+    /// The zero value of every input: a buffer to gather inputs into without allocating.
+    pub fn zero_inputs(&self) -> Vec<PortValue> {
+        self.inputs.iter().map(|p| p.ty.zero()).collect()
+    }
+}
+
+/// A component instance, with the FMI-style lifecycle: instantiate (the [`Registry`]) →
+/// initialise → step(tick)… → terminate.
+pub trait Component: Send {
+    /// Called once after instantiation with the complete parameters (defaults and automatic
+    /// ones filled in). An error refuses the instance.
+    fn initialise(&mut self, params: &Params) -> Result<(), String> {
+        let _ = params;
+        Ok(())
+    }
+
+    /// Released at `tick`: `inputs` are the values valid at `tick` (in input port order, of
+    /// the declared types); write every output (`outputs` hold the declared types, arrays at
+    /// their lengths). Runs in the real-time path: must not allocate, block or read a clock.
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]);
+
+    /// Called once when the instance is no longer stepped.
+    fn terminate(&mut self) {}
+}
+
+/// Describes a component type for the given (complete) parameters.
+pub type InfoFn = fn(&Params) -> Result<ComponentInfo, String>;
+/// Makes an instance for the given (complete) parameters.
+pub type MakeFn = fn(&Params) -> Result<Box<dyn Component>, String>;
+
+struct Entry {
+    /// What the type says about itself without parameters: its name and parameter list.
+    probe: ComponentInfo,
+    info: InfoFn,
+    make: MakeFn,
+}
+
+/// The component types a system can use, by name.
+#[derive(Default)]
+pub struct Registry {
+    entries: Vec<Entry>,
+}
+
+impl fmt::Debug for Registry {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list().entries(self.type_names()).finish()
+    }
+}
+
+impl Registry {
+    /// An empty registry.
+    pub fn new() -> Registry {
+        Registry::default()
+    }
+
+    /// The built-in components ([`builtin`]).
+    pub fn builtin() -> Registry {
+        let mut registry = Registry::new();
+        builtin::register_all(&mut registry);
+        registry
+    }
+
+    /// Adds a component type (replacing one of the same name).
+    ///
+    /// `info_fn` is first called with empty [`Params`] to learn the type's name and its
+    /// parameters; a port type that depends on a parameter may then be a placeholder. Later
+    /// it is only called with complete, checked parameters.
+    ///
+    /// # Panics
+    /// If `info_fn` fails with empty parameters: that is a bug in the component type.
+    pub fn register(&mut self, info_fn: InfoFn, make: MakeFn) {
+        let probe = match info_fn(&Params::new()) {
+            Ok(probe) => probe,
+            Err(e) => panic!("a component type must describe itself without parameters: {e}"),
+        };
+        let entry = Entry {
+            probe,
+            info: info_fn,
+            make,
+        };
+        match self
+            .entries
+            .iter_mut()
+            .find(|e| e.probe.type_name == entry.probe.type_name)
+        {
+            Some(slot) => *slot = entry,
+            None => self.entries.push(entry),
+        }
+    }
+
+    /// The registered type names, in registration order.
+    pub fn type_names(&self) -> Vec<&'static str> {
+        self.entries.iter().map(|e| e.probe.type_name).collect()
+    }
+
+    /// What `type_name` declares without parameters (its parameter list, its doc).
+    pub fn describe(&self, type_name: &str) -> Option<&ComponentInfo> {
+        self.entry(type_name).ok().map(|e| &e.probe)
+    }
+
+    /// `params` checked against `type_name`'s declarations and completed: declared parameters
+    /// in declaration order (defaults filled in, integers made f64 where f64 is declared),
+    /// then the automatic parameters that were given.
+    pub fn complete(&self, type_name: &str, params: &Params) -> Result<Params, String> {
+        let entry = self.entry(type_name)?;
+        let decls = &entry.probe.params;
+        let mut complete = Params::new();
+        for (name, value) in params.iter() {
+            let ty = if AUTOMATIC_PARAMS.contains(&name) {
+                ParamType::F64
+            } else {
+                match decls.iter().find(|d| d.name == name) {
+                    Some(d) => d.ty,
+                    None => {
+                        let known: Vec<&str> = decls.iter().map(|d| d.name).collect();
+                        let known = if known.is_empty() {
+                            "none".to_owned()
+                        } else {
+                            known.join(", ")
+                        };
+                        return Err(format!(
+                            "unknown param '{name}' for type '{type_name}' (params: {known})"
+                        ));
+                    }
+                }
+            };
+            if value.coerce(ty).is_none() {
+                return Err(format!("param '{name}' must be {ty}, not {value}"));
+            }
+        }
+        for d in decls {
+            let value = match (params.get(d.name), &d.default) {
+                (Some(v), _) => v.coerce(d.ty),
+                (None, Some(default)) => Some(default.clone()),
+                (None, None) => {
+                    return Err(format!(
+                        "param '{}' ({}) is required for type '{type_name}'",
+                        d.name, d.ty
+                    ))
+                }
+            };
+            if let Some(value) = value {
+                complete.set(d.name, value);
+            }
+        }
+        for name in AUTOMATIC_PARAMS {
+            if let Some(value) = params.get(name).and_then(|v| v.coerce(ParamType::F64)) {
+                complete.set(name, value);
+            }
+        }
+        Ok(complete)
+    }
+
+    /// The ports and parameters of `type_name` with these parameters (checked and completed
+    /// first: an error says what is wrong with them).
+    pub fn info(&self, type_name: &str, params: &Params) -> Result<ComponentInfo, String> {
+        let params = self.complete(type_name, params)?;
+        (self.entry(type_name)?.info)(&params)
+    }
+
+    /// A new instance of `type_name`, initialised with the completed `params`.
+    pub fn instantiate(
+        &self,
+        type_name: &str,
+        params: &Params,
+    ) -> Result<Box<dyn Component>, String> {
+        let params = self.complete(type_name, params)?;
+        let entry = self.entry(type_name)?;
+        (entry.info)(&params)?;
+        let mut component = (entry.make)(&params)?;
+        component.initialise(&params)?;
+        Ok(component)
+    }
+
+    fn entry(&self, type_name: &str) -> Result<&Entry, String> {
+        self.entries
+            .iter()
+            .find(|e| e.probe.type_name == type_name)
+            .ok_or_else(|| {
+                format!(
+                    "unknown component type '{type_name}' (known: {})",
+                    self.type_names().join(", ")
+                )
+            })
+    }
+}

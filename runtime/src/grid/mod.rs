@@ -1,0 +1,57 @@
+//! The time grid's component model, its description, and the reference run of its logical
+//! execution time (LET) semantics.
+//!
+//! A grid is a set of *components* (FMI-style: named, typed inputs, outputs and parameters)
+//! on *host* processes, each released every k base ticks, and the *connections* from outputs
+//! to inputs. The coordinator ticks the base period and releases components; the hosts step
+//! them and publish their outputs. Released at tick n, a component reads its inputs as they
+//! were valid at n, and its outputs become valid at n + k, never earlier, so the values do not
+//! depend on how the processes were scheduled. This module is everything about that which is
+//! pure: the model, the checked description, and an in-process run that computes the values
+//! every real run must reproduce bit for bit.
+//!
+//! The grid is declared in the system description (`grid`, `component`, `connect`; see
+//! [`crate::system`]) and arrives as [`GridSpec`] in [`crate::system::SystemSpec::grid`].
+//!
+//! # Layout
+//! - [`component`]: ports, parameters, the [`Component`] trait (initialise → step → terminate)
+//!   and the [`Registry`] of component types, which checks parameters and instantiates.
+//! - [`builtin`]: the built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`, `integrator`,
+//!   `delay`, `vec_gain`, `pack`, `sleeper`).
+//! - [`spec`]: the checked grid ([`GridSpec`]): components, hosts, periods in base ticks,
+//!   connections, and the *sources* of a component (the release notice's order); built from
+//!   declarations by [`GridSpec::build`].
+//! - [`reference`](mod@reference): the LET semantics computed in one thread ([`reference_run`],
+//!   [`reference_trace`]).
+//! - [`trace`]: the text format of a run's outputs, tick by tick ([`TraceWriter`]), which
+//!   the reference run and the real runs write so they can be compared.
+//!
+//! Across processes:
+//! - [`wire`]: the grid's iceoryx2 services (outputs, release and done notices, wake-ups).
+//! - [`tick`]: where the base tick comes from (an absolute timerfd; a free-running source).
+//! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
+//! - [`host`]: a component host: steps its components on release, publishes their outputs.
+//! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
+//! - [`ledger`]: the overrun ledger as `modbot top` shows it.
+//! - [`processes`]: the coordinator and the hosts as modules the supervisor starts.
+
+pub mod builtin;
+pub mod component;
+pub mod coordinator;
+pub mod host;
+pub mod ledger;
+pub mod processes;
+pub mod recorder;
+pub mod reference;
+pub mod spec;
+pub mod tick;
+pub mod trace;
+pub mod wire;
+
+pub use component::{
+    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
+    PortValue, Registry,
+};
+pub use reference::{reference_run, reference_trace, reference_trace_with, Overruns};
+pub use spec::{ComponentSpec, Connection, GridSpec, OverrunPolicy, PortRef};
+pub use trace::TraceWriter;

@@ -1,0 +1,134 @@
+//! The processes of a grid: one component host per host name, and the coordinator. The
+//! supervisor starts them like modules — hosts first, the coordinator last, so that every
+//! host listens before the first tick — and they load the same system description.
+
+use std::path::Path;
+
+use crate::system::{ModuleSpec, ProgramResolver, Restart, RestartPolicy, SystemSpec};
+use crate::transport::ReceiveMode;
+
+/// The coordinator's module name.
+pub const COORDINATOR: &str = "coordinator";
+/// The program of the coordinator.
+pub const COORDINATOR_PROGRAM: &str = "modbot-coordinator";
+/// The program of a component host.
+pub const HOST_PROGRAM: &str = "modbot-host";
+
+/// The module name of host `host`.
+pub fn host_module(host: &str) -> String {
+    format!("host_{host}")
+}
+
+/// How the grid of a run is driven.
+#[derive(Debug, Clone, Default)]
+pub struct GridRun {
+    /// Stop after this many base ticks (then the coordinator stops the system).
+    pub ticks: Option<u64>,
+    /// Write every output at every tick here.
+    pub trace: Option<std::path::PathBuf>,
+}
+
+/// Adds the grid's processes to `spec`'s modules, if it has a grid. `file` and `vars` are
+/// what the processes load the description from.
+pub fn add_processes(
+    spec: &mut SystemSpec,
+    resolver: &dyn ProgramResolver,
+    file: &Path,
+    vars: &[(String, String)],
+    run: &GridRun,
+) -> Result<(), String> {
+    let Some(grid) = spec.grid.clone() else {
+        if run.ticks.is_some() || run.trace.is_some() {
+            return Err(format!(
+                "{}: --ticks and --trace need a grid, and the description has none",
+                file.display()
+            ));
+        }
+        return Ok(());
+    };
+    let file = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
+    let mut common = vec!["--system".to_owned(), file.display().to_string()];
+    for (k, v) in vars {
+        common.push("--var".into());
+        common.push(format!("{k}={v}"));
+    }
+    let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
+    let mut next_addr = || {
+        let a = (1..=253u8).rev().find(|a| !used.contains(a));
+        if let Some(a) = a {
+            used.push(a);
+        }
+        a
+    };
+    let program = |name: &str| {
+        resolver.resolve(name).ok_or_else(|| {
+            format!(
+                "{}:{}: the grid needs the program '{name}', which is not found ({})",
+                spec.file.display(),
+                grid.line,
+                resolver.searched(name)
+            )
+        })
+    };
+    let policy = RestartPolicy {
+        when: Restart::OnFailure,
+        ..RestartPolicy::default()
+    };
+    let mut added = Vec::new();
+    for host in grid.hosts() {
+        let name = host_module(&host);
+        if spec.modules.iter().any(|m| m.name == name) {
+            return Err(format!(
+                "{}:{}: module name '{name}' is taken; the grid's host '{host}' needs it",
+                spec.file.display(),
+                grid.line
+            ));
+        }
+        let mut args = common.clone();
+        args.extend(["--host".to_owned(), host.clone()]);
+        added.push(ModuleSpec {
+            name,
+            addr: next_addr().ok_or("no address left for the grid's hosts")?,
+            program: program(HOST_PROGRAM)?,
+            program_name: HOST_PROGRAM.into(),
+            args,
+            restart: policy.clone(),
+            cpus: Vec::new(),
+            // Just below the coordinator: a host must answer within its period.
+            priority: grid.priority.map(|p| p.saturating_sub(1).max(1)),
+            mlock: grid.mlock,
+            env: Vec::new(),
+            mode: ReceiveMode::Blocking,
+            groups: Vec::new(),
+            line: grid.line,
+        });
+    }
+    let mut args = common;
+    if let Some(n) = run.ticks {
+        args.extend(["--ticks".to_owned(), n.to_string()]);
+    }
+    if let Some(t) = &run.trace {
+        let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
+        args.extend(["--trace".to_owned(), t.display().to_string()]);
+    }
+    added.push(ModuleSpec {
+        name: COORDINATOR.into(),
+        addr: next_addr().ok_or("no address left for the coordinator")?,
+        program: program(COORDINATOR_PROGRAM)?,
+        program_name: COORDINATOR_PROGRAM.into(),
+        args,
+        restart: RestartPolicy {
+            when: Restart::Never,
+            ..RestartPolicy::default()
+        },
+        cpus: grid.cpus.clone(),
+        priority: grid.priority,
+        mlock: grid.mlock,
+        env: Vec::new(),
+        mode: ReceiveMode::Blocking,
+        groups: Vec::new(),
+        line: grid.line,
+    });
+    spec.modules.extend(added);
+    Ok(())
+}

@@ -1,0 +1,181 @@
+//! The time grid's iceoryx2 services, per domain:
+//! - `grid.out.<component>`: publish-subscribe `[u8]`, the component's output samples (an
+//!   [`modbot_ipc_schema::grid::OutHeader`] and the packed outputs), one publisher (its host),
+//!   subscribers where they are read (consumer hosts, the coordinator's recorder). A subscriber
+//!   keeps the newest 64 samples: LET only ever reads one of the newest two.
+//! - `grid.release.<host>`: release notices from the coordinator to one host;
+//! - `grid.done`: done notices from every host to the coordinator;
+//! - `grid.wake.<host>`: an event, so a blocking host sleeps until it is released.
+//!
+//! Only small notices pass through the coordinator; data moves host to host.
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use crate::transport::TransportError;
+
+pub type Pub = Publisher<ipc::Service, [u8], ()>;
+pub type Sub = Subscriber<ipc::Service, [u8], ()>;
+type PubSubFactory =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>;
+
+/// Nodes (processes) a grid service serves at most.
+const MAX_NODES: usize = 256;
+/// Samples a subscriber keeps before the oldest is dropped.
+pub const OUT_DEPTH: usize = 64;
+
+fn err(op: &'static str) -> impl Fn(&dyn core::fmt::Debug) -> TransportError {
+    move |e| TransportError::Ipc {
+        op,
+        detail: format!("{e:?}"),
+    }
+}
+
+fn name(text: &str) -> Result<ServiceName, TransportError> {
+    ServiceName::new(text).map_err(|e| err("grid service name")(&e))
+}
+
+fn pubsub(
+    node: &Node<ipc::Service>,
+    service: &str,
+    depth: usize,
+    publishers: usize,
+    subscribers: usize,
+) -> Result<PubSubFactory, TransportError> {
+    node.service_builder(&name(service)?)
+        .publish_subscribe::<[u8]>()
+        .max_publishers(publishers)
+        .max_subscribers(subscribers)
+        .max_nodes(MAX_NODES)
+        .history_size(0)
+        .subscriber_max_buffer_size(depth)
+        .subscriber_max_borrowed_samples(2)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| err("open grid service")(&e))
+}
+
+fn publisher(factory: &PubSubFactory, len: usize) -> Result<Pub, TransportError> {
+    factory
+        .publisher_builder()
+        .initial_max_slice_len(len.max(1))
+        .allocation_strategy(AllocationStrategy::Static)
+        .max_loaned_samples(2)
+        .create()
+        .map_err(|e| err("grid publisher")(&e))
+}
+
+fn subscriber(factory: &PubSubFactory, depth: usize) -> Result<Sub, TransportError> {
+    factory
+        .subscriber_builder()
+        .buffer_size(depth)
+        .create()
+        .map_err(|e| err("grid subscriber")(&e))
+}
+
+/// The publisher of `component`'s outputs, for records of `len` bytes (header included).
+pub fn out_publisher(
+    node: &Node<ipc::Service>,
+    component: &str,
+    len: usize,
+) -> Result<Pub, TransportError> {
+    publisher(
+        &pubsub(node, &format!("grid.out.{component}"), OUT_DEPTH, 2, 64)?,
+        len,
+    )
+}
+
+/// A reader of `component`'s outputs.
+pub fn out_subscriber(node: &Node<ipc::Service>, component: &str) -> Result<Sub, TransportError> {
+    subscriber(
+        &pubsub(node, &format!("grid.out.{component}"), OUT_DEPTH, 2, 64)?,
+        OUT_DEPTH,
+    )
+}
+
+/// The coordinator's side of `host`'s release notices.
+pub fn release_publisher(node: &Node<ipc::Service>, host: &str) -> Result<Pub, TransportError> {
+    let len = core::mem::size_of::<modbot_ipc_schema::grid::Release>();
+    publisher(
+        &pubsub(node, &format!("grid.release.{host}"), 256, 2, 2)?,
+        len,
+    )
+}
+
+/// `host`'s side of its release notices.
+pub fn release_subscriber(node: &Node<ipc::Service>, host: &str) -> Result<Sub, TransportError> {
+    subscriber(
+        &pubsub(node, &format!("grid.release.{host}"), 256, 2, 2)?,
+        256,
+    )
+}
+
+/// A host's side of the done notices.
+pub fn done_publisher(node: &Node<ipc::Service>) -> Result<Pub, TransportError> {
+    let len = core::mem::size_of::<modbot_ipc_schema::grid::Done>();
+    publisher(&pubsub(node, "grid.done", 256, MAX_NODES, 2)?, len)
+}
+
+/// The coordinator's side of the done notices.
+pub fn done_subscriber(node: &Node<ipc::Service>) -> Result<Sub, TransportError> {
+    subscriber(&pubsub(node, "grid.done", 256, MAX_NODES, 2)?, 256)
+}
+
+fn wake(
+    node: &Node<ipc::Service>,
+    host: &str,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, TransportError> {
+    node.service_builder(&name(&format!("grid.wake.{host}"))?)
+        .event()
+        .max_nodes(MAX_NODES)
+        .open_or_create()
+        .map_err(|e| err("open grid wake-up")(&e))
+}
+
+/// The coordinator's side of `host`'s wake-up.
+pub fn wake_notifier(
+    node: &Node<ipc::Service>,
+    host: &str,
+) -> Result<Notifier<ipc::Service>, TransportError> {
+    wake(node, host)?
+        .notifier_builder()
+        .create()
+        .map_err(|e| err("grid wake notifier")(&e))
+}
+
+/// `host`'s wake-up.
+pub fn wake_listener(
+    node: &Node<ipc::Service>,
+    host: &str,
+) -> Result<Listener<ipc::Service>, TransportError> {
+    wake(node, host)?
+        .listener_builder()
+        .create()
+        .map_err(|e| err("grid wake listener")(&e))
+}
+
+/// Sends `bytes` on `publisher`, written in place.
+pub fn send(
+    publisher: &Pub,
+    len: usize,
+    fill: impl FnOnce(&mut [u8]),
+) -> Result<(), TransportError> {
+    let mut sample = publisher
+        .loan_slice_uninit(len)
+        .map_err(|e| err("grid loan")(&e))?;
+    let payload = sample.payload_mut();
+    // SAFETY: the payload is `len` bytes of shared memory that iceoryx2 mapped zero-filled and
+    // that only ever held bytes of earlier samples, so every byte is initialised; `u8` and
+    // `MaybeUninit<u8>` have the same layout. `fill` writes the whole record before it is sent.
+    let bytes = unsafe {
+        core::slice::from_raw_parts_mut(payload.as_mut_ptr().cast::<u8>(), payload.len())
+    };
+    fill(bytes);
+    // SAFETY: see above; every byte is initialised.
+    let sample = unsafe { sample.assume_init() };
+    sample.send().map_err(|e| err("grid send")(&e))?;
+    Ok(())
+}

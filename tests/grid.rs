@@ -1,0 +1,288 @@
+//! The multi-rate time grid across processes: a coordinator and component hosts started by
+//! `modbot up`, each test in its own domain. Logical execution time makes every output a
+//! function of the tick alone: a run's trace equals the in-process reference, byte for byte.
+
+mod common;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use common::TestDomain;
+use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::{reference_trace, reference_trace_with, Overruns};
+use modbot_runtime::system::{self, DefaultResolver};
+use nix::sys::signal::Signal;
+
+/// One grid at a time: each is a coordinator and real-time hosts on a 2-core machine.
+static ONE_GRID: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_grid() -> std::sync::MutexGuard<'static, ()> {
+    ONE_GRID
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn demo() -> PathBuf {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/grid_demo.lua"
+    ))
+}
+
+/// Runs `modbot up FILE --ticks N --trace OUT` in the test's domain; returns the trace.
+fn traced_run(sut: &mut TestDomain, file: &std::path::Path, ticks: u64, tag: &str) -> String {
+    let trace = std::env::temp_dir().join(format!("{}.{tag}.trace", sut.name()));
+    let domain = format!("domain={}", sut.name());
+    let n = ticks.to_string();
+    let up = sut.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            file.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--ticks",
+            &n,
+            "--trace",
+            trace.to_str().unwrap(),
+        ],
+    );
+    let status = sut.wait_exit(up, Duration::from_secs(120));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+    let text = std::fs::read_to_string(&trace).unwrap_or_default();
+    let _ = std::fs::remove_file(&trace);
+    text
+}
+
+fn grid_of(file: &std::path::Path, domain: &str) -> modbot_runtime::grid::GridSpec {
+    let vars = vec![("domain".to_owned(), domain.to_owned())];
+    let spec = system::load_with_vars(file, &DefaultResolver::for_file(file), &vars).unwrap();
+    spec.grid.unwrap()
+}
+
+/// What logical execution time predicts, computed in this process.
+fn expected(file: &std::path::Path, domain: &str, ticks: u64) -> String {
+    reference_trace(&grid_of(file, domain), &Registry::builtin(), ticks)
+}
+
+/// Checks a run's trace line by line against the reference run with the overruns the run
+/// recorded replayed (none, on a quiet machine): LET plus the hold policy, exactly.
+fn assert_trace_is_let(file: &std::path::Path, domain: &str, ticks: u64, trace: &str) -> usize {
+    let grid = grid_of(file, domain);
+    let overruns = Overruns::from_trace(&grid, trace).unwrap();
+    let want = reference_trace_with(&grid, &Registry::builtin(), ticks, &overruns).unwrap();
+    let got: Vec<&str> = trace
+        .lines()
+        .filter(|l| !l.starts_with("# overrun"))
+        .collect();
+    assert_eq!(got.len(), want.lines().count(), "one line per tick");
+    for (i, (got, exp)) in got.iter().zip(want.lines()).enumerate() {
+        assert_eq!(*got, exp, "line {i} of the trace differs from LET");
+    }
+    overruns.skipped.len()
+}
+
+/// 5000 ticks of the demo grid (periods 1, 2, 5, 10 over three hosts): every output at every
+/// tick is what LET predicts, and a rerun gives the same bytes.
+///
+/// These VMs sometimes stall a process for a millisecond; an overrun that causes is recorded in
+/// the trace and replayed by the reference (the hold policy), so the comparison stays exact.
+/// Two runs are compared byte for byte when neither recorded an overrun.
+#[test]
+fn every_output_at_every_tick_is_what_let_predicts_and_reruns_are_identical() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("gridlet");
+    let first = traced_run(&mut sut, &demo(), 5000, "a");
+    let first_overruns = assert_trace_is_let(&demo(), sut.name(), 5000, &first);
+    let second = traced_run(&mut sut, &demo(), 5000, "b");
+    let second_overruns = assert_trace_is_let(&demo(), sut.name(), 5000, &second);
+    if first_overruns + second_overruns == 0 {
+        assert!(first == second, "two runs give byte-identical traces");
+        assert_eq!(first, expected(&demo(), sut.name(), 5000));
+    } else {
+        println!(
+            "overruns in the runs ({first_overruns}, {second_overruns}): each trace matched LET with its holds replayed"
+        );
+    }
+}
+
+fn sleeper_grid(policy: &str, sleep_at: i64) -> String {
+    format!(
+        r#"
+supervision {{ heartbeat_timeout = 10 }}
+grid {{ base_period = 0.001 }}
+component "A" {{ type = "ramp", host = "h1", period = 1 }}
+component "S" {{ type = "sleeper", host = "hs", period = 10, policy = "{policy}",
+                params = {{ sleep_ms = 15, sleep_at = {sleep_at} }} }}
+component "T" {{ type = "gain", host = "h1", period = 1, params = {{ k = 1 }} }}
+connect "A.y -> S.u"
+connect "S.y -> T.u"
+"#
+    )
+}
+
+/// The value of `port` at `tick` in a trace.
+fn value_at(trace: &str, tick: u64, port: &str) -> String {
+    let line = trace
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some(&tick.to_string()))
+        .unwrap_or_else(|| panic!("no tick {tick}"));
+    line.split_whitespace()
+        .find_map(|kv| kv.strip_prefix(&format!("{port}=")))
+        .unwrap_or_else(|| panic!("no {port} in {line}"))
+        .to_owned()
+}
+
+/// A component that sleeps past its deadline once is counted as exactly one overrun, and
+/// downstream sees its last valid outputs until its next on-time release.
+#[test]
+fn one_sleep_past_the_deadline_is_one_overrun_and_downstream_sees_the_held_value() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("overrun");
+    let file = sut.write_system(&sleeper_grid("hold", 100));
+    let trace = traced_run(&mut sut, &file, 300, "hold");
+    // S released at 100 sleeps 15 ms: it misses its deadline 110 and is done before 120.
+    assert_eq!(value_at(&trace, 109, "S.y"), value_at(&trace, 100, "S.y"));
+    assert_eq!(
+        value_at(&trace, 110, "S.y"),
+        value_at(&trace, 109, "S.y"),
+        "held at the missed deadline"
+    );
+    assert_eq!(value_at(&trace, 129, "S.y"), value_at(&trace, 100, "S.y"));
+    assert_ne!(
+        value_at(&trace, 130, "S.y"),
+        value_at(&trace, 129, "S.y"),
+        "the release at 120 was on time"
+    );
+    assert_eq!(value_at(&trace, 112, "T.y"), value_at(&trace, 105, "T.y"));
+    assert!(
+        assert_trace_is_let(&file, sut.name(), 300, &trace) >= 1,
+        "the overrun is recorded"
+    );
+    assert!(
+        trace.contains("# overrun tick=110 component=S release=100"),
+        "{trace}"
+    );
+    let reference = expected(&file, sut.name(), 300);
+    assert_ne!(
+        value_at(&reference, 110, "S.y"),
+        value_at(&trace, 110, "S.y"),
+        "without the overrun the value would have changed"
+    );
+}
+
+/// The overrun ledger counts it, seen through `modbot top --once`.
+fn top(sut: &TestDomain) -> String {
+    String::from_utf8_lossy(&sut.modbot(&["top", "--once"]).stdout).into_owned()
+}
+
+fn overruns_of(top: &str, component: &str) -> u64 {
+    top.lines()
+        .find(|l| l.split_whitespace().next() == Some(component))
+        .and_then(|l| l.split_whitespace().nth(5))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no {component} in\n{top}"))
+}
+
+fn releases_of(top: &str, component: &str) -> u64 {
+    top.lines()
+        .find(|l| l.split_whitespace().next() == Some(component))
+        .and_then(|l| l.split_whitespace().nth(4))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no {component} in\n{top}"))
+}
+
+fn ticks_of(top: &str) -> u64 {
+    top.split_whitespace()
+        .skip_while(|w| *w != "ticks")
+        .nth(1)
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no ticks in\n{top}"))
+}
+
+fn start(sut: &mut TestDomain, body: &str) -> u32 {
+    let file = sut.write_system(body);
+    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
+    sut.wait_for("the grid to tick", Duration::from_secs(30), || {
+        let t = top(sut);
+        t.contains("ticks") && ticks_of(&t) > 200
+    });
+    up
+}
+
+/// A SIGSTOPped host does not stop the tick: the other components keep being released and the
+/// stopped one's overruns count up; `modbot top` shows it.
+#[test]
+fn a_stopped_host_does_not_stop_the_tick_and_its_overruns_count_up() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("stophost");
+    let up = start(&mut sut, &sleeper_grid("hold", -1));
+    let hs: u32 = sut
+        .ls_field("host_hs", "PID")
+        .and_then(|p| p.parse().ok())
+        .expect("host_hs runs");
+    sut.signal(hs, Signal::SIGSTOP);
+    let before = top(&sut);
+    std::thread::sleep(Duration::from_millis(500));
+    let after = top(&sut);
+    sut.signal(hs, Signal::SIGCONT);
+    assert!(
+        ticks_of(&after) > ticks_of(&before) + 200,
+        "the tick goes on:\n{before}\n{after}"
+    );
+    assert!(
+        overruns_of(&after, "S") > overruns_of(&before, "S"),
+        "{after}"
+    );
+    assert!(
+        releases_of(&after, "T") > releases_of(&before, "T") + 200,
+        "the components of the other host keep being released:\n{before}\n{after}"
+    );
+    assert!(
+        after.contains("COMPONENT") && after.contains("EXEC p99"),
+        "{after}"
+    );
+    sut.signal(up, Signal::SIGTERM);
+    let status = sut.wait_exit(up, Duration::from_secs(30));
+    assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
+
+/// With the `fault` policy, an overrun faults the grid: it stops releasing and says why.
+#[test]
+fn an_overrun_under_the_fault_policy_faults_the_grid() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("gridfault");
+    let up = start(&mut sut, &sleeper_grid("fault", 300));
+    sut.wait_for("the grid to fault", Duration::from_secs(20), || {
+        top(&sut).contains("faulted")
+    });
+    let t = top(&sut);
+    assert!(
+        t.contains("component S overran its deadline at tick 310"),
+        "{t}"
+    );
+    sut.signal(up, Signal::SIGTERM);
+    sut.wait_exit(up, Duration::from_secs(30));
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
+
+/// A grid description with a type mismatch is refused at load with its file and line.
+#[test]
+fn a_type_mismatch_is_a_load_error_naming_file_and_line() {
+    let mut sut = TestDomain::new("gridload");
+    let file = sut.write_system(
+        r#"grid {}
+component "A" { type = "counter", host = "h1", period = 1 }
+component "B" { type = "gain", host = "h2", period = 2, params = { k = 1 } }
+connect "A.y -> B.u"
+"#,
+    );
+    let out = sut.modbot(&["check", file.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.starts_with(&format!("{}:5:", file.display())), "{err}");
+    assert!(err.contains("i64") && err.contains("f64"), "{err}");
+}
