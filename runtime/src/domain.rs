@@ -70,9 +70,12 @@ impl Domain {
     }
 
     /// Removes every file of this domain. Only call it when no module of the domain runs.
+    ///
+    /// A directory that held only this domain's files (iceoryx2 keeps one per node) goes too.
     pub fn remove_files(&self) -> usize {
         let files = self.files();
         let mut removed = 0;
+        let mut parents = Vec::new();
         for f in &files {
             let gone = if f.is_dir() {
                 std::fs::remove_dir_all(f)
@@ -81,6 +84,17 @@ impl Domain {
             };
             if gone.is_ok() {
                 removed += 1;
+                if let Some(parent) = f.parent() {
+                    parents.push(parent.to_path_buf());
+                }
+            }
+        }
+        for dir in parents {
+            let is_root = dir == Path::new("/dev/shm") || dir.parent() == Some(Path::new("/tmp"));
+            let shared = dir.ends_with("nodes") || dir.ends_with("services");
+            if !is_root && !shared {
+                // Fails, as it should, if anything else is in it.
+                let _ = std::fs::remove_dir(&dir);
             }
         }
         removed

@@ -46,6 +46,7 @@ struct Comp {
     overruns: u64,
     late: u64,
     failed: u64,
+    exec_min: u64,
     exec: Histogram,
     latency: Histogram,
 }
@@ -116,6 +117,7 @@ impl<W: Write> Coordinator<W> {
                 overruns: 0,
                 late: 0,
                 failed: 0,
+                exec_min: u64::MAX,
                 exec: Histogram::new(),
                 latency: Histogram::new(),
             })
@@ -270,6 +272,7 @@ impl<W: Write> Coordinator<W> {
             }
             comp.pending = None;
             comp.exec.record(done.exec_ns.get());
+            comp.exec_min = comp.exec_min.min(done.exec_ns.get());
             comp.latency.record(done.latency_ns.get());
             if done.status.get() != Done::OK {
                 comp.failed += 1;
@@ -392,6 +395,7 @@ impl<W: Write> Coordinator<W> {
                     overruns: c.overruns,
                     late: c.late,
                     failed: c.failed,
+                    exec_min: if c.exec.count() == 0 { 0 } else { c.exec_min },
                     exec_p50: e50,
                     exec_p99: e99,
                     exec_max: emax,

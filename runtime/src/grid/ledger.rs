@@ -6,7 +6,8 @@
 //! - grid: state (text: running, faulted, done), fault (text), ticks, missed ticks, tick rate
 //!   (f64, Hz over the last second), tick error p50, p99, max (ns);
 //! - per component ([`FIELDS`] values): name, host, period (ticks), policy, releases, overruns,
-//!   late completions, failed steps, exec p50, p99, max (ns), release latency p50, p99 (ns).
+//!   late completions, failed steps, exec min, p50, p99, max (ns), release latency p50, p99
+//!   (ns).
 
 use modbot_ipc_schema::value::Values;
 use modbot_ipc_schema::Value;
@@ -14,7 +15,7 @@ use modbot_ipc_schema::Value;
 use crate::stats::Histogram;
 
 /// Values per component row.
-pub const FIELDS: usize = 13;
+pub const FIELDS: usize = 14;
 /// Values in the grid row.
 pub const GRID_FIELDS: usize = 8;
 
@@ -29,6 +30,7 @@ pub struct ComponentRow {
     pub overruns: u64,
     pub late: u64,
     pub failed: u64,
+    pub exec_min: u64,
     pub exec_p50: u64,
     pub exec_p99: u64,
     pub exec_max: u64,
@@ -83,6 +85,7 @@ pub fn encode(grid: &GridRow, rows: &[ComponentRow], out: &mut Vec<u8>) {
             r.overruns,
             r.late,
             r.failed,
+            r.exec_min,
             r.exec_p50,
             r.exec_p99,
             r.exec_max,
@@ -135,11 +138,12 @@ pub fn decode(bytes: &[u8]) -> Result<(GridRow, Vec<ComponentRow>), String> {
                 overruns: num(&r[5])?,
                 late: num(&r[6])?,
                 failed: num(&r[7])?,
-                exec_p50: num(&r[8])?,
-                exec_p99: num(&r[9])?,
-                exec_max: num(&r[10])?,
-                latency_p50: num(&r[11])?,
-                latency_p99: num(&r[12])?,
+                exec_min: num(&r[8])?,
+                exec_p50: num(&r[9])?,
+                exec_p99: num(&r[10])?,
+                exec_max: num(&r[11])?,
+                latency_p50: num(&r[12])?,
+                latency_p99: num(&r[13])?,
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
