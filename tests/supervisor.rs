@@ -11,7 +11,7 @@ use nix::sys::signal::Signal;
 
 /// Supervision settings that make the tests quick: a hang is detected after 0.6 s.
 const FAST: &str = r#"
-supervision { heartbeat_timeout = 0.6, heartbeat_period = 0.05, start_timeout = 20, stop_grace = 3 }
+supervision { heartbeat_timeout = tonumber(vars.hb or "0.6"), heartbeat_period = 0.05, start_timeout = 20, stop_grace = 3 }
 "#;
 
 /// Starts `modbot up` on `body` and waits until every module in `modules` runs.
@@ -320,7 +320,13 @@ fn a_slow_consumer_does_not_block_its_sender_and_the_loss_is_counted() {
 module "consumer" { addr = 10, program = "modbot-faulty", args = { "--slow-ms", "20" } }
 module "producer" { addr = 11, program = "modbot-faulty" }
 "#;
-    let up = start_up(&mut sut, body, &["consumer", "producer"]);
+    // Draining its inbox keeps the consumer busy for over a second at a time: not a hang.
+    let up = start_up_with(
+        &mut sut,
+        body,
+        &["consumer", "producer"],
+        &["--var", "hb=10"],
+    );
     // 500 reports take the consumer 10 s; the call returns long before (its timeout is 2 s).
     let out = sut.modbot_ok(&["call", "producer.spam", "consumer", "500"]);
     let counts: Vec<u64> = out.lines().map(|l| l.trim().parse().unwrap()).collect();

@@ -28,7 +28,7 @@ pub fn decode(text: &str) -> Result<Vec<u8>, HexError> {
         .char_indices()
         .filter(|(_, c)| !c.is_whitespace() && *c != '_')
         .collect();
-    if digits.len() % 2 != 0 {
+    if !digits.len().is_multiple_of(2) {
         return Err(HexError::OddLength(digits.len()));
     }
     let nibble = |(pos, ch): (usize, char)| {

@@ -76,7 +76,7 @@ pub struct F64s<'a>(&'a [u8]);
 impl<'a> F64s<'a> {
     /// Views `bytes` as f64s; `None` unless the length is a multiple of 8.
     pub fn from_le_bytes(bytes: &'a [u8]) -> Option<Self> {
-        (bytes.len() % 8 == 0).then_some(Self(bytes))
+        bytes.len().is_multiple_of(8).then_some(Self(bytes))
     }
 
     /// Views a slice of f64s (this host is little-endian, see the crate root).
@@ -175,7 +175,7 @@ impl<'a> Value<'a> {
         match *self {
             Value::F64(_) => 9,
             Value::I64(v) => match v {
-                0..=127 | -32..=-1 => 1,
+                -32..=127 => 1,
                 -128..=255 => 2,
                 -32768..=65535 => 3,
                 -2147483648..=4294967295 => 5,

@@ -289,7 +289,7 @@ impl<W: Write> Coordinator<W> {
         let late = |comps: &[Comp]| {
             comps
                 .iter()
-                .any(|c| n % c.period == 0 && c.pending.is_some())
+                .any(|c| n.is_multiple_of(c.period) && c.pending.is_some())
         };
         if self.grace_ns == 0 || !late(&self.comps) {
             return;
@@ -305,7 +305,7 @@ impl<W: Write> Coordinator<W> {
         let mut versions = [0u64; MAX_SOURCES];
         for c in 0..self.comps.len() {
             let comp = &self.comps[c];
-            if n % comp.period != 0 {
+            if !n.is_multiple_of(comp.period) {
                 continue;
             }
             if let Some(m) = comp.pending {

@@ -102,7 +102,7 @@ pub fn decode(bytes: &[u8]) -> Result<(GridRow, Vec<ComponentRow>), String> {
     let values = Values::new(bytes, 0)
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| e.to_string())?;
-    if values.len() < GRID_FIELDS || (values.len() - GRID_FIELDS) % FIELDS != 0 {
+    if values.len() < GRID_FIELDS || !(values.len() - GRID_FIELDS).is_multiple_of(FIELDS) {
         return Err(format!("ledger of {} values is malformed", values.len()));
     }
     let text = |v: &Value<'_>| match v {

@@ -729,12 +729,15 @@ impl HeartbeatMonitor {
     }
 }
 
+/// A received blackboard snapshot, kept to be read in place.
+type SnapshotSample = Sample<ipc::Service, [u8], ()>;
+
 struct IpcSnapshots {
     node: std::rc::Rc<Node<ipc::Service>>,
     me: Addr,
     publisher: Option<Pub>,
     /// Per module read: its subscriber and the newest snapshot taken from it.
-    readers: HashMap<Addr, (Sub, Option<Sample<ipc::Service, [u8], ()>>)>,
+    readers: HashMap<Addr, (Sub, Option<SnapshotSample>)>,
 }
 
 fn bb_service(

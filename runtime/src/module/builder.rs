@@ -1,0 +1,257 @@
+//! Declaring a module: [`ModuleBuilder`] collects its name, address, methods, hooks, tasks
+//! and blackboard, then claims the address in the domain and announces the module.
+
+use core::time::Duration;
+use std::sync::Arc;
+
+use modbot_ipc_schema::{sysmethod, Addr, Value};
+
+use super::{ActivationFn, Definition, DoneFn, MethodFn, Module, Reply, ReportFn, TaskFn};
+use crate::blackboard::Blackboard;
+use crate::calls::MethodQueue;
+use crate::clock::{Clock, MonotonicClock};
+use crate::ctx::Ctx;
+use crate::error::ModuleError;
+use crate::phonebook::PhoneBook;
+use crate::stats::Stats;
+use crate::transport::{Dest, ReceiveMode, Transport};
+
+/// Declares a module.
+pub struct ModuleBuilder<S> {
+    name: String,
+    addr: Addr,
+    mode: ReceiveMode,
+    methods: Vec<(String, MethodFn<S>)>,
+    on_report: Option<ReportFn<S>>,
+    on_done: Option<DoneFn<S>>,
+    on_activation: Option<ActivationFn<S>>,
+    tasks: Vec<(Duration, TaskFn<S>)>,
+    groups: Vec<String>,
+    peers: Vec<String>,
+    blackboard: Option<Blackboard>,
+    snapshot_period: Duration,
+    clock: Arc<dyn Clock>,
+}
+
+impl<S> ModuleBuilder<S> {
+    /// A module named `name` at `addr`.
+    pub fn new(name: &str, addr: u8) -> Self {
+        ModuleBuilder {
+            name: name.to_owned(),
+            addr: Addr(addr),
+            mode: ReceiveMode::Blocking,
+            methods: Vec::new(),
+            on_report: None,
+            on_done: None,
+            on_activation: None,
+            tasks: Vec::new(),
+            groups: Vec::new(),
+            peers: Vec::new(),
+            blackboard: None,
+            snapshot_period: Duration::from_millis(100),
+            clock: Arc::new(MonotonicClock),
+        }
+    }
+
+    /// Adds a local method; ids are given in declaration order.
+    pub fn method(mut self, name: &str, f: MethodFn<S>) -> Self {
+        self.methods.push((name.to_owned(), f));
+        self
+    }
+
+    pub fn on_report(mut self, f: ReportFn<S>) -> Self {
+        self.on_report = Some(f);
+        self
+    }
+
+    pub fn on_done(mut self, f: DoneFn<S>) -> Self {
+        self.on_done = Some(f);
+        self
+    }
+
+    /// Calls `f` when the operator activates or deactivates the module (the `activate` and
+    /// `deactivate` system methods), after the change and only when the state changes. While
+    /// deactivated, the module answers its own methods with NAK not-ready and its tasks do not
+    /// run ([`Ctx::is_active`]).
+    pub fn on_activation(mut self, f: ActivationFn<S>) -> Self {
+        self.on_activation = Some(f);
+        self
+    }
+
+    /// Runs `f` every `period` (not while the operator has deactivated the module).
+    pub fn every(mut self, period: Duration, f: TaskFn<S>) -> Self {
+        self.tasks.push((period, f));
+        self
+    }
+
+    pub fn mode(mut self, mode: ReceiveMode) -> Self {
+        self.mode = mode;
+        self
+    }
+
+    /// Joins a multicast group.
+    pub fn group(mut self, group: &str) -> Self {
+        self.groups.push(group.to_owned());
+        self
+    }
+
+    /// Names a module this one calls: it is looked up at start-up and whenever it (re)appears.
+    pub fn peer(mut self, name: &str) -> Self {
+        self.peers.push(name.to_owned());
+        self
+    }
+
+    pub fn blackboard(mut self, bb: Blackboard) -> Self {
+        self.blackboard = Some(bb);
+        self
+    }
+
+    /// Publishes a snapshot at least this often (and at once on every change).
+    pub fn snapshot_period(mut self, period: Duration) -> Self {
+        self.snapshot_period = period;
+        self
+    }
+
+    pub fn clock(mut self, clock: Arc<dyn Clock>) -> Self {
+        self.clock = clock;
+        self
+    }
+
+    /// Claims the address and name in the domain and announces the module.
+    ///
+    /// Under a supervisor, the environment adds to the declaration: `MODBOT_GROUPS` (groups to
+    /// join, comma-separated) and `MODBOT_HEARTBEAT_MS` (the heartbeat period).
+    pub fn open<T: Transport + 'static>(
+        mut self,
+        transport: T,
+        state: S,
+    ) -> Result<Module<S>, ModuleError> {
+        if let Ok(groups) = std::env::var(crate::supervisor::env::GROUPS) {
+            for g in groups.split(',').filter(|g| !g.is_empty()) {
+                if !self.groups.iter().any(|have| have == g) {
+                    self.groups.push(g.to_owned());
+                }
+            }
+        }
+        self.check_methods()?;
+        let endpoint = transport
+            .open(self.addr, &self.name, self.mode, &self.groups)
+            .map_err(|source| ModuleError::Open {
+                name: self.name.clone(),
+                addr: self.addr,
+                source,
+            })?;
+        Self::assemble(self, Box::new(transport), endpoint, state)
+    }
+
+    /// Opens a tool's endpoint at a free address (the CLI, benchmark drivers).
+    pub fn open_tool<T: Transport + 'static>(
+        self,
+        transport: T,
+        state: S,
+    ) -> Result<Module<S>, ModuleError> {
+        self.check_methods()?;
+        let endpoint = transport.open_tool(&self.name, self.mode)?;
+        Self::assemble(self, Box::new(transport), endpoint, state)
+    }
+
+    /// At most 240 methods, none named like a system method (a caller could not reach it:
+    /// names resolve to the system method first).
+    fn check_methods(&self) -> Result<(), ModuleError> {
+        if self.methods.len() > usize::from(sysmethod::FIRST_RESERVED) {
+            return Err(ModuleError::Definition(format!(
+                "{} methods; at most 240",
+                self.methods.len()
+            )));
+        }
+        if let Some((name, _)) = self
+            .methods
+            .iter()
+            .find(|(name, _)| sysmethod::id(name).is_some())
+        {
+            return Err(ModuleError::Definition(format!(
+                "method '{name}' of module '{}' has the name of a system method every module \
+                 answers; choose another name",
+                self.name
+            )));
+        }
+        Ok(())
+    }
+
+    fn assemble(
+        b: Self,
+        transport: Box<dyn Transport>,
+        endpoint: crate::transport::Endpoint,
+        state: S,
+    ) -> Result<Module<S>, ModuleError> {
+        let now = b.clock.now_ns();
+        let ctx = Ctx {
+            addr: endpoint.addr,
+            name: b.name.clone(),
+            mode: b.mode,
+            tx: endpoint.tx,
+            snapshots: endpoint.snapshots,
+            directory: endpoint.directory,
+            bb: b.blackboard.unwrap_or_else(Blackboard::empty),
+            calls: MethodQueue::default(),
+            book: PhoneBook::new(),
+            clock: b.clock,
+            pending: Vec::new(),
+            failures: Vec::new(),
+            describing: [false; 256],
+            rejected: 0,
+            stale: 0,
+            served: Default::default(),
+            replayed: 0,
+            stop: false,
+            caller: Addr::NONE,
+            stats: Stats::default(),
+            active: true,
+        };
+        let tasks = b
+            .tasks
+            .iter()
+            .map(|(p, _)| now + p.as_nanos() as u64)
+            .collect();
+        let beat_period_ns = crate::supervisor::env::heartbeat_period().as_nanos() as u64;
+        let mut module = Module {
+            beat_period_ns,
+            next_beat_ns: now,
+            beats: 0,
+            def: Definition {
+                methods: b.methods,
+                on_report: b.on_report,
+                on_done: b.on_done,
+                on_activation: b.on_activation,
+                tasks: b.tasks,
+                peers: b.peers,
+                snapshot_period_ns: b.snapshot_period.as_nanos() as u64,
+            },
+            state,
+            ctx,
+            rx: endpoint.rx,
+            transport,
+            next_task_ns: tasks,
+            next_refresh_ns: 0,
+            last_snapshot_ns: 0,
+            reply: Reply {
+                buf: Vec::with_capacity(4096),
+                count: 0,
+            },
+        };
+        module.ctx.refresh_book();
+        let pid = i64::from(std::process::id());
+        let name = module.ctx.name.clone();
+        if let Err(e) = module.ctx.report(
+            Dest::Broadcast,
+            sysmethod::ANNOUNCE_TOPIC,
+            &[Value::Text(&name), Value::I64(pid)],
+        ) {
+            tracing::debug!("announce not sent: {e}");
+        }
+        module.look_up_peers();
+        module.publish_snapshot(now);
+        tracing::info!(addr = %module.ctx.addr, mode = module.ctx.mode.name(), "module {} is up", module.ctx.name);
+        Ok(module)
+    }
+}
