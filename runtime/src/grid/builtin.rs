@@ -67,6 +67,7 @@ pub fn register_all(registry: &mut Registry) {
             at: u64::try_from(p.i64("sleep_at")?).ok(),
         }))
     });
+    super::control::register(registry);
 }
 
 fn f64_param(name: &'static str, default: f64) -> ParamDecl {
@@ -433,7 +434,7 @@ mod tests {
     #[test]
     fn registry_checks_params_against_the_declarations() {
         let sut = Registry::builtin();
-        assert_eq!(sut.type_names().len(), 10);
+        assert_eq!(sut.type_names().len(), 15);
         let err = sut.info("gain", &Params::new()).unwrap_err();
         assert_eq!(err, "param 'k' (f64) is required for type 'gain'");
         let err = sut

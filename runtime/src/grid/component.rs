@@ -86,10 +86,17 @@ impl ParamValue {
     }
 
     /// This value as type `ty`, where that loses nothing: an integer is an f64 (when exactly
-    /// representable), an f64 with an integer value is an i64; otherwise only the same type.
+    /// representable), an f64 with an integer value is an i64, a number is an f64 list of one;
+    /// otherwise only the same type.
     pub fn coerce(&self, ty: ParamType) -> Option<ParamValue> {
         const EXACT: i64 = 1 << 53;
         match (self, ty) {
+            (ParamValue::I64(_) | ParamValue::F64(_), ParamType::F64s) => {
+                match self.coerce(ParamType::F64)? {
+                    ParamValue::F64(x) => Some(ParamValue::F64s(vec![x])),
+                    _ => None,
+                }
+            }
             (ParamValue::I64(i), ParamType::F64) if (-EXACT..=EXACT).contains(i) => {
                 Some(ParamValue::F64(*i as f64))
             }

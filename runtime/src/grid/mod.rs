@@ -18,6 +18,7 @@
 //!   and the [`Registry`] of component types, which checks parameters and instantiates.
 //! - [`builtin`]: the built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`, `integrator`,
 //!   `delay`, `vec_gain`, `pack`, `sleeper`).
+//! - [`control`]: example controllers: `ptp`, `hold_position`, `feedforward`, `cascade`, `monitor`.
 //! - [`spec`]: the checked grid ([`GridSpec`]): components, hosts, periods in base ticks,
 //!   connections, and the *sources* of a component (the release notice's order); built from
 //!   declarations by [`GridSpec::build`].
@@ -37,6 +38,7 @@
 
 pub mod builtin;
 pub mod component;
+pub mod control;
 pub mod coordinator;
 pub mod host;
 pub mod ledger;

@@ -177,7 +177,8 @@ fn unknown_component_type_is_refused_listing_the_known_ones() {
         &with_grid("\ncomponent \"A\" { type = \"gian\", host = \"h\" }\n"),
         Some(4),
         "component 'A': unknown component type 'gian' (known: counter, ramp, sine, gain, sum, \
-         integrator, delay, vec_gain, pack, sleeper)",
+         integrator, delay, vec_gain, pack, sleeper, ptp, hold_position, feedforward, cascade, \
+         monitor)",
     );
 }
 

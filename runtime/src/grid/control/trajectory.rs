@@ -1,0 +1,495 @@
+//! Trajectory generators: `ptp`, synchronized point-to-point motion, and `hold_position`.
+//!
+//! # `ptp`
+//! Inputs `goal` (the target joint positions) and `start` (the measured positions); outputs
+//! the commanded `q`, `qd`, `qdd` and `done`. Params `v_max`, `a_max` (per axis, positive),
+//! `bessel_hz` (f64, 0: no filter).
+//!
+//! At its first release it latches `start` and rests there. When a new goal arrives (`goal`
+//! differs from the last goal it took) while it is at rest (`done`), it latches `start` again,
+//! so that the motion starts from where the robot is (bumpless), and moves to `goal`. A goal
+//! that arrives during a motion is taken once that motion is done; a goal with a non-finite
+//! value is ignored, and so is an axis of `start` that is not finite (the commanded position
+//! stays).
+//!
+//! The goal it starts with is all zeros: what `goal` reads before its source's first output
+//! is valid (LET). So it never moves towards those zeros, whatever `start` says then; but a
+//! first goal of exactly all zeros is not new either: it takes effect after another goal.
+//!
+//! Each axis follows a trapezoidal velocity profile (triangular when the distance is too short
+//! to reach the velocity limit). The axes are time-synchronized: the axis that needs longest at
+//! its limits sets the duration T, and every other axis keeps its acceleration limit and lowers
+//! its cruise velocity to arrive at T too: v = 2D / (T + √(T² − 4D/a)), the smaller root of
+//! D = v·(T − v/a). The profile is evaluated at the release's time since the motion began,
+//! (tick − first tick) · base_period_s, so no error accumulates; from T on it is exactly `goal`.
+//!
+//! With `bessel_hz` > 0, `q`, `qd` and `qdd` are each passed through a [`Bessel2`] filter at
+//! the component's period (a linear filter, so the filtered `qd` is still the derivative of the
+//! filtered `q`). The filters are put at rest at `start` when a motion begins, and when they
+//! have settled within 1e-9 of the goal they are put at rest there: `done` is then true and
+//! the outputs are exactly `goal`. The filtered `q`, `qd` and `qdd` may pass the goal, `v_max`
+//! and `a_max` by at most the filter's step overshoot (0.43 %, see [`super::bessel`]), in
+//! practice far less (a 2 rad move at 5 Hz passes the goal by 3e-5 rad).
+//!
+//! # `hold_position`
+//! Input `start`; outputs `q` (= `start` as latched at the first release, 0 on an axis where it
+//! was not finite), `qd` and `qdd` (zeros): the generator of an assembly that holds the robot.
+
+use super::bessel::Bessel2;
+use super::{
+    array, array_mut, array_ports, at, axes, axes_decl, per_axis, per_axis_decl, positive, rest,
+};
+use crate::grid::component::{
+    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
+    PortValue, BASE_PERIOD_S, PERIOD_S,
+};
+
+/// Within this of the goal (rad, rad/s, rad/s²) the filtered outputs have settled.
+const SETTLED: f64 = 1e-9;
+
+pub(super) fn ptp_info(p: &Params) -> Result<ComponentInfo, String> {
+    let n = axes(p)?;
+    if !p.is_empty() {
+        Ptp::new(p)?;
+    }
+    let mut outputs = array_ports(&["q", "qd", "qdd"], n);
+    outputs.push(PortDecl::new("done", PortType::Bool));
+    Ok(ComponentInfo {
+        type_name: "ptp",
+        doc: "synchronized trapezoidal point-to-point motion from start to goal",
+        inputs: array_ports(&["goal", "start"], n),
+        outputs,
+        params: vec![
+            axes_decl(),
+            per_axis_decl("v_max"),
+            per_axis_decl("a_max"),
+            ParamDecl::optional("bessel_hz", ParamType::F64, ParamValue::F64(0.0)),
+        ],
+    })
+}
+
+pub(super) fn make_ptp(p: &Params) -> Result<Box<dyn Component>, String> {
+    Ok(Box::new(Ptp::new(p)?))
+}
+
+/// One axis of a motion.
+#[derive(Debug, Clone, Copy, Default)]
+struct Axis {
+    from: f64,
+    /// The distance, signed.
+    distance: f64,
+    /// The acceleration and cruise velocity used (magnitudes), and the acceleration time.
+    a: f64,
+    v: f64,
+    t_a: f64,
+}
+
+impl Axis {
+    /// Position, velocity and acceleration `t` seconds into a motion of `duration`.
+    fn at(&self, t: f64, duration: f64) -> [f64; 3] {
+        let (d, a, v, t_a) = (self.distance.abs(), self.a, self.v, self.t_a);
+        let [s, sd, sdd] = if t >= duration {
+            [d, 0.0, 0.0]
+        } else if t < t_a {
+            [0.5 * a * t * t, a * t, a]
+        } else if t < duration - t_a {
+            [0.5 * a * t_a * t_a + v * (t - t_a), v, 0.0]
+        } else {
+            let rest = duration - t;
+            [d - 0.5 * a * rest * rest, a * rest, -a]
+        };
+        let sign = self.distance.signum();
+        let q = if t >= duration {
+            self.from + self.distance
+        } else {
+            self.from + sign * s
+        };
+        [q, sign * sd, sign * sdd]
+    }
+}
+
+struct Ptp {
+    v_max: Vec<f64>,
+    a_max: Vec<f64>,
+    /// The base tick in seconds: the motion's time is ticks since it began times this.
+    dt: f64,
+    /// For each axis the filters of q, qd and qdd; empty without `bessel_hz`.
+    filters: Vec<[Bessel2; 3]>,
+    /// The current (or last) motion, per axis, and where it ends.
+    axes: Vec<Axis>,
+    target: Vec<f64>,
+    /// The last goal taken (zeros to begin with): a goal is new when it differs.
+    taken: Vec<f64>,
+    duration: f64,
+    began: u64,
+    moving: bool,
+    /// Whether the first release has latched `start`.
+    latched: bool,
+    /// Whether the filters have settled at the target (always, without filters).
+    settled: bool,
+}
+
+impl Ptp {
+    fn new(p: &Params) -> Result<Ptp, String> {
+        let n = axes(p)?;
+        let bessel_hz = p.f64("bessel_hz")?;
+        let filters = if bessel_hz == 0.0 {
+            Vec::new()
+        } else {
+            let filter = Bessel2::new(bessel_hz, p.f64(PERIOD_S)?)
+                .map_err(|e| format!("param 'bessel_hz': {e}"))?;
+            vec![[filter; 3]; n]
+        };
+        Ok(Ptp {
+            v_max: per_axis(p, "v_max", n, "positive", positive)?,
+            a_max: per_axis(p, "a_max", n, "positive", positive)?,
+            dt: p.f64(BASE_PERIOD_S)?,
+            filters,
+            axes: vec![Axis::default(); n],
+            target: vec![0.0; n],
+            taken: vec![0.0; n],
+            duration: 0.0,
+            began: 0,
+            moving: false,
+            latched: false,
+            settled: true,
+        })
+    }
+
+    /// Rests at `start` (each finite axis of it; the others stay where they are).
+    fn latch(&mut self, start: &[f64]) {
+        for (i, (axis, target)) in self.axes.iter_mut().zip(&mut self.target).enumerate() {
+            let x = at(start, i);
+            if x.is_finite() {
+                *target = x;
+            }
+            *axis = Axis {
+                from: *target,
+                ..Axis::default()
+            };
+        }
+        for (filters, &x) in self.filters.iter_mut().zip(&self.target) {
+            filters[0].reset(x);
+            filters[1].reset(0.0);
+            filters[2].reset(0.0);
+        }
+        self.moving = false;
+        self.settled = true;
+    }
+
+    /// Begins a motion from `start` to `goal` at `tick`, if `goal` is a new, finite goal.
+    fn plan(&mut self, tick: u64, goal: &[f64], start: &[f64]) {
+        let n = self.target.len();
+        let new = (0..n).any(|i| at(goal, i) != self.taken[i]);
+        let finite = (0..n).all(|i| at(goal, i).is_finite());
+        if !new || !finite {
+            return;
+        }
+        self.taken.copy_from_slice(&goal[..n]);
+        self.latch(start);
+        let too_far = (0..n).any(|i| !(at(goal, i) - self.target[i]).is_finite());
+        if too_far {
+            return;
+        }
+        // The time each axis needs at its limits; the longest is the motion's.
+        let goal = &goal[..n];
+        let mut duration = 0.0f64;
+        for (i, &to) in goal.iter().enumerate() {
+            let (d, v, a) = ((to - self.target[i]).abs(), self.v_max[i], self.a_max[i]);
+            let t = if d * a <= v * v {
+                2.0 * (d / a).sqrt()
+            } else {
+                d / v + v / a
+            };
+            duration = duration.max(t);
+        }
+        for (i, &to) in goal.iter().enumerate() {
+            let (from, a) = (self.target[i], self.a_max[i]);
+            let distance = to - from;
+            let d = distance.abs();
+            let root = (duration * duration - 4.0 * d / a).max(0.0).sqrt();
+            let v = if d == 0.0 {
+                0.0
+            } else {
+                (2.0 * d / (duration + root)).min(self.v_max[i])
+            };
+            self.axes[i] = Axis {
+                from,
+                distance,
+                a,
+                v,
+                t_a: v / a,
+            };
+            self.target[i] = to;
+        }
+        self.duration = duration;
+        self.began = tick;
+        self.moving = duration > 0.0;
+        self.settled = self.filters.is_empty();
+    }
+}
+
+impl Component for Ptp {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let (goal, start) = (array(&inputs[0]), array(&inputs[1]));
+        if !self.latched {
+            self.latch(start);
+            self.latched = true;
+        }
+        let dt = self.dt;
+        let elapsed = |began: u64| tick.saturating_sub(began) as f64 * dt;
+        if self.moving && elapsed(self.began) >= self.duration {
+            self.moving = false;
+        }
+        if !self.moving && self.settled {
+            self.plan(tick, goal, start);
+        }
+        if !self.moving && self.settled {
+            // At rest: exactly where it is, whatever the filters' rounding.
+            rest(outputs, &self.target);
+            outputs[3] = PortValue::Bool(true);
+            return;
+        }
+        let t = elapsed(self.began);
+        let mut residual = 0.0f64;
+        for i in 0..self.axes.len() {
+            let mut y = self.axes[i].at(t, self.duration);
+            if let Some(filters) = self.filters.get_mut(i) {
+                for (y, filter) in y.iter_mut().zip(filters.iter_mut()) {
+                    *y = filter.step(*y);
+                }
+                let off = [y[0] - self.target[i], y[1], y[2]];
+                residual = off.iter().fold(residual, |r, x| r.max(x.abs()));
+            }
+            for (port, y) in outputs.iter_mut().zip(y) {
+                if let Some(slot) = array_mut(port).get_mut(i) {
+                    *slot = y;
+                }
+            }
+        }
+        if t >= self.duration && residual <= SETTLED {
+            // Settled (at once without filters): rest exactly at the goal from the next release.
+            self.moving = false;
+            self.settled = true;
+            self.latch(&[]);
+        }
+        outputs[3] = PortValue::Bool(false);
+    }
+}
+
+pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
+    let n = axes(p)?;
+    Ok(ComponentInfo {
+        type_name: "hold_position",
+        doc: "holds start as latched at the first release: q = start, qd = qdd = 0",
+        inputs: array_ports(&["start"], n),
+        outputs: array_ports(&["q", "qd", "qdd"], n),
+        params: vec![axes_decl()],
+    })
+}
+
+pub(super) fn make_hold(p: &Params) -> Result<Box<dyn Component>, String> {
+    Ok(Box::new(Hold {
+        q: vec![0.0; axes(p)?],
+        latched: false,
+    }))
+}
+
+struct Hold {
+    /// The position held.
+    q: Vec<f64>,
+    latched: bool,
+}
+
+impl Component for Hold {
+    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        if !self.latched {
+            let start = array(&inputs[0]);
+            for (i, q) in self.q.iter_mut().enumerate() {
+                let x = at(start, i);
+                *q = if x.is_finite() { x } else { 0.0 };
+            }
+            self.latched = true;
+        }
+        rest(outputs, &self.q);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::harness::{list, refusal, Harness};
+    use super::*;
+
+    fn ptp(v_max: &[f64], a_max: &[f64], bessel_hz: f64) -> Harness {
+        let params = Params::new()
+            .with("axes", ParamValue::I64(v_max.len() as i64))
+            .with("v_max", list(v_max))
+            .with("a_max", list(a_max))
+            .with("bessel_hz", ParamValue::F64(bessel_hz));
+        Harness::new("ptp", params, 1)
+    }
+
+    /// Runs `sut` from tick `from` until done (at most `ticks`): q, qd, qdd at every release.
+    fn run(sut: &mut Harness, from: u64, ticks: u64, goal: &[f64]) -> Vec<[Vec<f64>; 3]> {
+        let mut seen = Vec::new();
+        for tick in from..from + ticks {
+            let start = sut.out(0).to_vec();
+            sut.step(tick, &[goal, &start]);
+            seen.push([0, 1, 2].map(|p| sut.out(p).to_vec()));
+            if sut.outputs[3] == PortValue::Bool(true) {
+                break;
+            }
+        }
+        seen
+    }
+
+    #[test]
+    fn one_axis_follows_a_trapezoid_and_stops_exactly_at_the_goal() {
+        let mut sut = ptp(&[1.0], &[2.0], 0.0);
+        sut.step(0, &[&[0.0], &[0.0]]);
+        assert_eq!(sut.outputs[3], PortValue::Bool(true));
+        // 2 rad at 1 rad/s and 2 rad/s²: 0.5 s up, 1.5 s cruising, 0.5 s down.
+        let seen = run(&mut sut, 10, 5000, &[2.0]);
+        assert_eq!(seen.len(), 2501);
+        let at = |ms: usize| [0, 1, 2].map(|p| seen[ms][p][0]);
+        assert_eq!(at(0), [0.0, 0.0, 2.0]);
+        assert!((at(250)[0] - 0.0625).abs() < 1e-12);
+        assert!((at(250)[1] - 0.5).abs() < 1e-12);
+        assert_eq!(at(1000)[1..], [1.0, 0.0]);
+        assert!((at(1000)[0] - 0.75).abs() < 1e-12);
+        assert!((at(2250)[0] - 1.9375).abs() < 1e-12);
+        assert_eq!(at(2250)[2], -2.0);
+        assert_eq!(at(2500), [2.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn a_short_move_is_triangular_below_the_velocity_limit() {
+        let mut sut = ptp(&[1.0], &[2.0], 0.0);
+        let seen = run(&mut sut, 0, 5000, &[-0.25]);
+        // 2·√(0.25 / 2) = 0.7071 s, peak 2 · 0.3536 = 0.7071 rad/s.
+        assert_eq!(seen.len(), 709);
+        let peak = seen.iter().map(|s| s[1][0].abs()).fold(0.0, f64::max);
+        assert!((peak - 0.5f64.sqrt()).abs() < 2e-3, "{peak}");
+        assert_eq!(seen[708][0], [-0.25]);
+    }
+
+    #[test]
+    fn axes_arrive_together_each_within_its_own_limits() {
+        let (v_max, a_max) = ([1.0, 3.0, 0.5], [2.0, 1.0, 5.0]);
+        let goal = [2.0, -1.0, 0.1];
+        let mut sut = ptp(&v_max, &a_max, 0.0);
+        let seen = run(&mut sut, 0, 10_000, &goal);
+        for i in 0..3 {
+            let moved_until = seen.iter().rposition(|s| s[0][i] != goal[i]).unwrap();
+            assert_eq!(moved_until, seen.len() - 2, "axis {i}");
+            for s in &seen {
+                assert!(
+                    s[1][i].abs() <= v_max[i] && s[2][i].abs() <= a_max[i],
+                    "axis {i}"
+                );
+            }
+        }
+        // Axis 0 sets the duration (2.5 s); axis 1 (2 s alone) keeps its acceleration.
+        assert_eq!(seen.len(), 2501);
+        assert_eq!(seen[10][2][1], -1.0);
+    }
+
+    #[test]
+    fn a_motion_starts_bumpless_from_the_measured_start() {
+        let mut sut = ptp(&[1.0, 1.0], &[1.0, 1.0], 0.0);
+        sut.step(0, &[&[0.0, 0.0], &[0.3, -0.2]]);
+        assert_eq!(sut.out(0), [0.3, -0.2]);
+        sut.step(1, &[&[0.0, 0.0], &[0.4, -0.2]]);
+        assert_eq!(sut.out(0), [0.3, -0.2], "the initial zeros are no goal");
+        sut.step(2, &[&[1.0, 1.0], &[0.35, -0.25]]);
+        assert_eq!(sut.out(0), [0.35, -0.25]);
+        assert_eq!(sut.outputs[3], PortValue::Bool(false));
+    }
+
+    #[test]
+    fn a_goal_that_arrives_during_a_motion_is_taken_when_it_is_done() {
+        let mut sut = ptp(&[1.0], &[1.0], 0.0);
+        let first = run(&mut sut, 0, 100, &[1.0]);
+        assert_eq!(first.len(), 100);
+        let rest = run(&mut sut, 100, 10_000, &[-1.0]);
+        let turn = rest.iter().position(|s| s[1][0] < 0.0).unwrap();
+        assert!(rest[..turn]
+            .iter()
+            .all(|s| s[1][0] >= 0.0 && s[0][0] <= 1.0));
+        assert!(rest[turn - 1][0][0] > 1.0 - 1e-6);
+        assert_eq!(rest.last().unwrap()[0], [-1.0]);
+    }
+
+    #[test]
+    fn non_finite_goals_and_starts_are_ignored_and_never_emitted() {
+        let mut sut = ptp(&[1.0, 1.0], &[1.0, 1.0], 4.0);
+        sut.step(0, &[&[0.0, 0.0], &[f64::NAN, 0.5]]);
+        assert_eq!(sut.out(0), [0.0, 0.5]);
+        sut.step(1, &[&[f64::NAN, 1.0], &[0.0, 0.5]]);
+        assert_eq!(sut.outputs[3], PortValue::Bool(true));
+        sut.step(2, &[&[1.0, f64::INFINITY], &[0.0, 0.5]]);
+        sut.step(3, &[&[1.0, 1.0], &[0.0, f64::NAN]]);
+        let seen = run(&mut sut, 4, 10_000, &[1.0, 1.0]);
+        assert!(seen.iter().flatten().flatten().all(|x| x.is_finite()));
+        assert_eq!(seen.last().unwrap()[0], [1.0, 1.0]);
+    }
+
+    #[test]
+    fn a_bessel_filtered_motion_settles_exactly_at_the_goal_without_noticeable_overshoot() {
+        let mut sut = ptp(&[1.0], &[2.0], 5.0);
+        let seen = run(&mut sut, 0, 10_000, &[2.0]);
+        // The filter's 0.43 % step overshoot, on the steps of the acceleration: 3.3e-5 rad.
+        let peak = seen.iter().map(|s| s[0][0]).fold(0.0, f64::max);
+        assert!(peak - 2.0 < 1e-4, "overshoot {}", peak - 2.0);
+        assert!(seen.len() > 2600 && seen.len() < 3500, "{}", seen.len());
+        assert_eq!(seen.last().unwrap(), &[vec![2.0], vec![0.0], vec![0.0]]);
+        // The filtered q starts where the robot is and lags the profile (1.0 at 1.25 s).
+        assert_eq!(seen[0][0], [0.0]);
+        assert!(seen[1250][0][0] > 0.9 && seen[1250][0][0] < 1.0);
+    }
+
+    #[test]
+    fn a_scalar_limit_is_the_limit_of_every_axis() {
+        let params = Params::new()
+            .with("axes", ParamValue::I64(2))
+            .with("v_max", ParamValue::F64(1.0))
+            .with("a_max", ParamValue::I64(2));
+        let mut sut = Harness::new("ptp", params, 1);
+        let seen = run(&mut sut, 0, 10_000, &[2.0, 2.0]);
+        assert_eq!(seen.len(), 2501);
+    }
+
+    #[test]
+    fn ptp_refuses_bad_limits() {
+        let params = |v_max: &[f64], bessel_hz: f64| {
+            Params::new()
+                .with("axes", ParamValue::I64(3))
+                .with("v_max", list(v_max))
+                .with("a_max", list(&[1.0]))
+                .with("bessel_hz", ParamValue::F64(bessel_hz))
+        };
+        let sut = refusal("ptp", params(&[1.0, 2.0], 0.0));
+        assert_eq!(
+            sut,
+            "param 'v_max' must have 1 value or 3 (one per axis), not 2"
+        );
+        let sut = refusal("ptp", params(&[1.0, 0.0, 1.0], 0.0));
+        assert_eq!(sut, "param 'v_max' must be positive, not 0 (axis 1)");
+        let sut = refusal("ptp", params(&[1.0], 600.0));
+        assert!(
+            sut.starts_with("param 'bessel_hz': the cutoff must be"),
+            "{sut}"
+        );
+    }
+
+    #[test]
+    fn hold_position_holds_the_start_of_its_first_release() {
+        let params = Params::new().with("axes", ParamValue::I64(3));
+        let mut sut = Harness::new("hold_position", params, 1);
+        sut.step(0, &[&[0.5, f64::NAN, -1.0]]);
+        sut.step(1, &[&[0.7, 0.7, 0.7]]);
+        assert_eq!(sut.out(0), [0.5, 0.0, -1.0]);
+        assert_eq!(sut.out(1), [0.0; 3]);
+        assert_eq!(sut.out(2), [0.0; 3]);
+    }
+}
