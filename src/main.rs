@@ -73,6 +73,9 @@ enum Command {
         #[arg(long)]
         once: bool,
     },
+    /// The bus ledger: bus cycles, missed cycles, a safe stop if there was one, and every
+    /// drive's CiA 402 state and mode.
+    Bus,
     /// Stop the system running in the domain (from another terminal).
     Down,
     /// List the modules of the domain: address, name, pid, state, restarts, last exit,
@@ -148,6 +151,7 @@ fn main() -> ExitCode {
             &modbot_runtime::grid::processes::GridRun { ticks, trace },
         ),
         Command::Top { once } => tool::top(&cli.domain, once),
+        Command::Bus => tool::bus(&cli.domain),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),
         Command::Call {

@@ -422,3 +422,30 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
         std::thread::sleep(Duration::from_millis(500));
     }
 }
+
+/// `modbot bus`: the bus bridge's ledger.
+pub fn bus(domain: &str) -> anyhow::Result<ExitCode> {
+    let mut tool = open(domain)?;
+    let module =
+        modbot_runtime::grid::processes::host_module(modbot_runtime::grid::processes::BUS_HOST);
+    let text = tool.call_blocking(
+        &module,
+        "bus",
+        &[],
+        CallOptions::timeout(Duration::from_secs(1)),
+        |r| -> Result<String, String> {
+            let args = r.map_err(|e| e.to_string())?;
+            args.text(0).map(str::to_owned).map_err(|e| e.to_string())
+        },
+    );
+    match text {
+        Ok(t) => {
+            print!("{t}");
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(e) => {
+            eprintln!("modbot bus: no bus bridge answers in '{domain}': {e}");
+            Ok(ExitCode::from(1))
+        }
+    }
+}

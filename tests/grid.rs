@@ -205,10 +205,19 @@ fn ticks_of(top: &str) -> u64 {
 fn start(sut: &mut TestDomain, body: &str) -> u32 {
     let file = sut.write_system(body);
     let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
-    sut.wait_for("the grid to tick", Duration::from_secs(30), || {
+    let start = std::time::Instant::now();
+    loop {
         let t = top(sut);
-        t.contains("ticks") && ticks_of(&t) > 200
-    });
+        if t.contains("ticks") && ticks_of(&t) > 200 {
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the grid did not tick; top:\n{t}\nmodbot up:\n{}",
+            sut.output_of(up)
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
     up
 }
 

@@ -1,6 +1,10 @@
 //! What every module program shares: `--domain`, `--name`, `--addr`, `--mode`, and logging.
 
+use std::path::PathBuf;
+
 use clap::Args;
+use modbot_runtime::grid::GridSpec;
+use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::{Domain, IpcTransport, ReceiveMode};
 
 /// The options every module program takes.
@@ -46,4 +50,26 @@ pub fn init_logging() {
         .with_writer(std::io::stderr)
         .with_target(false)
         .init();
+}
+
+/// The options of the grid's programs (coordinator, hosts, bus bridge): the system
+/// description they all load, with its variables.
+#[derive(Debug, Clone, Args)]
+pub struct GridArgs {
+    /// The system description with the grid.
+    #[arg(long)]
+    pub system: PathBuf,
+    /// A variable for the description (`vars.KEY`); repeatable.
+    #[arg(long = "var", value_parser = system::parse_var)]
+    pub vars: Vec<(String, String)>,
+}
+
+impl GridArgs {
+    /// Loads the description and returns its grid.
+    pub fn load(&self) -> anyhow::Result<GridSpec> {
+        let resolver = DefaultResolver::for_file(&self.system);
+        let spec = system::load_with_vars(&self.system, &resolver, &self.vars)?;
+        spec.grid
+            .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))
+    }
 }

@@ -16,6 +16,7 @@
 //! - [`served`]: the requests served lately, so a retransmission is not executed twice.
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
+//! - [`bus`]: the bus bridge's backends: simulated CiA 402 drives on an elastic-joint plant.
 //! - [`grid`]: the time grid's components, their description and the reference LET run.
 //! - [`run`]: the default application controller (main loop, signals, receive modes).
 //! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
@@ -26,6 +27,7 @@
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 
 pub mod blackboard;
+pub mod bus;
 pub mod calls;
 pub mod clock;
 pub mod ctx;

@@ -6,13 +6,12 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 use modbot_ipc_schema::{Args, Value};
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::coordinator::Coordinator;
 use modbot_runtime::grid::ledger;
 use modbot_runtime::grid::processes::host_module;
 use modbot_runtime::grid::tick::TimerTicks;
-use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply};
 
 /// The coordinator: the only process of a system that reads the clock. The supervisor starts it
@@ -24,12 +23,8 @@ use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuild
 struct Cli {
     #[command(flatten)]
     module: ModuleArgs,
-    /// The system description with the grid.
-    #[arg(long)]
-    system: PathBuf,
-    /// A variable for the description (`vars.KEY`); repeatable.
-    #[arg(long = "var", value_parser = system::parse_var)]
-    vars: Vec<(String, String)>,
+    #[command(flatten)]
+    grid: GridArgs,
     /// Run this many base ticks, then stop the system.
     #[arg(long)]
     ticks: Option<u64>,
@@ -57,11 +52,7 @@ fn ledger_method(
 fn main() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
-    let resolver = DefaultResolver::for_file(&cli.system);
-    let spec = system::load_with_vars(&cli.system, &resolver, &cli.vars)?;
-    let grid = spec
-        .grid
-        .ok_or_else(|| anyhow::anyhow!("{}: no grid", cli.system.display()))?;
+    let grid = cli.grid.load()?;
     let period_ns = grid.base_period.as_nanos() as u64;
     let hosts: Vec<String> = grid.hosts().iter().map(|h| host_module(h)).collect();
     let transport = cli.module.transport()?;

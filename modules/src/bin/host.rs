@@ -1,15 +1,13 @@
 //! `modbot-host`: a component host of the time grid — steps the components of one host name.
 
-use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Parser;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::host::Host;
 use modbot_runtime::grid::processes::host_module;
-use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::{signals, ModuleBuilder};
 
 /// Steps the components the system description puts on `--host`, whenever the coordinator
@@ -19,25 +17,17 @@ use modbot_runtime::{signals, ModuleBuilder};
 struct Cli {
     #[command(flatten)]
     module: ModuleArgs,
-    /// The system description with the grid.
-    #[arg(long)]
-    system: PathBuf,
+    #[command(flatten)]
+    grid: GridArgs,
     /// The host name whose components this process steps.
     #[arg(long)]
     host: String,
-    /// A variable for the description (`vars.KEY`); repeatable.
-    #[arg(long = "var", value_parser = system::parse_var)]
-    vars: Vec<(String, String)>,
 }
 
 fn main() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
-    let resolver = DefaultResolver::for_file(&cli.system);
-    let spec = system::load_with_vars(&cli.system, &resolver, &cli.vars)?;
-    let grid = spec
-        .grid
-        .ok_or_else(|| anyhow::anyhow!("{}: no grid", cli.system.display()))?;
+    let grid = cli.grid.load()?;
     let transport = cli.module.transport()?;
     let node = transport.node(&format!("grid.host.{}", cli.host))?;
     let mut host = Host::new(&node, &grid, &Registry::builtin(), &cli.host)?;

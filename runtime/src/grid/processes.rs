@@ -13,10 +13,23 @@ pub const COORDINATOR: &str = "coordinator";
 pub const COORDINATOR_PROGRAM: &str = "modbot-coordinator";
 /// The program of a component host.
 pub const HOST_PROGRAM: &str = "modbot-host";
+/// The host whose components the bus bridge process steps: it owns the drives.
+pub const BUS_HOST: &str = "bus";
+/// The program of the bus bridge.
+pub const BUS_PROGRAM: &str = "modbot-bus";
 
 /// The module name of host `host`.
 pub fn host_module(host: &str) -> String {
     format!("host_{host}")
+}
+
+/// The program of host `host`: the bus bridge for [`BUS_HOST`], else the generic host.
+pub fn host_program(host: &str) -> &'static str {
+    if host == BUS_HOST {
+        BUS_PROGRAM
+    } else {
+        HOST_PROGRAM
+    }
 }
 
 /// How the grid of a run is driven.
@@ -89,8 +102,8 @@ pub fn add_processes(
         added.push(ModuleSpec {
             name,
             addr: next_addr().ok_or("no address left for the grid's hosts")?,
-            program: program(HOST_PROGRAM)?,
-            program_name: HOST_PROGRAM.into(),
+            program: program(host_program(&host))?,
+            program_name: host_program(&host).into(),
             args,
             restart: policy.clone(),
             cpus: Vec::new(),

@@ -125,6 +125,9 @@ pub fn check_name(name: &str) -> Result<(), TransportError> {
     }
 }
 
+/// The highest address a tool (the CLI, a benchmark driver) takes when it can take a lower one.
+pub const TOOL_FIRST: u8 = 239;
+
 /// The receive side of a module's endpoint: its inbox, broadcast and groups.
 pub trait Rx {
     /// Lends the next waiting frame, if any, to `on_frame`; returns whether there was one.
@@ -206,7 +209,8 @@ pub trait Transport {
         groups: &[String],
     ) -> Result<Endpoint, TransportError>;
 
-    /// Opens an endpoint at the highest free address, for a tool (the CLI, a benchmark driver).
+    /// Opens an endpoint at a free address, for a tool (the CLI, a benchmark driver): the
+    /// highest free one at or below [`TOOL_FIRST`], else above it.
     fn open_tool(&self, name: &str, mode: ReceiveMode) -> Result<Endpoint, TransportError> {
         let mut taken = [false; 256];
         self.directory()?.list(&mut |p| {
@@ -214,7 +218,13 @@ pub trait Transport {
                 taken[usize::from(p.addr.0)] = true;
             }
         })?;
-        for a in (Addr::FIRST..=Addr::LAST).rev() {
+        // Tools search from TOOL_FIRST down, then the rest: the addresses at the top belong to
+        // the supervisor and the grid's processes, which the supervisor assigns from 254 down,
+        // and a short-lived tool must not take one of them while its process starts.
+        let order = (Addr::FIRST..=TOOL_FIRST)
+            .rev()
+            .chain((TOOL_FIRST + 1..=Addr::LAST).rev());
+        for a in order {
             if taken[usize::from(a)] {
                 continue;
             }

@@ -1,0 +1,100 @@
+//! `modbot-bus`: the bus bridge — the component host of the grid's `bus` host, which owns the
+//! drives, serves them every tick, and quick-stops them when the coordinator is lost.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use clap::Parser;
+use modbot_ipc_schema::{Args, Value};
+use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
+use modbot_runtime::bus::bridge::{self, Bridge};
+use modbot_runtime::bus::{PlantParams, SimBackend};
+use modbot_runtime::clock::{Clock, MonotonicClock};
+use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::host::Host;
+use modbot_runtime::grid::processes::{host_module, BUS_HOST};
+use modbot_runtime::{signals, Ctx, MethodError, ModuleBuilder, Reply};
+
+/// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
+/// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`).
+#[derive(Debug, Parser)]
+#[command(name = "modbot-bus", version)]
+struct Cli {
+    #[command(flatten)]
+    module: ModuleArgs,
+    #[command(flatten)]
+    grid: GridArgs,
+    /// The host name (always `bus`).
+    #[arg(long, default_value = BUS_HOST)]
+    host: String,
+}
+
+struct Ledger(Arc<Mutex<Bridge>>);
+
+fn bus_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let text = bridge::lock(&l.0).ledger();
+    reply.push(Value::Text(&text));
+    Ok(())
+}
+
+fn main() -> anyhow::Result<()> {
+    init_logging();
+    let cli = Cli::parse();
+    let grid = cli.grid.load()?;
+    let bus = grid
+        .components
+        .iter()
+        .find(|c| c.host == cli.host && c.type_name == "bus")
+        .ok_or_else(|| anyhow::anyhow!("host '{}' has no component of type 'bus'", cli.host))?;
+    anyhow::ensure!(
+        bus.period == 1,
+        "component '{}': the bus is served every tick: give it period 1",
+        bus.name
+    );
+    let axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
+    let period_ns = grid.base_period.as_nanos() as u64;
+    let shared = Arc::new(Mutex::new(Bridge::new(
+        Box::new(SimBackend::new(axes, PlantParams::default())),
+        period_ns,
+    )));
+    bridge::process_bridge()
+        .set(shared.clone())
+        .map_err(|_| anyhow::anyhow!("the bus bridge was set twice"))?;
+    let transport = cli.module.transport()?;
+    let node = transport.node(&format!("grid.host.{}", cli.host))?;
+    let mut host = Host::new(&node, &grid, &Registry::builtin(), &cli.host)?;
+    let mut module = ModuleBuilder::new(
+        cli.module
+            .name
+            .as_deref()
+            .unwrap_or(&host_module(&cli.host)),
+        cli.module.addr.unwrap_or(199),
+    )
+    .mode(cli.module.receive_mode())
+    .method("bus", bus_method)
+    .open(transport, Ledger(shared.clone()))?;
+    signals::install_termination_handler()?;
+    let now = || MonotonicClock.now_ns();
+    // The bus polls for its release every tenth of a period instead of sleeping on the
+    // wake-up event (whose timeout has millisecond granularity): its watchdog must see a lost
+    // coordinator within three periods, not four or five.
+    let poll = Duration::from_nanos((period_ns / 10).max(20_000));
+    let mut last_service = std::time::Instant::now();
+    while !signals::termination_requested() {
+        if host.serve(&now)? == 0 {
+            std::thread::sleep(poll);
+        }
+        bridge::lock(&shared).watch(now());
+        if last_service.elapsed() >= Duration::from_millis(5) {
+            last_service = std::time::Instant::now();
+            while module.poll_once()? {}
+            module.housekeeping();
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,6 @@
+//! Tests of the bus: the CiA 402 state machine against the standard's table, the plant's
+//! numerics, and the simulated drives in closed loop.
+
+mod cia402;
+mod plant;
+mod sim;
