@@ -295,3 +295,28 @@ connect "A.y -> B.u"
     assert!(err.starts_with(&format!("{}:5:", file.display())), "{err}");
     assert!(err.contains("i64") && err.contains("f64"), "{err}");
 }
+
+/// A host killed and restarted by the supervisor: the releases that died with it are dropped,
+/// and its components are released again by the new process.
+#[test]
+fn a_restarted_host_is_released_again() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("hostrestart");
+    let up = start(&mut sut, &sleeper_grid("hold", -1));
+    let hs: u32 = sut
+        .ls_field("host_hs", "PID")
+        .and_then(|p| p.parse().ok())
+        .expect("host_hs runs");
+    sut.signal(hs, Signal::SIGKILL);
+    sut.wait_for("host_hs to be back", Duration::from_secs(20), || {
+        sut.ls_field("host_hs", "RESTARTS").as_deref() == Some("1")
+            && sut.ls_field("host_hs", "STATE").as_deref() == Some("running")
+    });
+    let before = releases_of(&top(&sut), "S");
+    sut.wait_for("S to be released again", Duration::from_secs(10), || {
+        releases_of(&top(&sut), "S") > before + 20
+    });
+    sut.signal(up, Signal::SIGTERM);
+    sut.wait_exit(up, Duration::from_secs(30));
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}

@@ -54,7 +54,8 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let grid = cli.grid.load()?;
     let period_ns = grid.base_period.as_nanos() as u64;
-    let hosts: Vec<String> = grid.hosts().iter().map(|h| host_module(h)).collect();
+    let grid_hosts = grid.hosts();
+    let hosts: Vec<String> = grid_hosts.iter().map(|h| host_module(h)).collect();
     let transport = cli.module.transport()?;
     let node = transport.node("grid.coordinator")?;
     let trace = match &cli.trace {
@@ -84,6 +85,8 @@ fn main() -> anyhow::Result<()> {
         hosts.len(),
         period_ns / 1000
     );
+    let mut host_pids = vec![0u32; grid_hosts.len()];
+    notice_restarts(&mut module, &grid_hosts, &mut host_pids, &mut coord);
     let mut ticks = TimerTicks::new(period_ns)?;
     let mut last_serve = Instant::now();
     let mut last_ledger = Instant::now();
@@ -104,6 +107,7 @@ fn main() -> anyhow::Result<()> {
         }
         if last_ledger.elapsed() >= Duration::from_millis(200) {
             last_ledger = Instant::now();
+            notice_restarts(&mut module, &grid_hosts, &mut host_pids, &mut coord);
             publish_ledger(&coord, &mut module, false);
         }
     }
@@ -141,6 +145,31 @@ fn publish_ledger(
     let shared = module.state_mut();
     shared.ledger.clear();
     ledger::encode(&g, &rows, &mut shared.ledger);
+}
+
+/// Tells the coordinator about hosts whose process changed since the last look (the phone
+/// book, refreshed by the module's housekeeping, has their pids).
+fn notice_restarts(
+    module: &mut Module<Shared>,
+    hosts: &[String],
+    pids: &mut [u32],
+    coord: &mut Coordinator<std::io::BufWriter<std::fs::File>>,
+) {
+    for (h, pid) in hosts.iter().zip(pids.iter_mut()) {
+        let name = host_module(h);
+        let now = module
+            .ctx()
+            .phone_book()
+            .entries()
+            .find(|e| e.name == name && e.alive)
+            .map_or(0, |e| e.pid);
+        if now != 0 && *pid != 0 && now != *pid {
+            coord.host_restarted(h);
+        }
+        if now != 0 {
+            *pid = now;
+        }
+    }
 }
 
 /// Waits until every host module is up (they listen before they announce).

@@ -192,6 +192,26 @@ impl<W: Write> Coordinator<W> {
         Ok(silent)
     }
 
+    /// Host `host` was restarted: the releases its components had running died with the old
+    /// process and will never report done. They are dropped, so each component is released
+    /// again at its next due tick (its outputs held meanwhile). Returns how many were dropped.
+    pub fn host_restarted(&mut self, host: &str) -> usize {
+        let Some(h) = self.spec.hosts().iter().position(|x| x == host) else {
+            return 0;
+        };
+        let mut dropped = 0;
+        for comp in self.comps.iter_mut().filter(|c| c.host == h) {
+            if comp.pending.take().is_some() {
+                comp.failed += 1;
+                dropped += 1;
+            }
+        }
+        if dropped > 0 {
+            tracing::warn!("host {host} restarted: {dropped} release(s) lost with it");
+        }
+        dropped
+    }
+
     /// Ticks run so far.
     pub fn ticks(&self) -> u64 {
         self.tick
