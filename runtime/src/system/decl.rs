@@ -176,24 +176,7 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
         Some(v) => restart(name, &v)?,
         None => RestartPolicy::default(),
     };
-    let cpus = match fields.take("cpus") {
-        Some(v) => cpus(what, &v)?,
-        None => Vec::new(),
-    };
-    let priority = match fields.take("priority") {
-        Some(v) => Some(integer_in(what, "priority", &v, 1, 99)?),
-        None => None,
-    };
-    let mlock = match fields.take("mlock") {
-        Some(Value::Boolean(b)) => b,
-        Some(v) => {
-            return Err(format!(
-                "{what}: field 'mlock' must be true or false, not {}",
-                show(&v)
-            ))
-        }
-        None => false,
-    };
+    let (cpus, priority, mlock) = realtime(what, &mut fields)?;
     let env = match fields.take("env") {
         Some(v) => env(lua, what, &v)?,
         None => Vec::new(),
@@ -322,6 +305,33 @@ fn restart(module: &str, v: &Value) -> Result<RestartPolicy, String> {
 }
 
 /// `cpus = { 0, 2 }`: sorted, without repeats.
+/// The real-time fields a module and the grid share: `cpus`, `priority` (SCHED_FIFO 1..=99)
+/// and `mlock`.
+pub(super) fn realtime(
+    what: &str,
+    fields: &mut Fields,
+) -> Result<(Vec<usize>, Option<i64>, bool), String> {
+    let cpus = match fields.take("cpus") {
+        Some(v) => cpus(what, &v)?,
+        None => Vec::new(),
+    };
+    let priority = match fields.take("priority") {
+        Some(v) => Some(integer_in(what, "priority", &v, 1, 99)?),
+        None => None,
+    };
+    let mlock = match fields.take("mlock") {
+        Some(Value::Boolean(b)) => b,
+        Some(v) => {
+            return Err(format!(
+                "{what}: field 'mlock' must be true or false, not {}",
+                show(&v)
+            ))
+        }
+        None => false,
+    };
+    Ok((cpus, priority, mlock))
+}
+
 pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
     let bad = || {
         format!(

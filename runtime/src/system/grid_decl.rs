@@ -16,9 +16,9 @@ use std::time::Duration;
 
 use mlua::{Lua, MultiValue, Table, Value};
 
-use super::decl::{self, cpus};
+use super::decl::{self, realtime};
 use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
-use super::read::{integer_in, list, show, string, text, Fields};
+use super::read::{list, show, string, text, Fields};
 use crate::grid::component::{ParamValue, Params};
 use crate::grid::spec::{
     ComponentDecl, ConnectDecl, GridDecl, OverrunPolicy, Period, MAX_COMPONENTS,
@@ -102,24 +102,7 @@ fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
         Some(v) => base_period(&v)?,
         None => DEFAULT_BASE_PERIOD,
     };
-    let cpus = match fields.take("cpus") {
-        Some(v) => cpus(what, &v)?,
-        None => Vec::new(),
-    };
-    let priority = match fields.take("priority") {
-        Some(v) => Some(integer_in(what, "priority", &v, 1, 99)?),
-        None => None,
-    };
-    let mlock = match fields.take("mlock") {
-        Some(Value::Boolean(b)) => b,
-        Some(v) => {
-            return Err(format!(
-                "{what}: field 'mlock' must be true or false, not {}",
-                show(&v)
-            ))
-        }
-        None => false,
-    };
+    let (cpus, priority, mlock) = realtime(what, &mut fields)?;
     Ok(GridDecl {
         base_period,
         cpus,
