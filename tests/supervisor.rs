@@ -32,9 +32,18 @@ fn start_up_with(sut: &mut TestDomain, body: &str, modules: &[&str], more: &[&st
     {
         assert!(
             start.elapsed() < Duration::from_secs(30),
-            "the system did not come up; modbot up printed:\n{}\nmodbot ls:\n{}",
+            "the system did not come up; modbot up printed:\n{}\nmodbot ls:\n{}\nsupervisor.status: {}",
             sut.output_of(up),
-            String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout)
+            String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout),
+            {
+                let out = std::process::Command::new(common::bin("modbot"))
+                    .args(["call", "supervisor.status"])
+                    .env("MODBOT_DOMAIN", sut.name())
+                    .env("RUST_LOG", "debug")
+                    .output()
+                    .unwrap();
+                String::from_utf8_lossy(&out.stderr).into_owned()
+            }
         );
         std::thread::sleep(Duration::from_millis(50));
     }

@@ -73,7 +73,25 @@ impl Domain {
     ///
     /// A directory that held only this domain's files (iceoryx2 keeps one per node) goes too.
     pub fn remove_files(&self) -> usize {
-        let files = self.files();
+        self.remove(self.files())
+    }
+
+    /// Removes the domain's files last modified before `time`: what a process that is just
+    /// starting in the domain creates is kept.
+    pub fn remove_files_older_than(&self, time: std::time::SystemTime) -> usize {
+        let files = self
+            .files()
+            .into_iter()
+            .filter(|f| {
+                std::fs::symlink_metadata(f)
+                    .and_then(|m| m.modified())
+                    .is_ok_and(|t| t < time)
+            })
+            .collect();
+        self.remove(files)
+    }
+
+    fn remove(&self, files: Vec<std::path::PathBuf>) -> usize {
         let mut removed = 0;
         let mut parents = Vec::new();
         for f in &files {

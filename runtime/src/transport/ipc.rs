@@ -354,6 +354,9 @@ impl Transport for IpcTransport {
     }
 
     fn sweep_if_empty(&self) -> bool {
+        // A system may be starting in this domain right now: only files older than this
+        // check are removed, so what a process creates while we look is left alone.
+        let before = std::time::SystemTime::now();
         let dir = IpcDirectory {
             config: self.config.clone(),
         };
@@ -369,7 +372,7 @@ impl Transport for IpcTransport {
         if listed.is_err() || alive > 0 {
             return false;
         }
-        self.domain.remove_files();
+        self.domain.remove_files_older_than(before);
         true
     }
 }
