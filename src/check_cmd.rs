@@ -68,6 +68,53 @@ fn summary(spec: &SystemSpec) -> String {
             out += &format!("      {}\n", settings.join(", "));
         }
     }
+    if let Some(grid) = &spec.grid {
+        out += &grid_summary(grid);
+    }
+    out
+}
+
+/// The grid as `modbot check` prints it: base period, components, connections.
+fn grid_summary(grid: &modbot_runtime::grid::GridSpec) -> String {
+    let mut out = format!(
+        "grid: base period {:?}, {} components on hosts {}, {} connections\n",
+        grid.base_period,
+        grid.components.len(),
+        grid.hosts().join(", "),
+        grid.connections.len()
+    );
+    let width = grid
+        .components
+        .iter()
+        .map(|c| c.name.len())
+        .fold(9, usize::max);
+    out += &format!(
+        "{:<width$}  {:<14} {:<10} {:>6}  POLICY\n",
+        "COMPONENT", "TYPE", "HOST", "PERIOD"
+    );
+    for c in &grid.components {
+        out += &format!(
+            "{:<width$}  {:<14} {:<10} {:>6}  {}\n",
+            c.name,
+            c.type_name,
+            c.host,
+            c.period,
+            c.policy.name()
+        );
+    }
+    for conn in &grid.connections {
+        let (from, to) = (
+            &grid.components[conn.from.component],
+            &grid.components[conn.to.component],
+        );
+        out += &format!(
+            "  {}.{} -> {}.{}\n",
+            from.name,
+            from.info.outputs[conn.from.port].name,
+            to.name,
+            to.info.inputs[conn.to.port].name
+        );
+    }
     out
 }
 
