@@ -749,8 +749,9 @@ fn names(heard: &[Heard]) -> Vec<&str> {
     v
 }
 
-/// A REPORT to `Dest::Broadcast` reaches every other module once, with its sender and values.
-fn a_broadcast_reaches_every_other_module<B: Backend>(fx: &mut TestDomain<B>) {
+/// Starts modules a (no group), b and c (group "g") and d (group "h"), each recording what
+/// it hears; returns where their records arrive.
+fn start_four_ears<B: Backend>(fx: &mut TestDomain<B>) -> mpsc::Receiver<Heard> {
     let (tx, rx) = mpsc::channel();
     for (name, addr, group) in [
         ("a", 3, None),
@@ -767,6 +768,12 @@ fn a_broadcast_reaches_every_other_module<B: Backend>(fx: &mut TestDomain<B>) {
             }
         });
     }
+    rx
+}
+
+/// A REPORT to `Dest::Broadcast` reaches every other module once, with its sender and values.
+fn a_broadcast_reaches_every_other_module<B: Backend>(fx: &mut TestDomain<B>) {
+    let rx = start_four_ears(fx);
     let mut caller = fx.caller();
     caller
         .ctx()
@@ -806,22 +813,7 @@ fn a_module_does_not_hear_its_own_broadcast<B: Backend>(fx: &mut TestDomain<B>) 
 
 /// A REPORT to `Dest::Group("g")` reaches exactly the members of "g".
 fn a_multicast_reaches_exactly_the_members_of_its_group<B: Backend>(fx: &mut TestDomain<B>) {
-    let (tx, rx) = mpsc::channel();
-    for (name, addr, group) in [
-        ("a", 3, None),
-        ("b", 4, Some("g")),
-        ("c", 5, Some("g")),
-        ("d", 6, Some("h")),
-    ] {
-        let heard = tx.clone();
-        fx.start(name, addr, Ear { heard }, move |b| {
-            let b = ear(b);
-            match group {
-                Some(g) => b.group(g),
-                None => b,
-            }
-        });
-    }
+    let rx = start_four_ears(fx);
     let mut caller = fx.caller();
     caller
         .ctx()
