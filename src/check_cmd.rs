@@ -14,6 +14,12 @@ pub fn run(file: &Path, vars: &[(String, String)]) -> ExitCode {
     match system::load_with_vars(file, &DefaultResolver::for_file(file), vars) {
         Ok(spec) => {
             print!("{}", summary(&spec));
+            if let Some(grid) = spec.grid.as_ref().filter(|g| g.assembly.is_some()) {
+                if let Err(e) = check_assemblies(grid) {
+                    eprintln!("{e}");
+                    return ExitCode::from(2);
+                }
+            }
             if !vars.is_empty() {
                 let given: Vec<String> = vars.iter().map(|(k, v)| format!("{k}={v:?}")).collect();
                 println!("vars: {}", given.join(", "));
@@ -25,6 +31,26 @@ pub fn run(file: &Path, vars: &[(String, String)]) -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// Loads every assembly of the grid's directory; prints one line each, or the first error.
+fn check_assemblies(grid: &modbot_runtime::grid::GridSpec) -> Result<(), system::SystemError> {
+    let Some(a) = &grid.assembly else {
+        return Ok(());
+    };
+    let registry = modbot_runtime::grid::Registry::builtin();
+    for name in system::assembly_names(&a.dir) {
+        let spec = system::load_assembly(grid, &name, a.generation, &registry)?;
+        let hosts = spec.assembly_hosts();
+        println!(
+            "assembly {name}: {} components on host(s) {}, {} connections{}",
+            spec.components.len() - a.base,
+            hosts.join(", "),
+            spec.connections.len(),
+            if name == a.name { " (the first)" } else { "" }
+        );
+    }
+    Ok(())
 }
 
 /// The description as `modbot check` prints it.

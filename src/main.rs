@@ -6,6 +6,7 @@
 //! - `check FILE`: load and check a system description (see `check_cmd`).
 //! - `up FILE`, `down`: run a system under the supervisor, and stop it (see `up_cmd`).
 
+mod assembly_cmd;
 mod check_cmd;
 mod rvmf_cmd;
 mod tool;
@@ -76,6 +77,12 @@ enum Command {
     /// The bus ledger: bus cycles, missed cycles, a safe stop if there was one, and every
     /// drive's CiA 402 state and mode.
     Bus,
+    /// The grid's assemblies: `modbot assembly` shows where they stand, `modbot assembly
+    /// switch NAME` swaps the control structure while the robot runs.
+    Assembly {
+        #[command(subcommand)]
+        command: Option<assembly_cmd::AssemblyCommand>,
+    },
     /// Stop the system running in the domain (from another terminal).
     Down,
     /// List the modules of the domain: address, name, pid, state, restarts, last exit,
@@ -152,6 +159,7 @@ fn main() -> ExitCode {
         ),
         Command::Top { once } => tool::top(&cli.domain, once),
         Command::Bus => tool::bus(&cli.domain),
+        Command::Assembly { command } => assembly_cmd::run(&cli.domain, command),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),
         Command::Call {

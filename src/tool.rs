@@ -8,7 +8,7 @@ use modbot_ipc_schema::{sysmethod, Args, OwnedValue, SnapshotView, Value};
 use modbot_runtime::supervisor::status::Row;
 use modbot_runtime::{CallError, CallOptions, Domain, IpcTransport, Module, ModuleBuilder, Stats};
 
-fn open(domain: &str) -> anyhow::Result<Module<()>> {
+pub fn open(domain: &str) -> anyhow::Result<Module<()>> {
     let domain = Domain::new(domain)?;
     let transport = IpcTransport::new(&domain)?;
     ModuleBuilder::new("modbot-cli", 0)

@@ -20,28 +20,48 @@
 //!  8     8    when the coordinator released it, CLOCK_MONOTONIC ns
 //! 16     2    component index (in the grid description's order)
 //! 18     2    number of sources that follow (≤ 16)
-//! 20     4    reserved, 0
+//! 20     2    generation: the assembly whose components and outputs are meant (0: a grid
+//!             without assemblies; for a component of the system, the assembly whose outputs
+//!             its inputs read)
+//! 22     2    flags: bit 0 TRACK (an assembly being prepared: its outputs are not obeyed yet,
+//!             follow the current state), bit 1 SAFE_STOP (the assembly faulted: stop the
+//!             drives and hold them); the other bits 0
 //! 24   8·16   versions: for each source component of the inputs (in the order the host was
 //!             told at load), the valid_from of the outputs to read: LET says "as valid at n"
 //! ```
+//!
+//! # Prepare notice (coordinator → the system's hosts, `grid.assembly`), 64 bytes
+//! ```text
+//!  0     2    generation of the assembly being prepared
+//!  2     2    length of its name
+//!  4    60    its name (UTF-8), zero-padded
+//! ```
+//! A host of the system's components (the bus) loads that assembly, subscribes to the outputs
+//! its inputs will read, and answers with a done notice of component [`READY`] and the
+//! generation (status 0, or 1 when it could not load it).
 //!
 //! # Done notice (host → coordinator, `grid.done`), 32 bytes
 //! ```text
 //!  0     8    tick: the release tick it answers
 //!  8     2    component index
-//! 10     2    status: 0 ok, 1 the step failed
-//! 12     4    reserved, 0
+//! 10     2    status: 0 ok, 1 the step failed, 2 the component reports an unsafe state
+//!             (a monitor's breach): its assembly faults
+//! 12     2    generation, as in the release it answers
+//! 14     2    reserved, 0
 //! 16     8    execution time of the step, ns
 //! 24     8    release latency: from the coordinator's release to the step's start, ns
 //! ```
 
 use thiserror::Error;
-use zerocopy::byteorder::little_endian::{U16, U32, U64};
+use zerocopy::byteorder::little_endian::{U16, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 /// The component index of a warm-up release: the host answers it at once with a done notice
 /// of the same index, so that the notice channels and the host's paths are warm before tick 0.
 pub const PING: u16 = u16::MAX;
+
+/// The component index of a done notice that says a host is ready for an assembly.
+pub const READY: u16 = u16::MAX - 1;
 
 /// The most source components one component's inputs come from.
 pub const MAX_SOURCES: usize = 16;
@@ -235,11 +255,18 @@ pub struct Release {
     pub released_ns: U64,
     pub component: U16,
     pub sources: U16,
-    reserved: U32,
+    pub generation: U16,
+    pub flags: U16,
     pub versions: [U64; MAX_SOURCES],
 }
 
 impl Release {
+    /// Flag: the component belongs to an assembly being prepared; nothing obeys its outputs
+    /// yet, so it follows the current state (see `Component::track`).
+    pub const TRACK: u16 = 1;
+    /// Flag: the assembly faulted; the bus stops the drives and holds them.
+    pub const SAFE_STOP: u16 = 2;
+
     pub fn new(
         tick: u64,
         released_ns: u64,
@@ -254,13 +281,25 @@ impl Release {
             released_ns: U64::new(released_ns),
             component: U16::new(component),
             sources: U16::new(versions.len() as u16),
-            reserved: U32::new(0),
+            generation: U16::new(0),
+            flags: U16::new(0),
             versions: [U64::new(0); MAX_SOURCES],
         };
         for (slot, v) in r.versions.iter_mut().zip(versions) {
             *slot = U64::new(*v);
         }
         Ok(r)
+    }
+
+    /// The same notice for assembly `generation`, with `flags`.
+    pub fn with(mut self, generation: u16, flags: u16) -> Release {
+        self.generation = U16::new(generation);
+        self.flags = U16::new(flags);
+        self
+    }
+
+    pub fn has(&self, flag: u16) -> bool {
+        self.flags.get() & flag != 0
     }
 
     /// Reads a notice in place.
@@ -283,6 +322,49 @@ impl Release {
     }
 }
 
+/// A prepare notice.
+#[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
+#[repr(C)]
+pub struct Prepare {
+    pub generation: U16,
+    len: U16,
+    name: [u8; 60],
+}
+
+impl Prepare {
+    /// The notice for assembly `name` (at most 60 bytes) as `generation`.
+    pub fn new(generation: u16, name: &str) -> Result<Prepare, GridWireError> {
+        let bytes = name.as_bytes();
+        if bytes.len() > 60 {
+            return Err(GridWireError::Length {
+                expected: 60,
+                got: bytes.len(),
+            });
+        }
+        let mut p = Prepare {
+            generation: U16::new(generation),
+            len: U16::new(bytes.len() as u16),
+            name: [0; 60],
+        };
+        p.name[..bytes.len()].copy_from_slice(bytes);
+        Ok(p)
+    }
+
+    /// Reads a notice in place.
+    pub fn parse(bytes: &[u8]) -> Result<&Prepare, GridWireError> {
+        Prepare::ref_from_bytes(bytes).map_err(|_| GridWireError::Length {
+            expected: core::mem::size_of::<Prepare>(),
+            got: bytes.len(),
+        })
+    }
+
+    /// The assembly's name, if it is UTF-8 of a valid length.
+    pub fn name(&self) -> Option<&str> {
+        let len = usize::from(self.len.get());
+        core::str::from_utf8(self.name.get(..len)?).ok()
+    }
+}
+
 /// A done notice.
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
@@ -290,7 +372,8 @@ pub struct Done {
     pub tick: U64,
     pub component: U16,
     pub status: U16,
-    reserved: U32,
+    pub generation: U16,
+    reserved: U16,
     pub exec_ns: U64,
     pub latency_ns: U64,
 }
@@ -298,16 +381,25 @@ pub struct Done {
 impl Done {
     pub const OK: u16 = 0;
     pub const FAILED: u16 = 1;
+    /// The component reports an unsafe state: its assembly faults.
+    pub const UNSAFE: u16 = 2;
 
     pub fn new(tick: u64, component: u16, status: u16, exec_ns: u64, latency_ns: u64) -> Done {
         Done {
             tick: U64::new(tick),
             component: U16::new(component),
             status: U16::new(status),
-            reserved: U32::new(0),
+            generation: U16::new(0),
+            reserved: U16::new(0),
             exec_ns: U64::new(exec_ns),
             latency_ns: U64::new(latency_ns),
         }
+    }
+
+    /// The same notice for assembly `generation`.
+    pub fn of_generation(mut self, generation: u16) -> Done {
+        self.generation = U16::new(generation);
+        self
     }
 
     /// Reads a notice in place.
@@ -373,6 +465,36 @@ mod tests {
         );
         assert_eq!(Done::parse(d.as_bytes()).unwrap().exec_ns.get(), 1200);
         assert!(Release::new(0, 0, 0, &[0; 17]).is_err());
+    }
+
+    #[test]
+    fn a_release_of_an_assembly_carries_its_generation_and_flags_at_bytes_20_to_23() {
+        let r = Release::new(7, 99, 3, &[5])
+            .unwrap()
+            .with(0x0102, Release::TRACK | Release::SAFE_STOP);
+        assert_eq!(
+            hex::encode(&r.as_bytes()[16..32]),
+            "0300010002010300".to_owned() + "0500000000000000"
+        );
+        let back = Release::parse(r.as_bytes()).unwrap();
+        assert!(back.has(Release::TRACK) && back.has(Release::SAFE_STOP));
+        assert_eq!(back.generation.get(), 0x0102);
+        let d = Done::new(7, 3, Done::UNSAFE, 0, 0).of_generation(5);
+        assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300020005000000");
+    }
+
+    #[test]
+    fn a_prepare_notice_names_the_assembly_and_refuses_a_bad_length() {
+        let p = Prepare::new(3, "ptp").unwrap();
+        assert_eq!(core::mem::size_of::<Prepare>(), 64);
+        assert_eq!(hex::encode(&p.as_bytes()[..8]), "0300030070747000");
+        let back = Prepare::parse(p.as_bytes()).unwrap();
+        assert_eq!((back.generation.get(), back.name()), (3, Some("ptp")));
+        let mut bad = *p.as_bytes().first_chunk::<64>().unwrap();
+        bad[2] = 61;
+        assert_eq!(Prepare::parse(&bad).unwrap().name(), None);
+        assert!(Prepare::parse(&bad[..63]).is_err());
+        assert!(Prepare::new(1, &"x".repeat(61)).is_err());
     }
 
     #[test]

@@ -62,6 +62,12 @@ pub struct GridArgs {
     /// A variable for the description (`vars.KEY`); repeatable.
     #[arg(long = "var", value_parser = system::parse_var)]
     pub vars: Vec<(String, String)>,
+    /// The assembly whose components this host steps (its hosts are started with it).
+    #[arg(long, requires = "generation")]
+    pub assembly: Option<String>,
+    /// The assembly's generation.
+    #[arg(long, requires = "assembly")]
+    pub generation: Option<u16>,
 }
 
 impl GridArgs {
@@ -69,7 +75,17 @@ impl GridArgs {
     pub fn load(&self) -> anyhow::Result<GridSpec> {
         let resolver = DefaultResolver::for_file(&self.system);
         let spec = system::load_with_vars(&self.system, &resolver, &self.vars)?;
-        spec.grid
-            .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))
+        let grid = spec
+            .grid
+            .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))?;
+        match (&self.assembly, self.generation) {
+            (Some(name), Some(generation)) => Ok(system::load_assembly(
+                &grid,
+                name,
+                generation,
+                &modbot_runtime::grid::Registry::builtin(),
+            )?),
+            _ => Ok(grid),
+        }
     }
 }

@@ -16,7 +16,10 @@ use modbot_runtime::grid::processes::{host_module, BUS_HOST};
 use modbot_runtime::{signals, Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
-/// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`).
+/// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`);
+/// `switches()` → one line per assembly switch: `GENERATION TICK STEP` (the largest change of
+/// commanded position at that cycle, rad); `block(axis, on)` blocks or frees an axis's link in
+/// the simulation.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-bus", version)]
 struct Cli {
@@ -40,6 +43,36 @@ fn bus_method(
     let text = bridge::lock(&l.0).ledger();
     reply.push(Value::Text(&text));
     Ok(())
+}
+
+fn switches_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let b = bridge::lock(&l.0);
+    let mut text = format!("max_step {:e}\n", b.max_step);
+    for s in &b.switches {
+        text.push_str(&format!("{} {} {:e}\n", s.generation, s.tick, s.step));
+    }
+    reply.push(Value::Text(&text));
+    Ok(())
+}
+
+fn block_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let axis = args.i64(0)?;
+    let on = if args.len() > 1 { args.bool(1)? } else { true };
+    let axis = usize::try_from(axis)
+        .map_err(|_| MethodError::Failed(format!("axis {axis} does not exist")))?;
+    bridge::lock(&l.0)
+        .block_axis(axis, on)
+        .map_err(MethodError::Failed)
 }
 
 fn main() -> anyhow::Result<()> {
@@ -77,6 +110,8 @@ fn main() -> anyhow::Result<()> {
     )
     .mode(cli.module.receive_mode())
     .method("bus", bus_method)
+    .method("switches", switches_method)
+    .method("block", block_method)
     .open(transport, Ledger(shared.clone()))?;
     signals::install_termination_handler()?;
     let now = || MonotonicClock.now_ns();
@@ -87,6 +122,8 @@ fn main() -> anyhow::Result<()> {
     let mut last_service = std::time::Instant::now();
     while !signals::termination_requested() {
         if host.serve(&now)? == 0 {
+            // Idle: a bounded piece of an assembly's preparation, then a short sleep.
+            host.prepare_step(&node, Registry::builtin)?;
             std::thread::sleep(poll);
         }
         bridge::lock(&shared).watch(now());

@@ -5,19 +5,26 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use modbot_ipc_schema::grid::Prepare;
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
 use modbot_runtime::clock::{Clock, MonotonicClock};
-use modbot_runtime::grid::coordinator::Coordinator;
+use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::coordinator::{Coordinator, SwitchState};
 use modbot_runtime::grid::ledger;
-use modbot_runtime::grid::processes::host_module;
 use modbot_runtime::grid::tick::TimerTicks;
+use modbot_runtime::grid::GridSpec;
+use modbot_runtime::system;
 use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply};
+use zerocopy::IntoBytes;
 
 /// The coordinator: the only process of a system that reads the clock. The supervisor starts it
 /// when the system description has a grid.
 ///
-/// Methods: `ledger()` → the overrun ledger (see `modbot top`).
+/// Methods: `ledger()` → the overrun ledger (see `modbot top`); with assemblies,
+/// `switch(name)` → the generation the assembly gets (prepared while the current one runs,
+/// then switched at an announced tick), and `assembly()` → where the assemblies stand (see
+/// `modbot assembly`).
 #[derive(Debug, Parser)]
 #[command(name = "modbot-coordinator", version)]
 struct Cli {
@@ -33,10 +40,58 @@ struct Cli {
     trace: Option<PathBuf>,
 }
 
-/// The ledger as last encoded, for the `ledger` method.
+/// The ledger as last encoded, for the `ledger` method, and the assembly switches.
 #[derive(Default)]
 struct Shared {
     ledger: Vec<u8>,
+    /// Whether the grid runs assemblies.
+    assemblies: bool,
+    /// A switch asked for and not begun yet: (assembly, generation).
+    requested: Option<(String, u16)>,
+    /// A switch is under way (asked for, or being prepared).
+    busy: bool,
+    /// The generation the next switch gets.
+    next_generation: u16,
+    /// `assembly()`'s answer, kept current by the main loop.
+    status: String,
+}
+
+fn switch_method(
+    s: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let name = args.text(0)?;
+    if !s.assemblies {
+        return Err(MethodError::Failed(
+            "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }".into(),
+        ));
+    }
+    modbot_runtime::system::assembly::check_assembly_name(name).map_err(MethodError::Failed)?;
+    if s.busy {
+        return Err(MethodError::Busy(
+            "an assembly is being prepared; switch again when it is done".into(),
+        ));
+    }
+    let generation = s.next_generation;
+    s.next_generation = s.next_generation.checked_add(1).ok_or_else(|| {
+        MethodError::Failed("this run has used every assembly generation (65535)".into())
+    })?;
+    s.requested = Some((name.to_owned(), generation));
+    s.busy = true;
+    reply.push(Value::I64(i64::from(generation)));
+    Ok(())
+}
+
+fn assembly_method(
+    s: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    reply.push(Value::Text(&s.status));
+    Ok(())
 }
 
 fn ledger_method(
@@ -54,8 +109,8 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let grid = cli.grid.load()?;
     let period_ns = grid.base_period.as_nanos() as u64;
-    let grid_hosts = grid.hosts();
-    let hosts: Vec<String> = grid_hosts.iter().map(|h| host_module(h)).collect();
+    let hosts: Vec<String> = grid.hosts().iter().map(|h| grid.host_module(h)).collect();
+    let assemblies = grid.assembly.is_some();
     let transport = cli.module.transport()?;
     let node = transport.node("grid.coordinator")?;
     let trace = match &cli.trace {
@@ -72,7 +127,22 @@ fn main() -> anyhow::Result<()> {
     )
     .mode(cli.module.receive_mode())
     .method("ledger", ledger_method)
-    .open(transport, Shared::default())?;
+    .method("switch", switch_method)
+    .method("assembly", assembly_method)
+    .open(
+        transport,
+        Shared {
+            assemblies,
+            next_generation: coord.spec().generation().saturating_add(1),
+            ..Shared::default()
+        },
+    )?;
+    let prepare = if assemblies {
+        Some(modbot_runtime::grid::wire::prepare_publisher(&node)?)
+    } else {
+        None
+    };
+    let mut switching = Switching::default();
     signals::install_termination_handler()?;
     wait_for_hosts(&mut module, &hosts)?;
     let silent = coord.warm_up(20, Duration::from_secs(10))?;
@@ -85,8 +155,9 @@ fn main() -> anyhow::Result<()> {
         hosts.len(),
         period_ns / 1000
     );
-    let mut host_pids = vec![0u32; grid_hosts.len()];
-    notice_restarts(&mut module, &grid_hosts, &mut host_pids, &mut coord);
+    let mut host_pids = std::collections::HashMap::new();
+    notice_restarts(&mut module, &mut host_pids, &mut coord);
+    switching.publish(&coord, &mut module);
     let mut ticks = TimerTicks::new(period_ns)?;
     let mut last_serve = Instant::now();
     let mut last_ledger = Instant::now();
@@ -95,6 +166,9 @@ fn main() -> anyhow::Result<()> {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => break,
             Err(e) => return Err(e.into()),
+        }
+        if let Err(e) = switching.step(&mut coord, &mut module, &node, prepare.as_ref()) {
+            tracing::error!("assembly switch: {e}");
         }
         if last_serve.elapsed() >= Duration::from_millis(5) {
             last_serve = Instant::now();
@@ -107,7 +181,7 @@ fn main() -> anyhow::Result<()> {
         }
         if last_ledger.elapsed() >= Duration::from_millis(200) {
             last_ledger = Instant::now();
-            notice_restarts(&mut module, &grid_hosts, &mut host_pids, &mut coord);
+            notice_restarts(&mut module, &mut host_pids, &mut coord);
             publish_ledger(&coord, &mut module, false);
         }
     }
@@ -151,12 +225,13 @@ fn publish_ledger(
 /// book, refreshed by the module's housekeeping, has their pids).
 fn notice_restarts(
     module: &mut Module<Shared>,
-    hosts: &[String],
-    pids: &mut [u32],
+    pids: &mut std::collections::HashMap<String, u32>,
     coord: &mut Coordinator<std::io::BufWriter<std::fs::File>>,
 ) {
-    for (h, pid) in hosts.iter().zip(pids.iter_mut()) {
-        let name = host_module(h);
+    let hosts = coord.spec().hosts();
+    for h in &hosts {
+        let name = coord.spec().host_module(h);
+        let pid = pids.entry(name.clone()).or_insert(0);
         let now = module
             .ctx()
             .phone_book()
@@ -166,6 +241,7 @@ fn notice_restarts(
         if now != 0 && *pid != 0 && now != *pid {
             coord.host_restarted(h);
         }
+        let pid = pids.entry(name).or_insert(0);
         if now != 0 {
             *pid = now;
         }
@@ -189,5 +265,229 @@ fn wait_for_hosts(module: &mut Module<Shared>, hosts: &[String]) -> anyhow::Resu
         }
         module.housekeeping();
         std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Where a switch asked for stands, between ticks.
+#[derive(Default)]
+enum Phase {
+    #[default]
+    Idle,
+    /// The assembly file is being loaded on a thread.
+    Loading(std::sync::mpsc::Receiver<Result<GridSpec, String>>),
+    /// Its hosts start, the system's hosts load it, the links open.
+    Preparing { last_ping: Instant },
+    /// Its components track; it takes over at the tick.
+    Announced(u64),
+}
+
+/// The switch under way, driven one bounded step after each tick.
+#[derive(Default)]
+struct Switching {
+    phase: Phase,
+    /// (assembly, generation, when asked).
+    job: Option<(String, u16, Instant)>,
+    /// The last outcome: generation, assembly, and the announced and actual ticks or why not.
+    outcomes: Vec<(u16, String, Result<(u64, u64), String>)>,
+}
+
+/// How long a new assembly may take to be prepared.
+const PREPARE_TIMEOUT: Duration = Duration::from_secs(20);
+/// Ticks between the announcement and the earliest switch, beyond two longest periods.
+const SWITCH_LEAD: u64 = 5;
+
+impl Switching {
+    fn step(
+        &mut self,
+        coord: &mut Coordinator<std::io::BufWriter<std::fs::File>>,
+        module: &mut Module<Shared>,
+        node: &iceoryx2::prelude::Node<iceoryx2::prelude::ipc::Service>,
+        prepare: Option<&modbot_runtime::grid::wire::Pub>,
+    ) -> anyhow::Result<()> {
+        for name in coord.take_retired() {
+            retire(module, &name);
+        }
+        if let Some((name, generation)) = module.state_mut().requested.take() {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let system = coord.spec().clone();
+            let loading = name.clone();
+            std::thread::spawn(move || {
+                let loaded =
+                    system::load_assembly(&system, &loading, generation, &Registry::builtin())
+                        .map_err(|e| e.to_string());
+                let _ = tx.send(loaded);
+            });
+            tracing::info!("switch to assembly {name} (generation {generation}) asked for");
+            self.job = Some((name, generation, Instant::now()));
+            self.phase = Phase::Loading(rx);
+            self.publish(coord, module);
+        }
+        let Some((name, generation, asked)) = self.job.clone() else {
+            return Ok(());
+        };
+        if let Some(why) = coord.switch_failure().map(str::to_owned) {
+            return self.fail(coord, module, why);
+        }
+        match &mut self.phase {
+            Phase::Idle => {}
+            Phase::Loading(rx) => match rx.try_recv() {
+                Ok(Ok(spec)) => {
+                    let hosts = spec.assembly_hosts();
+                    if let Err(why) = coord.begin_switch(spec) {
+                        return self.fail(coord, module, why);
+                    }
+                    if let Some(publisher) = prepare {
+                        let notice = Prepare::new(generation, &name)?;
+                        modbot_runtime::grid::wire::send(
+                            publisher,
+                            notice.as_bytes().len(),
+                            |b| b.copy_from_slice(notice.as_bytes()),
+                        )?;
+                    }
+                    for h in &hosts {
+                        let args = [
+                            Value::Text(h),
+                            Value::Text(&name),
+                            Value::I64(i64::from(generation)),
+                        ];
+                        if let Err(e) = module.ctx().call("supervisor", "spawn_host", &args) {
+                            return self.fail(
+                                coord,
+                                module,
+                                format!("the supervisor cannot start host {h}: {e}"),
+                            );
+                        }
+                    }
+                    self.phase = Phase::Preparing {
+                        last_ping: Instant::now(),
+                    };
+                    self.publish(coord, module);
+                }
+                Ok(Err(why)) => return self.fail(coord, module, why),
+                Err(std::sync::mpsc::TryRecvError::Empty) => {}
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    return self.fail(coord, module, "the assembly could not be loaded".into())
+                }
+            },
+            Phase::Preparing { last_ping } => {
+                coord.prepare_step(node)?;
+                if let SwitchState::Preparing {
+                    opened,
+                    hosts,
+                    ready,
+                    system_hosts,
+                    answered,
+                } = coord.switch_state()
+                {
+                    if opened == hosts && ready >= system_hosts && answered == hosts {
+                        if let Some(at) = coord.announce(SWITCH_LEAD) {
+                            tracing::info!(
+                                "assembly {name} (generation {generation}) prepared in {} ms: it takes over at tick {at}",
+                                asked.elapsed().as_millis()
+                            );
+                            self.phase = Phase::Announced(at);
+                            self.publish(coord, module);
+                        }
+                    } else if last_ping.elapsed() >= Duration::from_millis(10) && opened == hosts {
+                        *last_ping = Instant::now();
+                        coord.ping_incoming();
+                    }
+                    if asked.elapsed() > PREPARE_TIMEOUT {
+                        let why = format!(
+                            "not prepared within {} s: {opened}/{hosts} host links open, {answered}/{hosts} hosts answering, {ready}/{system_hosts} system hosts ready",
+                            PREPARE_TIMEOUT.as_secs()
+                        );
+                        return self.fail(coord, module, why);
+                    }
+                }
+            }
+            Phase::Announced(at) => {
+                let at = *at;
+                if let Some(&(_, _, announced, took)) =
+                    coord.switches().iter().find(|s| s.0 == generation)
+                {
+                    self.outcomes
+                        .push((generation, name, Ok((announced, took))));
+                    self.finish(coord, module);
+                } else if coord.ticks() > at + 1 {
+                    let why = format!("the switch announced for tick {at} did not happen");
+                    return self.fail(coord, module, why);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn fail(
+        &mut self,
+        coord: &mut Coordinator<std::io::BufWriter<std::fs::File>>,
+        module: &mut Module<Shared>,
+        why: String,
+    ) -> anyhow::Result<()> {
+        let (name, generation) = self
+            .job
+            .as_ref()
+            .map_or((String::new(), 0), |j| (j.0.clone(), j.1));
+        tracing::error!(
+            "assembly {name} (generation {generation}) not switched to: {why}; the running one stays"
+        );
+        for host in coord.abort_switch() {
+            retire(module, &host);
+        }
+        self.outcomes.push((generation, name, Err(why)));
+        self.finish(coord, module);
+        Ok(())
+    }
+
+    fn finish(
+        &mut self,
+        coord: &Coordinator<std::io::BufWriter<std::fs::File>>,
+        module: &mut Module<Shared>,
+    ) {
+        self.job = None;
+        self.phase = Phase::Idle;
+        if self.outcomes.len() > 64 {
+            let _ = self.outcomes.remove(0);
+        }
+        module.state_mut().busy = false;
+        self.publish(coord, module);
+    }
+
+    /// Writes `assembly()`'s answer: `current NAME GENERATION`, `state ...`, then one line
+    /// per outcome: `switched GEN NAME ANNOUNCED TOOK` or `failed GEN NAME REASON`.
+    fn publish(
+        &self,
+        coord: &Coordinator<std::io::BufWriter<std::fs::File>>,
+        module: &mut Module<Shared>,
+    ) {
+        let spec = coord.spec();
+        let mut text = match &spec.assembly {
+            Some(a) => format!("current {} {}\n", a.name, a.generation),
+            None => "current none 0\n".to_owned(),
+        };
+        text.push_str(&match (&self.job, &self.phase) {
+            (Some((name, g, _)), Phase::Announced(at)) => {
+                format!("state announced {g} {name} {at}\n")
+            }
+            (Some((name, g, _)), _) => format!("state preparing {g} {name}\n"),
+            _ => "state idle\n".to_owned(),
+        });
+        for (g, name, outcome) in &self.outcomes {
+            text.push_str(&match outcome {
+                Ok((announced, took)) => format!("switched {g} {name} {announced} {took}\n"),
+                Err(why) => format!("failed {g} {name} {why}\n"),
+            });
+        }
+        module.state_mut().status = text;
+    }
+}
+
+/// Asks the supervisor to stop the host module `name` for good.
+fn retire(module: &mut Module<Shared>, name: &str) {
+    if let Err(e) = module
+        .ctx()
+        .call("supervisor", "retire", &[Value::Text(name)])
+    {
+        tracing::warn!("cannot ask the supervisor to stop {name}: {e}");
     }
 }

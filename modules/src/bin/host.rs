@@ -7,7 +7,6 @@ use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::host::Host;
-use modbot_runtime::grid::processes::host_module;
 use modbot_runtime::{signals, ModuleBuilder};
 
 /// Steps the components the system description puts on `--host`, whenever the coordinator
@@ -35,7 +34,7 @@ fn main() -> anyhow::Result<()> {
         cli.module
             .name
             .as_deref()
-            .unwrap_or(&host_module(&cli.host)),
+            .unwrap_or(&grid.host_module(&cli.host)),
         cli.module.addr.unwrap_or(200),
     )
     .mode(cli.module.receive_mode())
@@ -44,6 +43,7 @@ fn main() -> anyhow::Result<()> {
     let now = || MonotonicClock.now_ns();
     while !signals::termination_requested() {
         host.wait_and_serve(Duration::from_millis(5), &now)?;
+        host.prepare_step(&node, Registry::builtin)?;
         while module.poll_once()? {}
         module.housekeeping();
     }

@@ -65,6 +65,13 @@ pub trait Backend: Send {
     /// re-enable it by repeating a stale controlword.
     fn quick_stop_all(&mut self);
 
+    /// Blocks the link of `axis` (a collision, a jammed gear), or frees it: for tests of the
+    /// monitoring. Hardware cannot do this.
+    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), String> {
+        let _ = (axis, blocked);
+        Err(format!("the {} backend cannot block an axis", self.name()))
+    }
+
     /// The backend's name for logs and `modbot top`.
     fn name(&self) -> &'static str;
 }

@@ -4,7 +4,8 @@
 //! Each release of the grid's `bus` component is one bus cycle: the commands of the tick go to
 //! the drives and their actuals come back. The bridge process checks between releases: when
 //! no release came for [`LOST_AFTER`] base periods the coordinator is lost, and the bridge
-//! brings every drive to a safe stop (quick stop) and keeps cycling the bus on its own clock,
+//! brings every drive in operation enabled to a safe stop (quick stop; a silence before any
+//! drive was enabled stops nothing) and keeps cycling the bus on its own clock,
 //! so the drives decelerate and report it. The drives stay latched in quick stop until they are
 //! sent disable voltage (CiA 402 transition 12) and enabled again; the ledger records when
 //! the stop happened.
@@ -23,7 +24,24 @@ pub struct SafeStop {
     pub reason: String,
     /// The bus cycle at which quick stop was commanded.
     pub at_cycle: u64,
+    /// When every drive first reported quick stop active (or a state without torque): the
+    /// cycle, and the time since the last tick the grid served, in ns.
+    pub all_stopped: Option<(u64, u64)>,
 }
+
+/// An assembly taking over the bus.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Switch {
+    /// The assembly's generation.
+    pub generation: u16,
+    /// The tick of the first cycle it commanded.
+    pub tick: u64,
+    /// The largest change of commanded position on any axis from the cycle before, rad.
+    pub step: f64,
+}
+
+/// Switches the bridge remembers.
+const SWITCHES_KEPT: usize = 1024;
 
 /// The drives and their bookkeeping.
 pub struct Bridge {
@@ -40,6 +58,15 @@ pub struct Bridge {
     /// When the grid last served the bus.
     last_release_ns: u64,
     pub safe_stop: Option<SafeStop>,
+    /// The assembly generation whose outputs command the drives (0: none yet).
+    pub generation: u16,
+    /// The assembly switches seen, oldest first (at most [`SWITCHES_KEPT`]).
+    pub switches: Vec<Switch>,
+    /// The largest change of commanded position between two cycles of one assembly, rad, on
+    /// an axis in operation enabled: one tick's motion, to compare a switch's with.
+    pub max_step: f64,
+    /// The position commanded at the last cycle, per axis.
+    last_target: Vec<f64>,
 }
 
 impl Bridge {
@@ -55,6 +82,10 @@ impl Bridge {
             last_cycle_ns: 0,
             last_release_ns: 0,
             safe_stop: None,
+            generation: 0,
+            switches: Vec::new(),
+            max_step: 0.0,
+            last_target: vec![0.0; n],
         }
     }
 
@@ -64,15 +95,65 @@ impl Bridge {
 
     /// One cycle served by the grid at `now_ns`: `commands` go out, the actuals come back.
     pub fn serve(&mut self, now_ns: u64, commands: impl Fn(usize) -> AxisCommand) -> &[AxisActual] {
+        self.serve_release(now_ns, &Served::default(), commands)
+    }
+
+    /// One cycle of the grid's release `served`: a release of a new assembly generation is a
+    /// switch (recorded; it ends a safe stop that release does not ask for), and a release
+    /// that asks for a safe stop brings one about.
+    pub fn serve_release(
+        &mut self,
+        now_ns: u64,
+        served: &Served,
+        commands: impl Fn(usize) -> AxisCommand,
+    ) -> &[AxisActual] {
         if self.last_release_ns != 0 {
             let gap = now_ns.saturating_sub(self.last_release_ns);
             self.missed += ((gap + self.period_ns / 2) / self.period_ns).saturating_sub(1);
         }
         self.last_release_ns = now_ns;
+        let switched = served.generation != self.generation;
+        if switched && !served.safe_stop && self.safe_stop.is_some() {
+            tracing::info!(
+                "assembly generation {} takes over: the safe stop ends",
+                served.generation
+            );
+            self.safe_stop = None;
+        }
+        if served.safe_stop && self.safe_stop.is_none() {
+            self.stop("the assembly faulted".into());
+        }
         if self.safe_stop.is_none() {
             for (i, c) in self.commands.iter_mut().enumerate() {
                 *c = commands(i);
             }
+            let mut step = 0.0f64;
+            for ((c, last), a) in self
+                .commands
+                .iter()
+                .zip(&self.last_target)
+                .zip(&self.actuals)
+            {
+                if a.state == DriveState::OperationEnabled && c.target_position.is_finite() {
+                    step = step.max((c.target_position - last).abs());
+                }
+            }
+            if switched {
+                if self.switches.len() == SWITCHES_KEPT {
+                    self.switches.remove(0);
+                }
+                self.switches.push(Switch {
+                    generation: served.generation,
+                    tick: served.tick,
+                    step,
+                });
+            } else {
+                self.max_step = self.max_step.max(step);
+            }
+        }
+        self.generation = served.generation;
+        for (last, c) in self.last_target.iter_mut().zip(&self.commands) {
+            *last = c.target_position;
         }
         self.cycle(now_ns);
         &self.actuals
@@ -83,6 +164,30 @@ impl Bridge {
         self.backend.cycle(dt, &self.commands, &mut self.actuals);
         self.cycles += 1;
         self.last_cycle_ns = now_ns;
+        if let Some(stop) = self.safe_stop.as_mut() {
+            let stopped = self.actuals.iter().all(|a| {
+                !matches!(
+                    a.state,
+                    DriveState::OperationEnabled | DriveState::FaultReactionActive
+                )
+            });
+            if stop.all_stopped.is_none() && stopped {
+                let since = now_ns.saturating_sub(self.last_release_ns);
+                stop.all_stopped = Some((self.cycles, since));
+            }
+        }
+    }
+
+    /// Blocks (or frees) the link of `axis` in the simulation: a collision or a jammed gear.
+    pub fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), String> {
+        if axis >= self.axes() {
+            return Err(format!(
+                "axis {axis} does not exist: the bus has {} axes (0 to {})",
+                self.axes(),
+                self.axes() - 1
+            ));
+        }
+        self.backend.block_axis(axis, blocked)
     }
 
     /// Called between releases: after [`LOST_AFTER`] periods without one, stops the drives and
@@ -96,6 +201,15 @@ impl Bridge {
             return false;
         }
         if self.safe_stop.is_none() {
+            // A drive that produces no torque needs no stop: before the grid has enabled any,
+            // a silent moment (a slow start) must not latch the drives in quick stop.
+            if !self
+                .actuals
+                .iter()
+                .any(|a| a.state == DriveState::OperationEnabled)
+            {
+                return false;
+            }
             self.stop(format!(
                 "coordinator lost: no tick for {} base periods",
                 silent / self.period_ns
@@ -115,6 +229,7 @@ impl Bridge {
         self.safe_stop = Some(SafeStop {
             reason,
             at_cycle: self.cycles,
+            all_stopped: None,
         });
     }
 
@@ -127,10 +242,31 @@ impl Bridge {
             self.cycles,
             self.missed,
             match &self.safe_stop {
-                Some(s) => format!("SAFE STOP at cycle {}: {}", s.at_cycle, s.reason),
+                Some(s) => format!(
+                    "SAFE STOP at cycle {}: {}{}",
+                    s.at_cycle,
+                    s.reason,
+                    match s.all_stopped {
+                        Some((cycle, ns)) => format!(
+                            "; every drive stopped at cycle {cycle}, {:.2} base periods after the last tick",
+                            ns as f64 / self.period_ns as f64
+                        ),
+                        None => String::new(),
+                    }
+                ),
                 None => "running".to_owned(),
             }
         );
+        if let Some(last) = self.switches.last() {
+            out.push_str(&format!(
+                "assembly generation {}  switches {}  last at tick {}  largest step: at a switch {:.6} rad, within an assembly {:.6} rad\n",
+                self.generation,
+                self.switches.len(),
+                last.tick,
+                self.switches.iter().fold(0.0f64, |m, s| m.max(s.step)),
+                self.max_step
+            ));
+        }
         out.push_str("AXIS  STATE                    MODE  STATUSWORD  POSITION     VELOCITY\n");
         for (i, a) in self.actuals.iter().enumerate() {
             out.push_str(&format!(
@@ -146,10 +282,39 @@ impl Bridge {
         out
     }
 
+    /// What the drives reported at the last cycle.
+    pub fn actuals(&self) -> &[AxisActual] {
+        &self.actuals
+    }
+
+    /// Where `axis` was last commanded to be: the target position while it is in operation
+    /// enabled in CSP (CiA 402's position demand value), else its actual position.
+    pub fn demand_position(&self, axis: usize) -> f64 {
+        let (Some(a), Some(c)) = (self.actuals.get(axis), self.commands.get(axis)) else {
+            return 0.0;
+        };
+        if a.state == DriveState::OperationEnabled && a.mode == 8 && c.target_position.is_finite() {
+            c.target_position
+        } else {
+            a.motor_position
+        }
+    }
+
     /// Every drive's state.
     pub fn states(&self) -> Vec<DriveState> {
         self.actuals.iter().map(|a| a.state).collect()
     }
+}
+
+/// What the grid's release of the bus says besides its inputs.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Served {
+    /// The release tick.
+    pub tick: u64,
+    /// The assembly generation whose outputs the inputs are.
+    pub generation: u16,
+    /// The assembly faulted: stop the drives.
+    pub safe_stop: bool,
 }
 
 /// The bridge of this process, when it is the bus bridge process: the grid's `bus` component
@@ -211,6 +376,91 @@ mod tests {
         }
         assert_eq!(stopped_at, Some(LOST_AFTER), "{}", sut.ledger());
         assert!(sut.ledger().contains("SAFE STOP"), "{}", sut.ledger());
+    }
+
+    #[test]
+    fn a_release_asking_for_safe_stop_stops_the_drives_until_a_new_assembly_takes_over() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(2, PlantParams::default())), MS);
+        let mut t = 1_000 * MS;
+        enabled(&mut sut, &mut t);
+        let faulted = Served {
+            tick: 10,
+            generation: 0,
+            safe_stop: true,
+        };
+        t += MS;
+        sut.serve_release(t, &faulted, |_| AxisCommand::default());
+        t += MS;
+        sut.serve_release(t, &faulted, |_| AxisCommand::default());
+        assert!(
+            sut.states()
+                .iter()
+                .all(|s| *s == DriveState::QuickStopActive),
+            "{}",
+            sut.ledger()
+        );
+        assert!(sut.ledger().contains("the assembly faulted"));
+        let recovery = Served {
+            tick: 12,
+            generation: 2,
+            safe_stop: false,
+        };
+        for cw in [0x00u16, 0x06, 0x07, 0x0f, 0x0f] {
+            t += MS;
+            sut.serve_release(t, &recovery, |_| AxisCommand {
+                controlword: cw,
+                mode: 8,
+                ..Default::default()
+            });
+        }
+        assert!(sut.safe_stop.is_none(), "{}", sut.ledger());
+        assert!(
+            sut.states()
+                .iter()
+                .all(|s| *s == DriveState::OperationEnabled),
+            "{}",
+            sut.ledger()
+        );
+        assert_eq!(sut.switches.len(), 1);
+        assert_eq!((sut.switches[0].generation, sut.switches[0].tick), (2, 12));
+    }
+
+    #[test]
+    fn a_switch_records_the_step_of_the_commanded_position() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(1, PlantParams::default())), MS);
+        let mut t = 1_000 * MS;
+        enabled(&mut sut, &mut t);
+        let at = |generation, tick| Served {
+            tick,
+            generation,
+            safe_stop: false,
+        };
+        let csp = |q: f64| {
+            move |_| AxisCommand {
+                controlword: 0x0f,
+                mode: 8,
+                target_position: q,
+                ..Default::default()
+            }
+        };
+        t += MS;
+        sut.serve_release(t, &at(0, 1), csp(0.0));
+        t += MS;
+        sut.serve_release(t, &at(0, 2), csp(0.001));
+        t += MS;
+        sut.serve_release(t, &at(3, 3), csp(0.0015));
+        assert!((sut.max_step - 0.001).abs() < 1e-12, "{}", sut.max_step);
+        assert_eq!(sut.switches.len(), 1);
+        assert!((sut.switches[0].step - 0.0005).abs() < 1e-12);
+        assert!((sut.demand_position(0) - 0.0015).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_silent_grid_before_any_drive_is_enabled_stops_nothing() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(2, PlantParams::default())), MS);
+        sut.serve(MS, |_| AxisCommand::default());
+        assert!(!sut.watch(20 * MS));
+        assert!(sut.safe_stop.is_none());
     }
 
     #[test]

@@ -3,19 +3,24 @@
 //! - `bus`: one bus cycle per release (give it period 1: the bus is served every tick).
 //!   Inputs per axis (all `f64[axes]`): `controlword`, `mode` (8 CSP, 9 CSV, 10 CST),
 //!   `target_position`, `target_velocity`, `target_torque`. Outputs per axis: `statusword`,
-//!   `motor_position`, `motor_velocity`, `motor_torque`, `link_position`. Params: `axes`
+//!   `motor_position`, `motor_velocity`, `motor_torque`, `link_position`, and
+//!   `demand_position`: the position the drive was last commanded (CiA 402's position demand
+//!   value, 0x6062) while in operation enabled in CSP, else its actual position — where a
+//!   generator taking over should start for the command not to jump. Params: `axes`
 //!   (default 6), `backend` (`sim`). In the bus bridge process (`modbot-bus`) it drives that
 //!   process's [`Bridge`], which has the watchdog; elsewhere (the reference run, tests) a
 //!   private simulation.
 //! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled
 //!   in a mode (param `mode`, default 8, CSP), resets faults once (a rising edge of bit 7) when
-//!   param `reset_faults` is true, and never re-enables a drive held in quick stop. Input
-//!   `statusword: f64[axes]`, outputs `controlword`, `mode`.
+//!   param `reset_faults` is true, and never re-enables a drive held in quick stop unless
+//!   `reset_faults` is true: then it sends *disable voltage* once (CiA 402 transition 12) and
+//!   enables it again — the recovery after a safe stop. Input `statusword: f64[axes]`, outputs
+//!   `controlword`, `mode`.
 
 use std::sync::{Arc, Mutex};
 
 use super::backend::AxisCommand;
-use super::bridge::{self, Bridge};
+use super::bridge::{self, Bridge, Served};
 use super::cia402::DriveState;
 use super::plant::PlantParams;
 use super::sim::SimBackend;
@@ -24,6 +29,7 @@ use crate::grid::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
     PortValue, Registry, PERIOD_S,
 };
+use modbot_ipc_schema::grid::Release;
 
 /// Registers `bus` and `drive_enable`.
 pub fn register(registry: &mut Registry) {
@@ -57,12 +63,13 @@ const BUS_IN: [&str; 5] = [
     "target_velocity",
     "target_torque",
 ];
-const BUS_OUT: [&str; 5] = [
+const BUS_OUT: [&str; 6] = [
     "statusword",
     "motor_position",
     "motor_velocity",
     "motor_torque",
     "link_position",
+    "demand_position",
 ];
 
 fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
@@ -118,26 +125,34 @@ fn slice(v: &PortValue) -> &[f64] {
 }
 
 impl Component for Bus {
-    fn step(&mut self, _tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let at = |port: usize, i: usize| slice(&inputs[port]).get(i).copied().unwrap_or(0.0);
         let now = MonotonicClock.now_ns();
+        let (generation, flags) = crate::grid::host::serving();
+        let served = Served {
+            tick,
+            generation,
+            safe_stop: flags & Release::SAFE_STOP != 0,
+        };
         let mut b = bridge::lock(&self.bridge);
-        let actuals = b.serve(now, |i| AxisCommand {
+        b.serve_release(now, &served, |i| AxisCommand {
             controlword: at(0, i).clamp(0.0, 65535.0) as u16,
             mode: at(1, i).clamp(-128.0, 127.0) as i8,
             target_position: at(2, i),
             target_velocity: at(3, i),
             target_torque: at(4, i),
         });
+        let actuals = b.actuals();
         for (port, out) in outputs.iter_mut().enumerate() {
             if let PortValue::F64s(values) = out {
-                for (v, a) in values.iter_mut().zip(actuals) {
+                for (i, (v, a)) in values.iter_mut().zip(actuals.iter()).enumerate() {
                     *v = match port {
                         0 => f64::from(a.statusword),
                         1 => a.motor_position,
                         2 => a.motor_velocity,
                         3 => a.motor_torque,
-                        _ => a.link_position,
+                        4 => a.link_position,
+                        _ => b.demand_position(i),
                     };
                 }
             }
@@ -201,6 +216,8 @@ impl Component for Enable {
                 DriveState::SwitchOnDisabled => 0x06,
                 DriveState::ReadyToSwitchOn => 0x07,
                 DriveState::SwitchedOn | DriveState::OperationEnabled => 0x0f,
+                // The recovery after a safe stop: disable voltage (transition 12), then enable.
+                DriveState::QuickStopActive if self.reset => 0x00,
                 // Held: a lost master must not re-enable it.
                 DriveState::QuickStopActive => 0x02,
                 DriveState::Fault if self.reset && !self.reset_sent[i] => {

@@ -413,6 +413,14 @@ impl Backend for SimBackend {
         }
     }
 
+    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), String> {
+        if axis >= self.drives.len() {
+            return Err(format!("axis {axis} does not exist"));
+        }
+        SimBackend::block_axis(self, axis, blocked);
+        Ok(())
+    }
+
     fn name(&self) -> &'static str {
         "sim"
     }

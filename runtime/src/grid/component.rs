@@ -326,6 +326,20 @@ pub trait Component: Send {
     /// their lengths). Runs in the real-time path: must not allocate, block or read a clock.
     fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]);
 
+    /// Released at `tick` while its assembly is being prepared: nothing obeys the outputs yet,
+    /// and the component should follow the current state so that it takes over without a
+    /// jump (bumpless: a trajectory generator rests where the robot is commanded to be). The
+    /// same rules as [`Component::step`]; by default it is a step.
+    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.step(tick, inputs, outputs);
+    }
+
+    /// Whether the component reports an unsafe state after its last step (a monitor's
+    /// breach): the coordinator then faults its assembly and the bus stops the drives.
+    fn unsafe_state(&self) -> bool {
+        false
+    }
+
     /// Called once when the instance is no longer stepped.
     fn terminate(&mut self) {}
 }

@@ -19,7 +19,7 @@ use std::io::Write;
 
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
-use modbot_ipc_schema::grid::{Done, Release, MAX_SOURCES};
+use modbot_ipc_schema::grid::{Done, Release, MAX_SOURCES, PING, READY};
 use zerocopy::IntoBytes;
 
 use super::ledger::{self, ComponentRow, GridRow};
@@ -29,6 +29,11 @@ use super::tick::TickSource;
 use super::wire::{self, Pub, Sub};
 use crate::stats::Histogram;
 use crate::transport::TransportError;
+
+/// Deadlines in a row a component with the `fault` policy may miss before its assembly faults:
+/// one late wake-up on a shared machine is counted, a dead or stuck host faults within this
+/// many periods.
+pub const FAULT_AFTER: u64 = 3;
 
 /// One component, as the coordinator tracks it.
 struct Comp {
@@ -44,6 +49,8 @@ struct Comp {
     valid_from: u64,
     releases: u64,
     overruns: u64,
+    /// Overruns in a row, up to the last on-time release.
+    in_a_row: u64,
     late: u64,
     failed: u64,
     exec_min: u64,
@@ -52,10 +59,87 @@ struct Comp {
 }
 
 struct HostLink {
+    /// The host's name and the generation of its components (0: the system's own).
+    name: String,
+    generation: u16,
     release: Pub,
     wake: Notifier<ipc::Service>,
     /// Released something this tick: wake it.
     woken: bool,
+}
+
+impl Comp {
+    /// An on-time completion whose time has come becomes the valid version.
+    fn take_ready(&mut self, n: u64) {
+        if self.ready.is_some_and(|from| from <= n) {
+            self.valid_from = self.ready.take().unwrap_or(self.valid_from);
+        }
+    }
+}
+
+impl Incoming {
+    fn fail(&mut self, why: String) {
+        if self.failure.is_none() {
+            tracing::error!("the assembly being prepared fails: {why}");
+            self.failure = Some(why);
+        }
+    }
+}
+
+/// The coordinator's link to `host` of `spec`.
+fn link(
+    node: &Node<ipc::Service>,
+    spec: &GridSpec,
+    host: &str,
+) -> Result<HostLink, TransportError> {
+    Ok(HostLink {
+        name: host.to_owned(),
+        generation: spec.host_generation(host),
+        release: wire::release_publisher(node, &spec.release_service(host))?,
+        wake: wire::wake_notifier(node, &spec.wake_service(host))?,
+        woken: false,
+    })
+}
+
+/// The components of `spec`, with their hosts as positions in `host_names` (unknown: 0).
+fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
+    spec.components
+        .iter()
+        .enumerate()
+        .map(|(c, cs)| Comp {
+            period: cs.period.max(1),
+            host: host_names.iter().position(|h| *h == cs.host).unwrap_or(0),
+            fault_policy: cs.policy == OverrunPolicy::Fault,
+            sources: spec.sources(c),
+            pending: None,
+            ready: None,
+            valid_from: 0,
+            releases: 0,
+            overruns: 0,
+            in_a_row: 0,
+            late: 0,
+            failed: 0,
+            exec_min: u64::MAX,
+            exec: Histogram::new(),
+            latency: Histogram::new(),
+        })
+        .collect()
+}
+
+/// Sends `notice` on `link` and marks the host to be woken; false if it could not be sent.
+fn send_release(link: &mut HostLink, notice: &Release) -> bool {
+    match wire::send(&link.release, notice.as_bytes().len(), |buf| {
+        buf.copy_from_slice(notice.as_bytes())
+    }) {
+        Ok(()) => {
+            link.woken = true;
+            true
+        }
+        Err(e) => {
+            tracing::warn!("release not sent to host {}: {e}", link.name);
+            false
+        }
+    }
 }
 
 /// The grid's clock and bookkeeping.
@@ -81,6 +165,47 @@ pub struct Coordinator<W: Write> {
     overrun_log: Vec<(u64, usize, u64)>,
     /// Ticks and time at the last rate measurement, and the rate then.
     rate: (u64, u64, f64),
+    /// The assembly being prepared, if one is.
+    incoming: Option<Incoming>,
+    /// Switches done: (generation, assembly, announced tick, tick it took over).
+    switches: Vec<(u16, String, u64, u64)>,
+    /// Host processes of replaced assemblies, to be stopped (module names).
+    retired: Vec<String>,
+}
+
+/// An assembly being prepared while the current one runs.
+struct Incoming {
+    spec: GridSpec,
+    /// Its components, by index in its spec (those of the system are not used: the system's
+    /// components are the coordinator's own, whatever the assembly).
+    comps: Vec<Comp>,
+    /// Links to its hosts, opened one per tick.
+    hosts: Vec<HostLink>,
+    host_names: Vec<String>,
+    /// System hosts that loaded it and subscribed to its outputs.
+    ready: usize,
+    /// Which of its hosts answered a warm-up release.
+    answered: Vec<bool>,
+    /// Tracking from this tick; the switch at the second.
+    schedule: Option<(u64, u64)>,
+    failure: Option<String>,
+}
+
+/// Where a switch stands, for the coordinator's program and `modbot assembly`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SwitchState {
+    /// No assembly is being prepared.
+    Idle,
+    /// Preparing: the links to its hosts are opened, the system's hosts load it.
+    Preparing {
+        opened: usize,
+        hosts: usize,
+        ready: usize,
+        system_hosts: usize,
+        answered: usize,
+    },
+    /// Its components run alongside (tracking) from `from`; it takes over at `at`.
+    Announced { from: u64, at: u64 },
 }
 
 impl<W: Write> Coordinator<W> {
@@ -93,35 +218,9 @@ impl<W: Write> Coordinator<W> {
         let host_names = spec.hosts();
         let hosts = host_names
             .iter()
-            .map(|h| {
-                Ok(HostLink {
-                    release: wire::release_publisher(node, h)?,
-                    wake: wire::wake_notifier(node, h)?,
-                    woken: false,
-                })
-            })
+            .map(|h| link(node, &spec, h))
             .collect::<Result<Vec<_>, TransportError>>()?;
-        let comps = spec
-            .components
-            .iter()
-            .enumerate()
-            .map(|(c, cs)| Comp {
-                period: cs.period.max(1),
-                host: host_names.iter().position(|h| *h == cs.host).unwrap_or(0),
-                fault_policy: cs.policy == OverrunPolicy::Fault,
-                sources: spec.sources(c),
-                pending: None,
-                ready: None,
-                valid_from: 0,
-                releases: 0,
-                overruns: 0,
-                late: 0,
-                failed: 0,
-                exec_min: u64::MAX,
-                exec: Histogram::new(),
-                latency: Histogram::new(),
-            })
-            .collect::<Vec<_>>();
+        let comps = comps_of(&spec, &host_names);
         let recorder = match trace {
             Some(out) => Some(Recorder::new(node, &spec, out)?),
             None => None,
@@ -141,6 +240,9 @@ impl<W: Write> Coordinator<W> {
             grace_ns: 0,
             overrun_log: Vec::new(),
             rate: (0, 0, 0.0),
+            incoming: None,
+            switches: Vec::new(),
+            retired: Vec::new(),
         })
     }
 
@@ -158,7 +260,6 @@ impl<W: Write> Coordinator<W> {
         rounds: u64,
         timeout: core::time::Duration,
     ) -> Result<usize, TransportError> {
-        use modbot_ipc_schema::grid::PING;
         let until = std::time::Instant::now() + timeout;
         let mut silent = self.hosts.len();
         for round in 0..rounds {
@@ -196,7 +297,7 @@ impl<W: Write> Coordinator<W> {
     /// process and will never report done. They are dropped, so each component is released
     /// again at its next due tick (its outputs held meanwhile). Returns how many were dropped.
     pub fn host_restarted(&mut self, host: &str) -> usize {
-        let Some(h) = self.spec.hosts().iter().position(|x| x == host) else {
+        let Some(h) = self.hosts.iter().position(|x| x.name == host) else {
             return 0;
         };
         let mut dropped = 0;
@@ -256,18 +357,26 @@ impl<W: Write> Coordinator<W> {
             self.await_due(n);
         }
         for (c, comp) in self.comps.iter_mut().enumerate() {
-            if comp.ready.is_some_and(|from| from <= n) {
-                comp.valid_from = comp.ready.take().unwrap_or(comp.valid_from);
-            }
+            comp.take_ready(n);
             self.versions[c] = comp.valid_from;
+        }
+        if let Some(inc) = self.incoming.as_mut() {
+            inc.comps.iter_mut().for_each(|c| c.take_ready(n));
         }
         if let Some(rec) = self.recorder.as_mut() {
             rec.tick(n, &self.versions)?;
         }
-        if self.fault.is_none() {
-            self.release_due(n, now_ns);
+        if self
+            .incoming
+            .as_ref()
+            .is_some_and(|i| i.failure.is_none() && i.schedule.is_some_and(|(_, at)| at == n))
+        {
+            self.switch(n);
         }
-        for h in &mut self.hosts {
+        self.release_due(n, now_ns);
+        self.release_incoming(n, now_ns);
+        let incoming = self.incoming.as_mut().map(|i| i.hosts.iter_mut());
+        for h in self.hosts.iter_mut().chain(incoming.into_iter().flatten()) {
             if std::mem::take(&mut h.woken) {
                 if let Err(e) = h.wake.notify() {
                     tracing::debug!("wake-up not sent: {e:?}");
@@ -279,12 +388,42 @@ impl<W: Write> Coordinator<W> {
     }
 
     fn take_done(&mut self, n: u64) {
+        let base = self.base();
+        let current = self.spec.generation();
         while let Ok(Some(sample)) = self.done.receive() {
             let Ok(done) = Done::parse(sample.payload()) else {
                 continue;
             };
-            let Some(comp) = self.comps.get_mut(usize::from(done.component.get())) else {
+            let (c, g) = (done.component.get(), done.generation.get());
+            let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
+            if c == PING || c == READY {
+                if let Some(inc) = inc {
+                    if c == READY && done.status.get() == Done::OK {
+                        inc.ready += 1;
+                    } else if c == READY {
+                        inc.fail(
+                            "a host of the system's components could not load it (see its log)"
+                                .into(),
+                        );
+                    } else if let Some(a) = inc.answered.get_mut(done.tick.get() as usize) {
+                        *a = true;
+                    }
+                }
                 continue;
+            }
+            let c = usize::from(c);
+            let (comp, spec, incoming) = if c < base || g == current {
+                match self.comps.get_mut(c) {
+                    Some(comp) => (comp, &self.spec, false),
+                    None => continue,
+                }
+            } else if let Some(inc) = inc {
+                match inc.comps.get_mut(c) {
+                    Some(comp) => (comp, &inc.spec, true),
+                    None => continue,
+                }
+            } else {
+                continue; // a replaced assembly's
             };
             let m = done.tick.get();
             if comp.pending != Some(m) {
@@ -294,14 +433,44 @@ impl<W: Write> Coordinator<W> {
             comp.exec.record(done.exec_ns.get());
             comp.exec_min = comp.exec_min.min(done.exec_ns.get());
             comp.latency.record(done.latency_ns.get());
-            if done.status.get() != Done::OK {
+            let status = done.status.get();
+            if status != Done::OK && status != Done::UNSAFE {
                 comp.failed += 1;
             } else if n <= m + comp.period {
                 comp.ready = Some(m + comp.period);
             } else {
                 comp.late += 1;
             }
+            if status == Done::UNSAFE {
+                let name = &spec.components[c].name;
+                let why = format!("component {name} reports an unsafe state at tick {m}");
+                if incoming {
+                    if let Some(inc) = self.incoming.as_mut() {
+                        inc.fail(why);
+                    }
+                } else if self.fault.is_none() {
+                    self.set_fault(why);
+                }
+            }
         }
+    }
+
+    fn set_fault(&mut self, why: String) {
+        let why = match &self.spec.assembly {
+            Some(a) => format!(
+                "assembly {} faulted: {why}; the bus stops the drives",
+                a.name
+            ),
+            None => format!("{why}; the grid stops releasing"),
+        };
+        tracing::error!("{why}");
+        self.fault = Some(why);
+    }
+
+    /// The number of the system's own components, which run whatever the assembly (0 without
+    /// assemblies: a fault then stops every component).
+    fn base(&self) -> usize {
+        self.spec.assembly.as_ref().map_or(0, |a| a.base)
     }
 
     /// Gives components due at `n` whose release still runs the grace period to report done.
@@ -322,49 +491,289 @@ impl<W: Write> Coordinator<W> {
     }
 
     fn release_due(&mut self, n: u64, now_ns: u64) {
+        let base = self.base();
+        let generation = self.spec.generation();
         let mut versions = [0u64; MAX_SOURCES];
         for c in 0..self.comps.len() {
             let comp = &self.comps[c];
-            if !n.is_multiple_of(comp.period) {
+            if !n.is_multiple_of(comp.period) || (self.fault.is_some() && c >= base) {
                 continue;
             }
             if let Some(m) = comp.pending {
                 let comp = &mut self.comps[c];
                 comp.overruns += 1;
+                comp.in_a_row += 1;
                 self.overrun_log.push((n, c, m));
-                if comp.fault_policy {
+                if comp.fault_policy && comp.in_a_row >= FAULT_AFTER && self.fault.is_none() {
                     let name = &self.spec.components[c].name;
                     let why = format!(
-                        "component {name} overran its deadline at tick {n} (released at {m}); the grid stops releasing"
+                        "component {name} overran its deadline at tick {n} (released at {m})"
                     );
-                    tracing::error!("{why}");
-                    self.fault = Some(why);
-                    return;
+                    self.set_fault(why);
+                    if base == 0 {
+                        return;
+                    }
                 }
                 continue;
             }
+            self.comps[c].in_a_row = 0;
+            let comp = &self.comps[c];
             for (slot, &s) in versions.iter_mut().zip(&comp.sources) {
                 *slot = self.comps[s].valid_from;
             }
             let k = comp.sources.len().min(MAX_SOURCES);
-            let host = comp.host;
+            let flags = if self.fault.is_some() {
+                Release::SAFE_STOP
+            } else {
+                0
+            };
             let Ok(notice) = Release::new(n, now_ns, c as u16, &versions[..k]) else {
                 continue;
             };
-            let link = &mut self.hosts[host];
-            let sent = wire::send(&link.release, notice.as_bytes().len(), |buf| {
-                buf.copy_from_slice(notice.as_bytes())
-            });
-            match sent {
-                Ok(()) => {
-                    link.woken = true;
-                    let comp = &mut self.comps[c];
-                    comp.pending = Some(n);
-                    comp.releases += 1;
-                }
-                Err(e) => tracing::warn!("release of component {c} not sent: {e}"),
+            let notice = notice.with(generation, flags);
+            if send_release(&mut self.hosts[comp.host], &notice) {
+                let comp = &mut self.comps[c];
+                comp.pending = Some(n);
+                comp.releases += 1;
             }
         }
+    }
+
+    /// Releases the components of the assembly being prepared, once it is announced: to
+    /// track until their outputs are the ones the switch tick reads.
+    fn release_incoming(&mut self, n: u64, now_ns: u64) {
+        let base = self.base();
+        let Some(inc) = self.incoming.as_mut() else {
+            return;
+        };
+        let Some((from, at)) = inc.schedule else {
+            return;
+        };
+        if n < from || inc.failure.is_some() {
+            return;
+        }
+        let generation = inc.spec.generation();
+        let mut versions = [0u64; MAX_SOURCES];
+        for c in base..inc.comps.len() {
+            let comp = &inc.comps[c];
+            if !n.is_multiple_of(comp.period) {
+                continue;
+            }
+            if comp.pending.is_some() {
+                // Tracking outputs are obeyed by nothing: an overrun is only counted (a fresh
+                // process is slow at first). From the releases the switch tick reads on,
+                // `fault` gives up the assembly.
+                if comp.fault_policy && n + comp.period >= at {
+                    let name = &inc.spec.components[c].name;
+                    inc.fail(format!(
+                        "component {name} overran its deadline at tick {n} while it was prepared"
+                    ));
+                    return;
+                }
+                inc.comps[c].overruns += 1;
+                continue;
+            }
+            for (slot, &s) in versions.iter_mut().zip(&comp.sources) {
+                *slot = if s < base {
+                    self.comps[s].valid_from
+                } else {
+                    inc.comps[s].valid_from
+                };
+            }
+            let k = comp.sources.len().min(MAX_SOURCES);
+            let flags = if n + comp.period < at {
+                Release::TRACK
+            } else {
+                0
+            };
+            let Ok(notice) = Release::new(n, now_ns, c as u16, &versions[..k]) else {
+                continue;
+            };
+            let notice = notice.with(generation, flags);
+            if send_release(&mut inc.hosts[comp.host], &notice) {
+                let comp = &mut inc.comps[c];
+                comp.pending = Some(n);
+                comp.releases += 1;
+            }
+        }
+    }
+
+    /// At tick `n`, the announced one: the prepared assembly takes over. The system's
+    /// components read its outputs from this tick on, the replaced assembly is no longer
+    /// released (its hosts are listed in [`Coordinator::take_retired`]), and a fault ends.
+    fn switch(&mut self, n: u64) {
+        let Some(inc) = self.incoming.take() else {
+            return;
+        };
+        let base = self.base();
+        let old = self
+            .spec
+            .assembly
+            .as_ref()
+            .map(|a| a.generation)
+            .unwrap_or(0);
+        let old_hosts: Vec<String> = self
+            .hosts
+            .iter()
+            .filter(|h| h.generation != 0)
+            .map(|h| self.spec.host_module(&h.name))
+            .collect();
+        self.hosts.retain(|h| h.generation == 0);
+        let offset = self.hosts.len();
+        self.hosts.extend(inc.hosts);
+        self.comps.truncate(base);
+        for (c, comp) in self.comps.iter_mut().enumerate() {
+            comp.sources = inc.spec.sources(c);
+        }
+        self.comps
+            .extend(inc.comps.into_iter().skip(base).map(|mut c| {
+                c.host += offset;
+                c
+            }));
+        // Base comps' hosts keep their positions (the links of generation 0 come first and
+        // are never removed).
+        self.versions = vec![0; self.comps.len()];
+        self.spec = inc.spec;
+        let name = self
+            .spec
+            .assembly
+            .as_ref()
+            .map_or(String::new(), |a| a.name.clone());
+        let generation = self.spec.generation();
+        let announced = inc.schedule.map_or(n, |(_, at)| at);
+        self.switches.push((generation, name.clone(), announced, n));
+        if let Some(why) = self.fault.take() {
+            tracing::info!("the fault ends with the switch: {why}");
+        }
+        tracing::info!(
+            "tick {n}: assembly {name} (generation {generation}) took over from generation {old}"
+        );
+        self.retired.extend(old_hosts);
+    }
+
+    /// Begins preparing `spec` (a grid with the next assembly, of a new generation): its
+    /// components run alongside once [`Coordinator::announce`] is called.
+    pub fn begin_switch(&mut self, spec: GridSpec) -> Result<(), String> {
+        if self.incoming.is_some() {
+            return Err("an assembly is being prepared already".into());
+        }
+        if spec.generation() <= self.spec.generation() {
+            return Err(format!(
+                "generation {} is not newer than the running {}",
+                spec.generation(),
+                self.spec.generation()
+            ));
+        }
+        let host_names = spec.assembly_hosts();
+        let mut comps = comps_of(&spec, &host_names);
+        for c in comps.iter_mut().take(self.base()) {
+            c.host = usize::MAX;
+        }
+        self.incoming = Some(Incoming {
+            answered: vec![false; host_names.len()],
+            host_names,
+            comps,
+            hosts: Vec::new(),
+            ready: 0,
+            schedule: None,
+            failure: None,
+            spec,
+        });
+        Ok(())
+    }
+
+    /// One bounded step of the preparation, between ticks: opens the link to one more host of
+    /// the assembly being prepared.
+    pub fn prepare_step(&mut self, node: &Node<ipc::Service>) -> Result<(), TransportError> {
+        let Some(inc) = self.incoming.as_mut() else {
+            return Ok(());
+        };
+        if inc.hosts.len() < inc.host_names.len() {
+            let name = inc.host_names[inc.hosts.len()].clone();
+            let l = link(node, &inc.spec, &name)?;
+            inc.hosts.push(l);
+        }
+        Ok(())
+    }
+
+    /// Sends a warm-up release to every host of the assembly being prepared that has not
+    /// answered one yet.
+    pub fn ping_incoming(&mut self) {
+        let Some(inc) = self.incoming.as_mut() else {
+            return;
+        };
+        let generation = inc.spec.generation();
+        for (h, link) in inc.hosts.iter_mut().enumerate() {
+            if inc.answered.get(h) == Some(&false) {
+                if let Ok(ping) = Release::new(h as u64, 0, PING, &[]) {
+                    send_release(link, &ping.with(generation, 0));
+                }
+            }
+        }
+    }
+
+    /// The assembly being prepared runs alongside from the next tick and takes over at the
+    /// returned tick: after each of its components was released twice (the longest period
+    /// twice) plus `lead` ticks.
+    pub fn announce(&mut self, lead: u64) -> Option<u64> {
+        let from = self.tick;
+        let inc = self.incoming.as_mut()?;
+        let at = from + 2 * inc.spec.assembly_max_period() + lead;
+        inc.schedule = Some((from, at));
+        Some(at)
+    }
+
+    /// Gives up the assembly being prepared; returns its hosts' module names.
+    pub fn abort_switch(&mut self) -> Vec<String> {
+        match self.incoming.take() {
+            Some(inc) => inc
+                .host_names
+                .iter()
+                .map(|h| inc.spec.host_module(h))
+                .collect(),
+            None => Vec::new(),
+        }
+    }
+
+    /// Why the assembly being prepared cannot take over, once that is known.
+    pub fn switch_failure(&self) -> Option<&str> {
+        self.incoming.as_ref().and_then(|i| i.failure.as_deref())
+    }
+
+    /// Where the switch stands.
+    pub fn switch_state(&self) -> SwitchState {
+        match &self.incoming {
+            None => SwitchState::Idle,
+            Some(Incoming {
+                schedule: Some((from, at)),
+                ..
+            }) => SwitchState::Announced {
+                from: *from,
+                at: *at,
+            },
+            Some(inc) => SwitchState::Preparing {
+                opened: inc.hosts.len(),
+                hosts: inc.host_names.len(),
+                ready: inc.ready,
+                system_hosts: self.spec.base_hosts().len(),
+                answered: inc.answered.iter().filter(|a| **a).count(),
+            },
+        }
+    }
+
+    /// The switches done: (generation, assembly, announced tick, tick it took over).
+    pub fn switches(&self) -> &[(u16, String, u64, u64)] {
+        &self.switches
+    }
+
+    /// The module names of the hosts of replaced assemblies, to be stopped; each once.
+    pub fn take_retired(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.retired)
+    }
+
+    /// The grid as it runs now.
+    pub fn spec(&self) -> &GridSpec {
+        &self.spec
     }
 
     /// Waits up to `timeout_ns` (by `now`) for the releases still running, then takes their
@@ -390,7 +799,10 @@ impl<W: Write> Coordinator<W> {
                 (None, true) => "done",
                 (None, false) => "running",
             }
-            .into(),
+            .to_owned()
+                + &self.spec.assembly.as_ref().map_or(String::new(), |a| {
+                    format!(" (assembly {}, generation {})", a.name, a.generation)
+                }),
             fault: self.fault.clone().unwrap_or_default(),
             ticks: self.tick,
             missed: self.missed,

@@ -5,13 +5,21 @@
 //! published — steps, publishes its outputs stamped valid from n + period, and sends a done
 //! notice with its execution time. A host steps its components one after another, in the
 //! order they were released.
+//!
+//! In a grid with assemblies, the hosts of an assembly's components are made for its
+//! generation; a host of the system's own components (the bus) outlives assemblies: told of an
+//! assembly being prepared, it loads it and subscribes to the outputs its inputs will read
+//! ([`Host::prepare_step`]), and switches to them at the first release of that generation.
+//! A release marked TRACK is stepped with [`Component::track`]; a component that reports an
+//! unsafe state afterwards answers with status UNSAFE.
 
 use core::time::Duration;
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
 use modbot_ipc_schema::grid::{
-    read_record, record_len, write_record, Done, OutHeader, PortValue, Release, OUT_HEADER_LEN,
+    read_record, record_len, write_record, Done, OutHeader, PortValue, Prepare, Release,
+    OUT_HEADER_LEN, PING, READY,
 };
 use zerocopy::{FromBytes, IntoBytes};
 
@@ -56,26 +64,62 @@ impl Source {
     }
 }
 
+/// Where one component's inputs come from, for one assembly generation.
+struct Binding {
+    generation: u16,
+    sources: Vec<Source>,
+    /// For each input: (source position, output port of that source).
+    inputs: Vec<(usize, usize)>,
+}
+
 struct Hosted {
     index: usize,
+    name: String,
     period: u64,
     component: Box<dyn Component>,
     inputs: Vec<PortValue>,
     outputs: Vec<PortValue>,
-    sources: Vec<Source>,
-    /// For each input: (source position, output port of that source).
-    bindings: Vec<(usize, usize)>,
+    binding: Binding,
+    /// The binding of the assembly being prepared: it replaces `binding` at the first release
+    /// of its generation.
+    next: Option<Binding>,
     out: Pub,
     out_len: usize,
+}
+
+/// An assembly a system host is preparing for: its bindings, opened one source at a time.
+struct Preparing {
+    spec: GridSpec,
+    /// Per hosted component, the sources opened so far.
+    opened: Vec<Vec<Source>>,
+}
+
+thread_local! {
+    /// The generation and flags of the release being served on this thread.
+    static SERVING: core::cell::Cell<(u16, u16)> = const { core::cell::Cell::new((0, 0)) };
+}
+
+/// The assembly generation and the flags ([`Release::TRACK`], [`Release::SAFE_STOP`]) of the
+/// release whose step is running on this thread: for components that act on them, the bus.
+pub fn serving() -> (u16, u16) {
+    SERVING.with(|s| s.get())
 }
 
 /// The components of one host, and its notice channels.
 pub struct Host {
     name: String,
+    generation: u16,
     hosted: Vec<Hosted>,
     releases: Sub,
     done: Pub,
     wake: Listener<ipc::Service>,
+    /// A host of the system's own components in a grid with assemblies: the assembly notices.
+    prepare: Option<Sub>,
+    /// The newest generation it was asked to prepare, and its loader.
+    loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, String>>)>,
+    preparing: Option<Preparing>,
+    /// The spec it was made from, to load other assemblies against.
+    spec: GridSpec,
     /// Inputs that were not found in the version the notice named.
     pub missing: u64,
 }
@@ -91,6 +135,22 @@ pub enum HostError {
     Transport(#[from] TransportError),
 }
 
+fn source(node: &Node<ipc::Service>, spec: &GridSpec, s: usize) -> Result<Source, TransportError> {
+    let zeros: Vec<PortValue> = spec.output_types(s).iter().map(|t| t.zero()).collect();
+    Ok(Source {
+        sub: wire::out_subscriber(node, &spec.out_service(s))?,
+        ring: (0..KEPT).map(|_| (u64::MAX, zeros.clone())).collect(),
+        next: 0,
+        zeros,
+    })
+}
+
+fn input_bindings(spec: &GridSpec, c: usize) -> Vec<(usize, usize)> {
+    (0..spec.components[c].info.inputs.len())
+        .map(|i| spec.input_binding(c, i))
+        .collect()
+}
+
 impl Host {
     /// Instantiates and initialises the components of `host` and opens their channels.
     pub fn new(
@@ -103,6 +163,7 @@ impl Host {
         if mine.is_empty() {
             return Err(HostError::NoComponents(host.to_owned()));
         }
+        let generation = spec.host_generation(host);
         let mut hosted = Vec::new();
         for c in mine {
             let cs = &spec.components[c];
@@ -116,38 +177,42 @@ impl Host {
             let sources = spec
                 .sources(c)
                 .into_iter()
-                .map(|s| {
-                    let zeros: Vec<PortValue> =
-                        spec.output_types(s).iter().map(|t| t.zero()).collect();
-                    Ok(Source {
-                        sub: wire::out_subscriber(node, &spec.components[s].name)?,
-                        ring: (0..KEPT).map(|_| (u64::MAX, zeros.clone())).collect(),
-                        next: 0,
-                        zeros,
-                    })
-                })
+                .map(|s| source(node, spec, s))
                 .collect::<Result<Vec<_>, TransportError>>()?;
             let out_len = OUT_HEADER_LEN + record_len(&out_types);
             hosted.push(Hosted {
                 index: c,
+                name: cs.name.clone(),
                 period: cs.period.max(1),
                 component,
                 inputs: cs.info.inputs.iter().map(|p| p.ty.zero()).collect(),
                 outputs: out_types.iter().map(|t| t.zero()).collect(),
-                bindings: (0..cs.info.inputs.len())
-                    .map(|i| spec.input_binding(c, i))
-                    .collect(),
-                sources,
-                out: wire::out_publisher(node, &cs.name, out_len)?,
+                binding: Binding {
+                    generation: spec.generation(),
+                    sources,
+                    inputs: input_bindings(spec, c),
+                },
+                next: None,
+                out: wire::out_publisher(node, &spec.out_service(c), out_len)?,
                 out_len,
             });
         }
+        let prepare = if spec.assembly.is_some() && generation == 0 {
+            Some(wire::prepare_subscriber(node)?)
+        } else {
+            None
+        };
         Ok(Host {
             name: host.to_owned(),
+            generation,
             hosted,
-            releases: wire::release_subscriber(node, host)?,
+            releases: wire::release_subscriber(node, &spec.release_service(host))?,
             done: wire::done_publisher(node)?,
-            wake: wire::wake_listener(node, host)?,
+            wake: wire::wake_listener(node, &spec.wake_service(host))?,
+            prepare,
+            loading: None,
+            preparing: None,
+            spec: spec.clone(),
             missing: 0,
         })
     }
@@ -186,10 +251,113 @@ impl Host {
         Ok(served)
     }
 
+    /// Between releases, for a host of the system's own components in a grid with
+    /// assemblies: takes an assembly notice, and does one bounded piece of the preparation
+    /// (loading runs on a thread of its own; one output service is opened per call), so the
+    /// releases are never held up for long. Answers the coordinator when it is ready.
+    pub fn prepare_step(
+        &mut self,
+        node: &Node<ipc::Service>,
+        registry: fn() -> Registry,
+    ) -> Result<(), TransportError> {
+        let Some(notices) = self.prepare.as_ref() else {
+            return Ok(());
+        };
+        while let Ok(Some(sample)) = notices.receive() {
+            let Ok(notice) = Prepare::parse(sample.payload()) else {
+                continue;
+            };
+            let generation = notice.generation.get();
+            let Some(name) = notice.name().map(str::to_owned) else {
+                continue;
+            };
+            let loading = self.loading.as_ref().map(|l| l.0);
+            let preparing = self.preparing.as_ref().map(|p| p.spec.generation());
+            let prepared = self.hosted.iter().filter_map(|h| h.next.as_ref());
+            if loading
+                .into_iter()
+                .chain(preparing)
+                .any(|g| g >= generation)
+                || prepared.into_iter().any(|b| b.generation >= generation)
+                || self
+                    .hosted
+                    .iter()
+                    .any(|h| h.binding.generation >= generation)
+            {
+                continue;
+            }
+            let (tx, rx) = std::sync::mpsc::channel();
+            let system = self.spec.clone();
+            std::thread::spawn(move || {
+                let loaded = crate::system::load_assembly(&system, &name, generation, &registry())
+                    .map_err(|e| e.to_string());
+                let _ = tx.send(loaded);
+            });
+            self.preparing = None;
+            self.loading = Some((generation, rx));
+        }
+        if let Some((generation, rx)) = &self.loading {
+            let generation = *generation;
+            match rx.try_recv() {
+                Ok(Ok(spec)) => {
+                    self.loading = None;
+                    self.preparing = Some(Preparing {
+                        spec,
+                        opened: self.hosted.iter().map(|_| Vec::new()).collect(),
+                    });
+                }
+                Ok(Err(why)) => {
+                    tracing::error!("assembly generation {generation} cannot be prepared: {why}");
+                    self.loading = None;
+                    return self.answer_ready(generation, Done::FAILED);
+                }
+                Err(std::sync::mpsc::TryRecvError::Empty) => return Ok(()),
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    self.loading = None;
+                    return self.answer_ready(generation, Done::FAILED);
+                }
+            }
+        }
+        let Some(prep) = self.preparing.as_mut() else {
+            return Ok(());
+        };
+        for (h, opened) in self.hosted.iter().zip(prep.opened.iter_mut()) {
+            let sources = prep.spec.sources(h.index);
+            if opened.len() < sources.len() {
+                opened.push(source(node, &prep.spec, sources[opened.len()])?);
+                return Ok(());
+            }
+        }
+        let Some(prep) = self.preparing.take() else {
+            return Ok(());
+        };
+        let generation = prep.spec.generation();
+        for (h, sources) in self.hosted.iter_mut().zip(prep.opened) {
+            h.next = Some(Binding {
+                generation,
+                sources,
+                inputs: input_bindings(&prep.spec, h.index),
+            });
+        }
+        tracing::info!(
+            "ready for assembly '{}' (generation {generation})",
+            prep.spec.assembly.as_ref().map_or("", |a| a.name.as_str())
+        );
+        self.answer_ready(generation, Done::OK)
+    }
+
+    fn answer_ready(&mut self, generation: u16, status: u16) -> Result<(), TransportError> {
+        let done = Done::new(0, READY, status, 0, 0).of_generation(generation);
+        wire::send(&self.done, done.as_bytes().len(), |buf| {
+            buf.copy_from_slice(done.as_bytes())
+        })
+    }
+
     fn step(&mut self, release: &Release, now: &dyn Fn() -> u64) -> Result<(), TransportError> {
         let n = release.tick.get();
-        if release.component.get() == modbot_ipc_schema::grid::PING {
-            let done = Done::new(n, modbot_ipc_schema::grid::PING, Done::OK, 0, 0);
+        let generation = release.generation.get();
+        if release.component.get() == PING {
+            let done = Done::new(n, PING, Done::OK, 0, 0).of_generation(self.generation);
             return wire::send(&self.done, done.as_bytes().len(), |buf| {
                 buf.copy_from_slice(done.as_bytes())
             });
@@ -202,12 +370,28 @@ impl Host {
             );
             return Ok(());
         };
+        if h.next.as_ref().is_some_and(|b| b.generation == generation) {
+            if let Some(next) = h.next.take() {
+                h.binding = next;
+            }
+        }
+        if h.binding.generation != generation {
+            tracing::warn!(
+                "component {} at tick {n}: release of assembly generation {generation}, \
+                 prepared for {}",
+                h.name,
+                h.binding.generation
+            );
+        }
         let mut versions = [0u64; modbot_ipc_schema::grid::MAX_SOURCES];
         for (slot, v) in versions.iter_mut().zip(release.versions()) {
             *slot = v;
         }
-        for (i, &(s, port)) in h.bindings.iter().enumerate() {
-            match h.sources[s].version(versions[s]) {
+        for (i, &(s, port)) in h.binding.inputs.iter().enumerate() {
+            let Some(source) = h.binding.sources.get_mut(s) else {
+                continue;
+            };
+            match source.version(versions[s]) {
                 Some(values) => h.inputs[i].assign(&values[port]),
                 None => {
                     self.missing += 1;
@@ -218,8 +402,13 @@ impl Host {
                 }
             }
         }
+        SERVING.with(|s| s.set((generation, release.flags.get())));
         let start = now();
-        h.component.step(n, &h.inputs, &mut h.outputs);
+        if release.has(Release::TRACK) {
+            h.component.track(n, &h.inputs, &mut h.outputs);
+        } else {
+            h.component.step(n, &h.inputs, &mut h.outputs);
+        }
         let end = now();
         let outputs = &h.outputs;
         wire::send(&h.out, h.out_len, |buf| {
@@ -232,13 +421,19 @@ impl Host {
                 tracing::error!("outputs of component {c} not written: {e}");
             }
         })?;
+        let status = if h.component.unsafe_state() {
+            Done::UNSAFE
+        } else {
+            Done::OK
+        };
         let done = Done::new(
             n,
             c as u16,
-            Done::OK,
+            status,
             end.saturating_sub(start),
             start.saturating_sub(release.released_ns.get()),
-        );
+        )
+        .of_generation(generation);
         wire::send(&self.done, done.as_bytes().len(), |buf| {
             buf.copy_from_slice(done.as_bytes())
         })

@@ -35,6 +35,8 @@
 //! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
 //! - [`ledger`]: the overrun ledger as `modbot top` shows it.
 //! - [`processes`]: the coordinator and the hosts as modules the supervisor starts.
+//! - [`switch`]: swapping assemblies from a program (`modbot assembly switch`); the assembly
+//!   files are read by [`crate::system::load_assembly`].
 
 pub mod builtin;
 pub mod component;
@@ -46,6 +48,7 @@ pub mod processes;
 pub mod recorder;
 pub mod reference;
 pub mod spec;
+pub mod switch;
 pub mod tick;
 pub mod trace;
 pub mod wire;

@@ -18,9 +18,10 @@ pub const BUS_HOST: &str = "bus";
 /// The program of the bus bridge.
 pub const BUS_PROGRAM: &str = "modbot-bus";
 
-/// The module name of host `host`.
+/// The module name of host `host` of the system's own components, or of a grid without
+/// assemblies (an assembly's hosts: [`super::GridSpec::host_module`]).
 pub fn host_module(host: &str) -> String {
-    format!("host_{host}")
+    super::spec::host_module_of(host, 0)
 }
 
 /// The program of host `host`: the bus bridge for [`BUS_HOST`], else the generic host.
@@ -89,7 +90,7 @@ pub fn add_processes(
     };
     let mut added = Vec::new();
     for host in grid.hosts() {
-        let name = host_module(&host);
+        let name = grid.host_module(&host);
         if spec.modules.iter().any(|m| m.name == name) {
             return Err(format!(
                 "{}:{}: module name '{name}' is taken; the grid's host '{host}' needs it",
@@ -99,6 +100,14 @@ pub fn add_processes(
         }
         let mut args = common.clone();
         args.extend(["--host".to_owned(), host.clone()]);
+        if let (Some(a), g @ 1..) = (&grid.assembly, grid.host_generation(&host)) {
+            args.extend([
+                "--assembly".to_owned(),
+                a.name.clone(),
+                "--generation".to_owned(),
+                g.to_string(),
+            ]);
+        }
         added.push(ModuleSpec {
             name,
             addr: next_addr().ok_or("no address left for the grid's hosts")?,
@@ -115,6 +124,31 @@ pub fn add_processes(
             groups: Vec::new(),
             line: grid.line,
         });
+    }
+    if grid.assembly.is_some() {
+        // The hosts of assemblies swapped in later: the supervisor adds the host, the
+        // assembly and its generation.
+        spec.host_template = Some(ModuleSpec {
+            name: String::new(),
+            addr: 0,
+            program: program(HOST_PROGRAM)?,
+            program_name: HOST_PROGRAM.into(),
+            args: common.clone(),
+            restart: policy.clone(),
+            cpus: Vec::new(),
+            priority: grid.priority.map(|p| p.saturating_sub(1).max(1)),
+            mlock: grid.mlock,
+            env: Vec::new(),
+            mode: ReceiveMode::Blocking,
+            groups: Vec::new(),
+            line: grid.line,
+        });
+        if run.trace.is_some() {
+            return Err(format!(
+                "{}: --trace records a fixed set of components; it is not available with assemblies",
+                file.display()
+            ));
+        }
     }
     let mut args = common;
     if let Some(n) = run.ticks {

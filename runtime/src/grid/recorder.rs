@@ -47,10 +47,10 @@ impl<W: Write> Recorder<W> {
             .components
             .iter()
             .enumerate()
-            .map(|(c, comp)| {
+            .map(|(c, _)| {
                 let zeros: Vec<PortValue> = spec.output_types(c).iter().map(|t| t.zero()).collect();
                 Ok(Versions {
-                    sub: wire::out_subscriber(node, &comp.name)?,
+                    sub: wire::out_subscriber(node, &spec.out_service(c))?,
                     ring: (0..KEPT).map(|_| (u64::MAX, zeros.clone())).collect(),
                     next: 0,
                     zeros,

@@ -66,6 +66,38 @@ pub struct GridSpec {
     pub connections: Vec<Connection>,
     /// The line of the `grid` declaration.
     pub line: u32,
+    /// When the grid runs assemblies: which one this spec holds, and how to load others.
+    pub assembly: Option<Assembly>,
+}
+
+/// The assembly a [`GridSpec`] holds: its components follow the system's own (the bus), which
+/// stay when the assembly is swapped. Loaded by [`crate::system::load_assembly`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assembly {
+    /// Its name: the file `<dir>/<name>.lua`.
+    pub name: String,
+    /// Counts the assemblies loaded in a run, from 1: it names the assembly's services and
+    /// host processes, so an assembly being prepared never meets the one running.
+    pub generation: u16,
+    /// Where the assembly files are.
+    pub dir: std::path::PathBuf,
+    /// The number of the system's own components: indices below it are the system's.
+    pub base: usize,
+    /// The system's grid declarations, to combine with another assembly's.
+    pub decls: (GridDecl, Vec<ComponentDecl>, Vec<ConnectDecl>),
+    /// The description's variables (assembly files see them as `vars` too).
+    pub vars: Vec<(String, String)>,
+    /// The system description's file, for messages.
+    pub system_file: String,
+}
+
+/// The `assemblies = "dir", assembly = "first"` fields of `grid { ... }`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AssembliesDecl {
+    /// The directory of the assembly files, relative to the description's.
+    pub dir: String,
+    /// The assembly the system starts with.
+    pub first: String,
 }
 
 /// One component of the grid.
@@ -115,6 +147,8 @@ pub struct GridDecl {
     pub priority: Option<u8>,
     pub mlock: bool,
     pub line: u32,
+    /// The grid runs swappable assemblies, starting with this one.
+    pub assemblies: Option<AssembliesDecl>,
 }
 
 /// A component's period as written.
@@ -158,6 +192,15 @@ fn at(line: u32, message: String) -> GridError {
     GridError {
         line: Some(line),
         message,
+    }
+}
+
+/// The module name of the process of `host` of assembly generation `generation` (0: a host of
+/// the system's own components, or of a grid without assemblies).
+pub fn host_module_of(host: &str, generation: u16) -> String {
+    match generation {
+        0 => format!("host_{host}"),
+        g => format!("host_{host}_g{g}"),
     }
 }
 
@@ -403,7 +446,84 @@ impl GridSpec {
             components: specs,
             connections: checked,
             line: grid.line,
+            assembly: None,
         })
+    }
+
+    /// The assembly generation component `c` belongs to: 0 for the system's own components
+    /// and for every component of a grid without assemblies.
+    pub fn generation_of(&self, c: usize) -> u16 {
+        match &self.assembly {
+            Some(a) if c >= a.base => a.generation,
+            _ => 0,
+        }
+    }
+
+    /// The generation of this spec's assembly (0: none).
+    pub fn generation(&self) -> u16 {
+        self.assembly.as_ref().map_or(0, |a| a.generation)
+    }
+
+    /// The generation of the components on `host` (0: the system's own host).
+    pub fn host_generation(&self, host: &str) -> u16 {
+        (0..self.components.len())
+            .find(|&c| self.components[c].host == host)
+            .map_or(0, |c| self.generation_of(c))
+    }
+
+    /// The hosts of the system's own components (all hosts of a grid without assemblies).
+    pub fn base_hosts(&self) -> Vec<String> {
+        self.hosts()
+            .into_iter()
+            .filter(|h| self.host_generation(h) == 0)
+            .collect()
+    }
+
+    /// The hosts of the assembly's components.
+    pub fn assembly_hosts(&self) -> Vec<String> {
+        self.hosts()
+            .into_iter()
+            .filter(|h| self.host_generation(h) != 0)
+            .collect()
+    }
+
+    /// The iceoryx2 service of component `c`'s outputs.
+    pub fn out_service(&self, c: usize) -> String {
+        let name = &self.components[c].name;
+        match self.generation_of(c) {
+            0 => format!("grid.out.{name}"),
+            g => format!("grid.out.g{g}.{name}"),
+        }
+    }
+
+    /// The iceoryx2 service of `host`'s release notices.
+    pub fn release_service(&self, host: &str) -> String {
+        match self.host_generation(host) {
+            0 => format!("grid.release.{host}"),
+            g => format!("grid.release.g{g}.{host}"),
+        }
+    }
+
+    /// The iceoryx2 event that wakes `host`.
+    pub fn wake_service(&self, host: &str) -> String {
+        match self.host_generation(host) {
+            0 => format!("grid.wake.{host}"),
+            g => format!("grid.wake.g{g}.{host}"),
+        }
+    }
+
+    /// The module name of `host`'s process.
+    pub fn host_module(&self, host: &str) -> String {
+        host_module_of(host, self.host_generation(host))
+    }
+
+    /// The longest period of the assembly's components, in base ticks (1 without them).
+    pub fn assembly_max_period(&self) -> u64 {
+        (0..self.components.len())
+            .filter(|&c| self.generation_of(c) != 0)
+            .map(|c| self.components[c].period)
+            .max()
+            .unwrap_or(1)
     }
 
     /// The host processes, distinct, in order of first use.

@@ -1,11 +1,17 @@
 //! The time grid's iceoryx2 services, per domain:
+//! Services of an assembly's components and hosts carry its generation (`grid.out.g3.<name>`,
+//! `grid.release.g3.<host>`, `grid.wake.g3.<host>`; see [`super::GridSpec::out_service`]), so
+//! an assembly being prepared never meets the one that runs.
+//!
 //! - `grid.out.<component>`: publish-subscribe `[u8]`, the component's output samples (an
 //!   [`modbot_ipc_schema::grid::OutHeader`] and the packed outputs), one publisher (its host),
 //!   subscribers where they are read (consumer hosts, the coordinator's recorder). A subscriber
 //!   keeps the newest 64 samples: LET only ever reads one of the newest two.
 //! - `grid.release.<host>`: release notices from the coordinator to one host;
 //! - `grid.done`: done notices from every host to the coordinator;
-//! - `grid.wake.<host>`: an event, so a blocking host sleeps until it is released.
+//! - `grid.wake.<host>`: an event, so a blocking host sleeps until it is released;
+//! - `grid.assembly`: the assembly being prepared ([`modbot_ipc_schema::grid::Prepare`]), from
+//!   the coordinator to the hosts of the system's own components, with history 1.
 //!
 //! Only small notices pass through the coordinator; data moves host to host.
 
@@ -76,41 +82,59 @@ fn subscriber(factory: &PubSubFactory, depth: usize) -> Result<Sub, TransportErr
         .map_err(|e| err("grid subscriber")(&e))
 }
 
-/// The publisher of `component`'s outputs, for records of `len` bytes (header included).
+/// The publisher of a component's outputs (`service`: [`super::GridSpec::out_service`]),
+/// for records of `len` bytes (header included).
 pub fn out_publisher(
     node: &Node<ipc::Service>,
-    component: &str,
+    service: &str,
     len: usize,
 ) -> Result<Pub, TransportError> {
-    publisher(
-        &pubsub(node, &format!("grid.out.{component}"), OUT_DEPTH, 2, 64)?,
-        len,
-    )
+    publisher(&pubsub(node, service, OUT_DEPTH, 2, 64)?, len)
 }
 
-/// A reader of `component`'s outputs.
-pub fn out_subscriber(node: &Node<ipc::Service>, component: &str) -> Result<Sub, TransportError> {
-    subscriber(
-        &pubsub(node, &format!("grid.out.{component}"), OUT_DEPTH, 2, 64)?,
-        OUT_DEPTH,
-    )
+/// A reader of a component's outputs.
+pub fn out_subscriber(node: &Node<ipc::Service>, service: &str) -> Result<Sub, TransportError> {
+    subscriber(&pubsub(node, service, OUT_DEPTH, 2, 64)?, OUT_DEPTH)
 }
 
-/// The coordinator's side of `host`'s release notices.
-pub fn release_publisher(node: &Node<ipc::Service>, host: &str) -> Result<Pub, TransportError> {
+/// The coordinator's side of a host's release notices ([`super::GridSpec::release_service`]).
+pub fn release_publisher(node: &Node<ipc::Service>, service: &str) -> Result<Pub, TransportError> {
     let len = core::mem::size_of::<modbot_ipc_schema::grid::Release>();
-    publisher(
-        &pubsub(node, &format!("grid.release.{host}"), 256, 2, 2)?,
-        len,
-    )
+    publisher(&pubsub(node, service, 256, 2, 2)?, len)
 }
 
-/// `host`'s side of its release notices.
-pub fn release_subscriber(node: &Node<ipc::Service>, host: &str) -> Result<Sub, TransportError> {
-    subscriber(
-        &pubsub(node, &format!("grid.release.{host}"), 256, 2, 2)?,
-        256,
-    )
+/// A host's side of its release notices.
+pub fn release_subscriber(node: &Node<ipc::Service>, service: &str) -> Result<Sub, TransportError> {
+    subscriber(&pubsub(node, service, 256, 2, 2)?, 256)
+}
+
+/// The coordinator's side of the assembly notices.
+pub fn prepare_publisher(node: &Node<ipc::Service>) -> Result<Pub, TransportError> {
+    let len = core::mem::size_of::<modbot_ipc_schema::grid::Prepare>();
+    publisher(&prepare_service(node)?, len)
+}
+
+/// A system host's side of the assembly notices: the newest one arrives even if it was sent
+/// before the host subscribed.
+pub fn prepare_subscriber(node: &Node<ipc::Service>) -> Result<Sub, TransportError> {
+    prepare_service(node)?
+        .subscriber_builder()
+        .buffer_size(4)
+        .create()
+        .map_err(|e| err("grid subscriber")(&e))
+}
+
+fn prepare_service(node: &Node<ipc::Service>) -> Result<PubSubFactory, TransportError> {
+    node.service_builder(&name("grid.assembly")?)
+        .publish_subscribe::<[u8]>()
+        .max_publishers(2)
+        .max_subscribers(64)
+        .max_nodes(MAX_NODES)
+        .history_size(1)
+        .subscriber_max_buffer_size(4)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| err("open grid service")(&e))
 }
 
 /// A host's side of the done notices.
@@ -126,32 +150,32 @@ pub fn done_subscriber(node: &Node<ipc::Service>) -> Result<Sub, TransportError>
 
 fn wake(
     node: &Node<ipc::Service>,
-    host: &str,
+    service: &str,
 ) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, TransportError> {
-    node.service_builder(&name(&format!("grid.wake.{host}"))?)
+    node.service_builder(&name(service)?)
         .event()
         .max_nodes(MAX_NODES)
         .open_or_create()
         .map_err(|e| err("open grid wake-up")(&e))
 }
 
-/// The coordinator's side of `host`'s wake-up.
+/// The coordinator's side of a host's wake-up ([`super::GridSpec::wake_service`]).
 pub fn wake_notifier(
     node: &Node<ipc::Service>,
-    host: &str,
+    service: &str,
 ) -> Result<Notifier<ipc::Service>, TransportError> {
-    wake(node, host)?
+    wake(node, service)?
         .notifier_builder()
         .create()
         .map_err(|e| err("grid wake notifier")(&e))
 }
 
-/// `host`'s wake-up.
+/// A host's wake-up.
 pub fn wake_listener(
     node: &Node<ipc::Service>,
-    host: &str,
+    service: &str,
 ) -> Result<Listener<ipc::Service>, TransportError> {
-    wake(node, host)?
+    wake(node, service)?
         .listener_builder()
         .create()
         .map_err(|e| err("grid wake listener")(&e))

@@ -12,7 +12,10 @@
 //!   exponential backoff) decide what comes back; a module that ends too often is failed, and
 //!   its policy says whether the rest keeps running.
 //! - It is itself a module of the domain, named `supervisor`: `status` answers the table that
-//!   `modbot ls` shows, `down` stops the system (`modbot down`).
+//!   `modbot ls` shows, `down` stops the system (`modbot down`); for the coordinator,
+//!   `spawn_host(host, assembly, generation)` starts the host process of an assembly being
+//!   prepared and `retire(module)` stops one of an assembly that was replaced (or failed to
+//!   prepare) and drops it from the table.
 //! - On SIGINT/SIGTERM, `down`, or when its time is up, it stops the modules in reverse order
 //!   (SIGTERM, then SIGKILL after the grace period) and removes the domain's shared memory.
 //!
@@ -105,6 +108,20 @@ pub struct Summary {
 struct Shared {
     rows: Vec<Row>,
     down_requested: bool,
+    /// Host processes of assemblies to start or stop, in the order asked.
+    requests: Vec<HostRequest>,
+    /// Whether the system can start assembly hosts (it has a grid with assemblies).
+    hosts_allowed: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum HostRequest {
+    Spawn {
+        host: String,
+        assembly: String,
+        generation: u16,
+    },
+    Retire(String),
 }
 
 /// One supervised module.
@@ -121,6 +138,27 @@ struct Slot {
     last_beat_ns: u64,
     restart_at_ns: u64,
     counters: Counters,
+    /// Asked to stop for good (a replaced assembly's host): its end is not a failure.
+    retiring: bool,
+}
+
+impl Slot {
+    /// A module not started yet.
+    fn new(restart: crate::system::RestartPolicy) -> Slot {
+        Slot {
+            child: None,
+            pid: 0,
+            state: RunState::Starting,
+            tracker: RestartTracker::new(restart),
+            last_exit: None,
+            killed_for: None,
+            started_ns: 0,
+            last_beat_ns: 0,
+            restart_at_ns: 0,
+            counters: Counters::default(),
+            retiring: false,
+        }
+    }
 }
 
 /// A running system.
@@ -149,24 +187,14 @@ impl Supervisor {
         let directory = transport.directory()?;
         let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
         sweep(&domain, directory.as_ref(), &used)?;
-        let endpoint = open_endpoint(&transport, &used)?;
+        let mut endpoint = open_endpoint(&transport, &used)?;
+        endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
         let heartbeats = HeartbeatMonitor::new(&transport)?;
         let (logs_tx, logs) = unbounded();
         let slots = spec
             .modules
             .iter()
-            .map(|m| Slot {
-                child: None,
-                pid: 0,
-                state: RunState::Starting,
-                tracker: RestartTracker::new(m.restart.clone()),
-                last_exit: None,
-                killed_for: None,
-                started_ns: 0,
-                last_beat_ns: 0,
-                restart_at_ns: 0,
-                counters: Counters::default(),
-            })
+            .map(|m| Slot::new(m.restart.clone()))
             .collect();
         let name_width = spec.modules.iter().map(|m| m.name.len()).max().unwrap_or(4);
         let mut sup = Supervisor {
@@ -222,6 +250,7 @@ impl Supervisor {
         let mut last_table = Instant::now() - Duration::from_secs(1);
         loop {
             self.serve();
+            self.handle_host_requests();
             self.watch();
             self.forward_logs();
             if opts.show_status
@@ -264,6 +293,109 @@ impl Supervisor {
         }
     }
 
+    /// Starts and stops the assembly hosts the coordinator asked for.
+    fn handle_host_requests(&mut self) {
+        let requests = std::mem::take(&mut self.endpoint.state_mut().requests);
+        for request in requests {
+            match request {
+                HostRequest::Spawn {
+                    host,
+                    assembly,
+                    generation,
+                } => {
+                    if let Err(e) = self.spawn_host(&host, &assembly, generation) {
+                        self.say(&format!(
+                            "cannot start host {host} of assembly {assembly}: {e}"
+                        ));
+                    }
+                }
+                HostRequest::Retire(name) => self.retire(&name),
+            }
+        }
+    }
+
+    fn spawn_host(&mut self, host: &str, assembly: &str, generation: u16) -> Result<(), String> {
+        let Some(template) = self.spec.host_template.clone() else {
+            return Err("the system has no assemblies".into());
+        };
+        let name = crate::grid::spec::host_module_of(host, generation);
+        if let Some(i) = self.spec.modules.iter().position(|m| m.name == name) {
+            if self.slots[i].state != RunState::Retired {
+                return Err(format!("module {name} exists already"));
+            }
+        }
+        let own = self.endpoint.addr().0;
+        let busy: Vec<u8> = self
+            .spec
+            .modules
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, s)| s.state != RunState::Retired || s.child.is_some())
+            .map(|(m, _)| m.addr)
+            .collect();
+        let addr = (Addr::FIRST..=Addr::LAST)
+            .rev()
+            .find(|a| *a != own && !busy.contains(a))
+            .ok_or("no address is free")?;
+        let mut m = template;
+        m.name = name.clone();
+        m.addr = addr;
+        m.args.extend([
+            "--host".to_owned(),
+            host.to_owned(),
+            "--assembly".to_owned(),
+            assembly.to_owned(),
+            "--generation".to_owned(),
+            generation.to_string(),
+        ]);
+        let slot = Slot::new(m.restart.clone());
+        // A retired slot is reused, so that a run of many swaps keeps a short table.
+        let reuse = self
+            .slots
+            .iter()
+            .position(|s| s.state == RunState::Retired && s.child.is_none());
+        let i = match reuse {
+            Some(i) => {
+                self.spec.modules[i] = m;
+                self.slots[i] = slot;
+                i
+            }
+            None => {
+                self.spec.modules.push(m);
+                self.slots.push(slot);
+                self.spec.modules.len() - 1
+            }
+        };
+        self.name_width = self.name_width.max(name.len());
+        self.spawn(i).map_err(|e| {
+            self.slots[i].state = RunState::Retired;
+            e.to_string()
+        })?;
+        self.say(&format!(
+            "{name}: host {host} of assembly {assembly} (generation {generation}) started"
+        ));
+        Ok(())
+    }
+
+    /// Stops module `name` for good (SIGTERM; SIGKILL after the grace period, by `watch`).
+    fn retire(&mut self, name: &str) {
+        let Some(i) = self.spec.modules.iter().position(|m| m.name == name) else {
+            return;
+        };
+        let slot = &mut self.slots[i];
+        slot.retiring = true;
+        slot.restart_at_ns = self.epoch.elapsed().as_nanos() as u64
+            + self.spec.supervision.stop_grace.as_nanos() as u64;
+        match &slot.child {
+            Some(_) => {
+                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGCONT);
+                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGTERM);
+            }
+            None => slot.state = RunState::Retired,
+        }
+        self.status_dirty = true;
+    }
+
     fn now_ns(&self) -> u64 {
         self.epoch.elapsed().as_nanos() as u64
     }
@@ -285,6 +417,7 @@ impl Supervisor {
             .modules
             .iter()
             .zip(&self.slots)
+            .filter(|(_, s)| s.state != RunState::Retired)
             .map(|(m, s)| Row {
                 name: m.name.clone(),
                 addr: m.addr,
@@ -453,6 +586,11 @@ impl Supervisor {
         // The dead process's ports would keep "receiving" until cleaned: clean them now, so
         // its peers see it gone at once.
         self.endpoint.reap_dead();
+        if self.slots[i].retiring {
+            self.slots[i].state = RunState::Retired;
+            self.status_dirty = true;
+            return;
+        }
         let name = self.spec.modules[i].name.clone();
         let decision = self.slots[i].tracker.on_exit(&reason, now);
         let slot = &mut self.slots[i];
@@ -517,6 +655,13 @@ impl Supervisor {
         let sup = &self.spec.supervision;
         let slot = &mut self.slots[i];
         if slot.child.is_none() || slot.killed_for.is_some() {
+            return;
+        }
+        if slot.retiring {
+            if now >= slot.restart_at_ns {
+                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGKILL);
+                slot.killed_for = Some(ExitReason::Stopped(-1));
+            }
             return;
         }
         let reason = match slot.state {
@@ -635,6 +780,8 @@ fn open_endpoint(transport: &IpcTransport, used: &[u8]) -> Result<Module<Shared>
             .mode(ReceiveMode::Blocking)
             .method("status", status_method)
             .method("down", down_method)
+            .method("spawn_host", spawn_host_method)
+            .method("retire", retire_method)
             .open(transport.clone(), Shared::default());
         match opened {
             Ok(m) => return Ok(m),
@@ -718,5 +865,47 @@ fn down_method(
     _: &mut Reply,
 ) -> Result<(), MethodError> {
     shared.down_requested = true;
+    Ok(())
+}
+
+fn spawn_host_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let (host, assembly, generation) = (args.text(0)?, args.text(1)?, args.i64(2)?);
+    if !shared.hosts_allowed {
+        return Err(MethodError::Failed(
+            "this system has no assemblies: no host can be started".into(),
+        ));
+    }
+    let generation = u16::try_from(generation)
+        .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
+    crate::grid::spec::check_host(host).map_err(MethodError::Failed)?;
+    crate::system::assembly::check_assembly_name(assembly).map_err(MethodError::Failed)?;
+    shared.requests.push(HostRequest::Spawn {
+        host: (*host).to_owned(),
+        assembly: (*assembly).to_owned(),
+        generation,
+    });
+    Ok(())
+}
+
+fn retire_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let name = args.text(0)?;
+    if !shared.hosts_allowed || !name.starts_with("host_") || !name.contains("_g") {
+        return Err(MethodError::Failed(format!(
+            "only the host of an assembly can be retired, not {name}"
+        )));
+    }
+    shared
+        .requests
+        .push(HostRequest::Retire((*name).to_owned()));
     Ok(())
 }

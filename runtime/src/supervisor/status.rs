@@ -27,6 +27,8 @@ pub enum RunState {
     Failed,
     /// Stopped by the supervisor at shutdown.
     Stopped,
+    /// A host of an assembly that was replaced: stopped, and no longer listed.
+    Retired,
 }
 
 impl RunState {
@@ -38,6 +40,7 @@ impl RunState {
             RunState::Down => "down",
             RunState::Failed => "failed",
             RunState::Stopped => "stopped",
+            RunState::Retired => "retired",
         }
     }
 }

@@ -21,10 +21,17 @@ use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
 use super::read::{list, show, string, text, Fields};
 use crate::grid::component::{ParamValue, Params};
 use crate::grid::spec::{
-    ComponentDecl, ConnectDecl, GridDecl, OverrunPolicy, Period, MAX_COMPONENTS,
+    AssembliesDecl, ComponentDecl, ConnectDecl, GridDecl, OverrunPolicy, Period, MAX_COMPONENTS,
 };
 
-const GRID_FIELDS: &[&str] = &["base_period", "cpus", "priority", "mlock"];
+const GRID_FIELDS: &[&str] = &[
+    "base_period",
+    "cpus",
+    "priority",
+    "mlock",
+    "assemblies",
+    "assembly",
+];
 const COMPONENT_FIELDS: &[&str] = &["type", "host", "period", "period_s", "params", "policy"];
 /// The base period when `grid {}` does not say.
 const DEFAULT_BASE_PERIOD: Duration = Duration::from_millis(1);
@@ -103,7 +110,22 @@ fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
         None => DEFAULT_BASE_PERIOD,
     };
     let (cpus, priority, mlock) = realtime(what, &mut fields)?;
+    let assemblies = match (fields.take("assemblies"), fields.take("assembly")) {
+        (Some(dir), Some(first)) => Some(AssembliesDecl {
+            dir: string(what, "assemblies", &dir)?,
+            first: string(what, "assembly", &first)?,
+        }),
+        (None, None) => None,
+        _ => {
+            return Err(
+                "grid: give both 'assemblies' (the directory of the assembly files) and \
+                 'assembly' (the one to start with), or neither"
+                    .into(),
+            )
+        }
+    };
     Ok(GridDecl {
+        assemblies,
         base_period,
         cpus,
         // The range was checked above.

@@ -178,7 +178,7 @@ fn unknown_component_type_is_refused_listing_the_known_ones() {
         Some(4),
         "component 'A': unknown component type 'gian' (known: counter, ramp, sine, gain, sum, \
          integrator, delay, vec_gain, pack, sleeper, ptp, hold_position, feedforward, cascade, \
-         monitor, bus, drive_enable)",
+         monitor, waypoints, bus, drive_enable)",
     );
 }
 
@@ -430,7 +430,7 @@ fn bad_grid_fields_are_refused() {
         ("mlock = 1", "field 'mlock' must be true or false"),
         (
             "rate = 1",
-            "grid: unknown field 'rate' (expected base_period, cpus, priority, mlock)",
+            "grid: unknown field 'rate' (expected base_period, cpus, priority, mlock, assemblies, assembly)",
         ),
     ] {
         assert_error(

@@ -51,6 +51,7 @@
 //!   program lookup and the grid's checks, which produce the [`SystemSpec`].
 //! - [`program`]: how a program name becomes an executable path ([`DefaultResolver`]).
 
+pub mod assembly;
 mod decl;
 mod grid_decl;
 mod lua;
@@ -72,6 +73,7 @@ use thiserror::Error;
 use crate::grid::{GridSpec, Registry};
 use crate::transport::ReceiveMode;
 
+pub use assembly::{assembly_names, load_assembly};
 pub use program::{DefaultResolver, ProgramResolver};
 
 /// A checked system description: everything the supervisor needs to start the robot.
@@ -89,6 +91,10 @@ pub struct SystemSpec {
     pub groups: Vec<GroupSpec>,
     /// The time grid, if the description declares one.
     pub grid: Option<GridSpec>,
+    /// How to start a host of an assembly at runtime (set by
+    /// [`crate::grid::processes::add_processes`] when the grid has assemblies): the host's
+    /// module with the arguments every host gets; the supervisor adds the rest.
+    pub host_template: Option<ModuleSpec>,
 }
 
 /// The supervisor's timings.
@@ -374,7 +380,7 @@ pub fn load_str_with_registry(
     registry: &Registry,
 ) -> Result<SystemSpec, SystemError> {
     let declarations = lua::evaluate(file_name, source, vars)?;
-    validate::build(file_name, declarations, resolver, registry)
+    validate::build(file_name, declarations, resolver, registry, vars)
 }
 
 /// Reads one `--var KEY=VALUE`: the key is what comes before the first `=`, made of ASCII

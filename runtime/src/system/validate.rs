@@ -8,8 +8,12 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 
+use std::path::Path;
+
+use super::assembly::load_assembly;
 use super::decl::{Declarations, ModuleDecl};
 use super::{ProgramResolver, SystemError, SystemSpec};
+use crate::grid::spec::{Assembly, ComponentDecl, ConnectDecl, GridDecl};
 use crate::grid::{GridSpec, Registry};
 
 /// Checks `decls` (from the file `file`), finds every module's program and checks the grid
@@ -19,6 +23,7 @@ pub(super) fn build(
     decls: Declarations,
     resolver: &dyn ProgramResolver,
     registry: &Registry,
+    vars: &[(String, String)],
 ) -> Result<SystemSpec, SystemError> {
     let error = |line: u32, message: String| SystemError::new(file, Some(line), message);
     let Some((domain, _)) = decls.domain else {
@@ -110,6 +115,14 @@ pub(super) fn build(
     }
 
     let grid = match decls.grid {
+        Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
+            file,
+            grid,
+            decls.components,
+            decls.connections,
+            registry,
+            vars,
+        )?),
         Some(grid) => Some(
             GridSpec::build(grid, decls.components, decls.connections, registry)
                 .map_err(|e| SystemError::new(file, e.line, e.message))?,
@@ -138,6 +151,62 @@ pub(super) fn build(
         modules,
         groups,
         grid,
+        host_template: None,
+    })
+}
+
+/// The grid of a description with assemblies: its own components and the first assembly's.
+fn with_assemblies(
+    file: &str,
+    grid: GridDecl,
+    components: Vec<ComponentDecl>,
+    connections: Vec<ConnectDecl>,
+    registry: &Registry,
+    vars: &[(String, String)],
+) -> Result<GridSpec, SystemError> {
+    let Some(decl) = grid.assemblies.clone() else {
+        return GridSpec::build(grid, components, connections, registry)
+            .map_err(|e| SystemError::new(file, e.line, e.message));
+    };
+    let here = Path::new(file).parent().unwrap_or(Path::new(""));
+    let dir = here.join(&decl.dir);
+    if !dir.is_dir() {
+        return Err(SystemError::new(
+            file,
+            Some(grid.line),
+            format!(
+                "grid: the assemblies directory '{}' is not found (looked at {})",
+                decl.dir,
+                dir.display()
+            ),
+        ));
+    }
+    let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+    let line = grid.line;
+    let unloaded = GridSpec {
+        base_period: grid.base_period,
+        cpus: grid.cpus.clone(),
+        priority: grid.priority,
+        mlock: grid.mlock,
+        components: Vec::new(),
+        connections: Vec::new(),
+        line,
+        assembly: Some(Assembly {
+            name: String::new(),
+            generation: 0,
+            dir,
+            base: components.len(),
+            decls: (grid, components, connections),
+            vars: vars.to_vec(),
+            system_file: file.to_owned(),
+        }),
+    };
+    load_assembly(&unloaded, &decl.first, 1, registry).map_err(|mut e| {
+        if e.file.is_empty() {
+            e.file = file.to_owned();
+            e.line = Some(line);
+        }
+        e
     })
 }
 

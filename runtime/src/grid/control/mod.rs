@@ -13,6 +13,7 @@
 //! | `feedforward` | `q`, `qd`, `qdd` | `tau_ff` | `inertia` (per axis, required), `gravity`, `viscous` (per axis, 0), `coupling` (f64, 0) |
 //! | `cascade` | `q_ref`, `qd_ref`, `tau_ff`, `q`, `qd` | `tau` | `kp`, `kv`, `ki`, `tau_max` (per axis, required) |
 //! | `monitor` | `q`, `qd`, `q_ref` | `ok: bool`, `code: i64`, `axis: i64` | `q_min`, `q_max`, `qd_max`, `following_max` (per axis, required) |
+//! | `waypoints` | `done: bool` | `goal` | `points` (flat list of points, required), `dwell` (f64 s, 0) |
 //!
 //! All are deterministic, allocate only when made, and never emit NaN: a non-finite input is
 //! ignored by the generators and gives 0 on the affected axis of `feedforward` and `cascade`;
@@ -25,7 +26,9 @@
 //!   `hold_position`; [`bessel`]: the 2nd-order Bessel low-pass filter `ptp` may apply.
 //! - [`feedforward`]: a simplified rigid-body model, τ = M(q)·q̈ + c(q, q̇) + g(q).
 //! - [`cascade`]: the P-PI position/velocity cascade with anti-windup.
-//! - [`monitor`]: latching limits on position, velocity and following error.
+//! - [`monitor`]: latching limits on position, velocity and following error; a breach is an
+//!   unsafe state that faults its assembly.
+//! - [`waypoints`]: a robot program's goals, point to point, round and round.
 //! - this file: the parameter and port helpers they share, and [`register`].
 
 pub mod bessel;
@@ -33,6 +36,7 @@ pub mod cascade;
 pub mod feedforward;
 pub mod monitor;
 pub mod trajectory;
+pub mod waypoints;
 
 use super::component::{ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType, PortValue};
 use super::Registry;
@@ -49,6 +53,7 @@ pub fn register(registry: &mut Registry) {
     registry.register(feedforward::info, feedforward::make);
     registry.register(cascade::info, cascade::make);
     registry.register(monitor::info, monitor::make);
+    registry.register(waypoints::info, waypoints::make);
 }
 
 /// The `axes` parameter every control component declares.

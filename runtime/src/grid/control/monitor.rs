@@ -119,6 +119,10 @@ impl Component for Monitor {
         outputs[1] = PortValue::I64(code);
         outputs[2] = PortValue::I64(axis);
     }
+
+    fn unsafe_state(&self) -> bool {
+        self.tripped.is_some()
+    }
 }
 
 #[cfg(test)]

@@ -31,9 +31,15 @@
 //! and `a_max` by at most the filter's step overshoot (0.43 %, see [`super::bessel`]), in
 //! practice far less (a 2 rad move at 5 Hz passes the goal by 3e-5 rad).
 //!
+//! While its assembly is being prepared (released to *track*), `ptp` rests at `start` and takes
+//! no goal, so that when it takes over it starts from where the robot is; connect `start` to
+//! the bus's `demand_position` (the position the drives were last commanded) for a swap
+//! without a jump.
+//!
 //! # `hold_position`
 //! Input `start`; outputs `q` (= `start` as latched at the first release, 0 on an axis where it
 //! was not finite), `qd` and `qdd` (zeros): the generator of an assembly that holds the robot.
+//! Tracking, it latches `start` at every release, so it holds what it saw at the last one.
 
 use super::bessel::Bessel2;
 use super::{
@@ -275,6 +281,15 @@ impl Component for Ptp {
         }
         outputs[3] = PortValue::Bool(false);
     }
+
+    /// Rests at `start` (where the robot is commanded to be) until it takes over; the first
+    /// goal it sees after that is new, so it then moves from there.
+    fn track(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.latch(array(&inputs[1]));
+        self.latched = true;
+        rest(outputs, &self.target);
+        outputs[3] = PortValue::Bool(true);
+    }
 }
 
 pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
@@ -312,6 +327,12 @@ impl Component for Hold {
             self.latched = true;
         }
         rest(outputs, &self.q);
+    }
+
+    /// Follows `start` until it takes over, then holds what it saw last.
+    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.latched = false;
+        self.step(tick, inputs, outputs);
     }
 }
 
