@@ -88,6 +88,23 @@ pub fn add_processes(
         when: Restart::OnFailure,
         ..RestartPolicy::default()
     };
+    // Every host's module, but for its name, address, program and host arguments.
+    let template = ModuleSpec {
+        name: String::new(),
+        addr: 0,
+        program: program(HOST_PROGRAM)?,
+        program_name: HOST_PROGRAM.into(),
+        args: common.clone(),
+        restart: policy.clone(),
+        cpus: Vec::new(),
+        // Just below the coordinator: a host must answer within its period.
+        priority: grid.priority.map(|p| p.saturating_sub(1).max(1)),
+        mlock: grid.mlock,
+        env: Vec::new(),
+        mode: ReceiveMode::Blocking,
+        groups: Vec::new(),
+        line: grid.line,
+    };
     let mut added = Vec::new();
     for host in grid.hosts() {
         let name = grid.host_module(&host);
@@ -114,35 +131,13 @@ pub fn add_processes(
             program: program(host_program(&host))?,
             program_name: host_program(&host).into(),
             args,
-            restart: policy.clone(),
-            cpus: Vec::new(),
-            // Just below the coordinator: a host must answer within its period.
-            priority: grid.priority.map(|p| p.saturating_sub(1).max(1)),
-            mlock: grid.mlock,
-            env: Vec::new(),
-            mode: ReceiveMode::Blocking,
-            groups: Vec::new(),
-            line: grid.line,
+            ..template.clone()
         });
     }
     if grid.assembly.is_some() {
         // The hosts of assemblies swapped in later: the supervisor adds the host, the
         // assembly and its generation.
-        spec.host_template = Some(ModuleSpec {
-            name: String::new(),
-            addr: 0,
-            program: program(HOST_PROGRAM)?,
-            program_name: HOST_PROGRAM.into(),
-            args: common.clone(),
-            restart: policy.clone(),
-            cpus: Vec::new(),
-            priority: grid.priority.map(|p| p.saturating_sub(1).max(1)),
-            mlock: grid.mlock,
-            env: Vec::new(),
-            mode: ReceiveMode::Blocking,
-            groups: Vec::new(),
-            line: grid.line,
-        });
+        spec.host_template = Some(template);
         if run.trace.is_some() {
             return Err(format!(
                 "{}: --trace records a fixed set of components; it is not available with assemblies",
