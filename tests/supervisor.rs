@@ -32,8 +32,9 @@ fn start_up_with(sut: &mut TestDomain, body: &str, modules: &[&str], more: &[&st
     {
         assert!(
             start.elapsed() < Duration::from_secs(30),
-            "the system did not come up; modbot up printed:\n{}\nmodbot ls:\n{}\nsupervisor.status: {}",
+            "the system did not come up; modbot up printed:\n{}\nfiles of the domain: {:?}\nmodbot ls:\n{}\nsupervisor.status: {}",
             sut.output_of(up),
+            sut.leftover_files(),
             String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout),
             {
                 let out = std::process::Command::new(common::bin("modbot"))

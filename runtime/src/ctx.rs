@@ -288,7 +288,10 @@ impl Ctx {
         };
         match self.send_exec(handle, addr, seq, sysmethod::DESCRIBE, &[], true) {
             Ok(()) => self.describing[usize::from(addr.0)] = true,
-            Err(_) => self.calls.cancel(handle),
+            Err(e) => {
+                tracing::debug!("cannot ask module {addr} for its methods: {e}");
+                self.calls.cancel(handle);
+            }
         }
     }
 

@@ -220,6 +220,10 @@ impl<S> Module<S> {
                     tracing::debug!("module {name} ({addr}) died");
                 }
                 self.ctx.describing[usize::from(addr.0)] = false;
+                // The next process at this address may use a new inbox (its files were swept
+                // while it started, say): open the link again rather than keep sending into
+                // the dead one's.
+                self.ctx.tx.disconnect(addr);
                 let failures = &mut self.ctx.failures;
                 self.ctx.calls.fail_peer(addr, |e| {
                     if e.purpose == Purpose::User {

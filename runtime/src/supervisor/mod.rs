@@ -808,6 +808,9 @@ fn open_endpoint(transport: &IpcTransport, used: &[u8]) -> Result<Module<Shared>
 /// addresses this description needs); cleans what dead processes left, and removes the
 /// domain's files if nothing of it lives.
 fn sweep(domain: &Domain, dir: &dyn Directory, used: &[u8]) -> Result<(), SupervisorError> {
+    // A tool may be starting in the domain while we look (`modbot ls` polling for the system to
+    // come up): only files older than this look are removed, so what it creates meanwhile stays.
+    let before = std::time::SystemTime::now();
     let mut conflicts = Vec::new();
     let mut live = 0;
     dir.list(&mut |p| {
@@ -825,7 +828,11 @@ fn sweep(domain: &Domain, dir: &dyn Directory, used: &[u8]) -> Result<(), Superv
         });
     }
     let reaped = dir.reap_dead();
-    let removed = if live == 0 { domain.remove_files() } else { 0 };
+    let removed = if live == 0 {
+        domain.remove_files_older_than(before)
+    } else {
+        0
+    };
     if reaped + removed > 0 {
         tracing::info!(
             "swept domain '{}': {reaped} dead node(s), {removed} stale file(s)",

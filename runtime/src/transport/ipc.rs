@@ -54,6 +54,8 @@ fn service_name(name: &str) -> Result<ServiceName, TransportError> {
 pub struct IpcTransport {
     domain: Domain,
     config: Config,
+    /// Opened for a tool (see [`Transport::opened_as_tool`]).
+    tool: std::cell::Cell<bool>,
 }
 
 impl IpcTransport {
@@ -64,6 +66,7 @@ impl IpcTransport {
         Ok(IpcTransport {
             domain: domain.clone(),
             config,
+            tool: std::cell::Cell::new(false),
         })
     }
 
@@ -327,6 +330,7 @@ impl Transport for IpcTransport {
             heartbeat: PeerLink {
                 publisher: heartbeat,
                 notifier: None,
+                service: None,
             },
             _claims: claims,
         };
@@ -353,6 +357,10 @@ impl Transport for IpcTransport {
         }))
     }
 
+    fn opened_as_tool(&self) {
+        self.tool.set(true);
+    }
+
     fn sweep_if_empty(&self) -> bool {
         // A system may be starting in this domain right now: only files older than this
         // check are removed, so what a process creates while we look is left alone.
@@ -361,10 +369,24 @@ impl Transport for IpcTransport {
             config: self.config.clone(),
         };
         dir.reap_dead();
-        // Any live node counts, not only modules: a supervisor's heartbeat monitor, say.
+        if self.tool.get() {
+            // A system may be starting: its first node is invisible to a listing for a
+            // moment, and removing its files would cut it off. Dead nodes are reaped above
+            // (iceoryx2 removes what they held); what stays after a clean exit is the
+            // prefix's global management file, removed when nothing else of the domain exists.
+            let files = self.domain.files();
+            let only_management = !files.is_empty()
+                && files.iter().all(|f| {
+                    f.file_name()
+                        .is_some_and(|n| n.to_string_lossy().ends_with(".global_mgmt"))
+                });
+            return only_management && self.domain.remove_files_older_than(before) > 0;
+        }
+        // Any node that is not known dead counts, not only modules (a supervisor's heartbeat
+        // monitor, say), and so does one whose state cannot be read right now.
         let mut alive = 0;
         let listed = Node::<ipc::Service>::list(&self.config, |state| {
-            if matches!(state, NodeState::Alive(_)) {
+            if !matches!(state, NodeState::Dead(_)) {
                 alive += 1;
             }
             CallbackProgression::Continue
@@ -502,6 +524,11 @@ impl Rx for IpcRx {
 struct PeerLink {
     publisher: Pub,
     notifier: Option<Notifier<ipc::Service>>,
+    /// The inbox service this link reaches (modules only), to tell a full inbox from one that
+    /// nobody reads any more.
+    service: Option<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
+    >,
 }
 
 struct IpcTx {
@@ -538,9 +565,10 @@ impl IpcTx {
         if self.peers[usize::from(to.0)].is_some() {
             return Ok(());
         }
+        let service = inbox_service(&self.node, to, self.max_frame)?;
         let publisher = ipc!(
             "inbox publisher",
-            inbox_service(&self.node, to, self.max_frame)?
+            service
                 .publisher_builder()
                 .initial_max_slice_len(self.max_frame)
                 .allocation_strategy(AllocationStrategy::Static)
@@ -560,6 +588,7 @@ impl IpcTx {
         self.peers[usize::from(to.0)] = Some(PeerLink {
             publisher,
             notifier,
+            service: Some(service),
         });
         Ok(())
     }
@@ -588,6 +617,7 @@ impl IpcTx {
             PeerLink {
                 publisher,
                 notifier,
+                service: None,
             },
         );
         Ok(())
@@ -643,15 +673,18 @@ impl Tx for IpcTx {
                 let delivered = send_on(link, len, fill)?;
                 if delivered == 0 {
                     self.dropped += 1;
-                    // No subscriber at all means nobody serves this inbox.
-                    let subscribers = inbox_service(&self.node, addr, self.max_frame)
-                        .map(|s| s.dynamic_config().number_of_subscribers())
-                        .unwrap_or(0);
-                    return Err(if subscribers == 0 {
-                        SendError::NoReceiver(addr)
-                    } else {
-                        SendError::InboxFull(addr)
-                    });
+                    let subscribers = link
+                        .service
+                        .as_ref()
+                        .map_or(0, |s| s.dynamic_config().number_of_subscribers());
+                    if subscribers > 0 {
+                        return Err(SendError::InboxFull(addr));
+                    }
+                    // Nobody reads the inbox this link reaches. The process now at this
+                    // address may serve a new one (the old files were swept while it started,
+                    // say): the link is opened anew, by name, for the next frame.
+                    self.peers[usize::from(addr.0)] = None;
+                    return Err(SendError::NoReceiver(addr));
                 }
                 Ok(())
             }
@@ -785,6 +818,7 @@ impl Snapshots for IpcSnapshots {
         let link = PeerLink {
             publisher: self.publisher.take().expect("created above"),
             notifier: None,
+            service: None,
         };
         let result = send_on(&link, len, fill);
         self.publisher = Some(link.publisher);

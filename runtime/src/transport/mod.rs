@@ -235,6 +235,10 @@ pub trait Transport {
                 &[],
             ) {
                 Err(TransportError::AddressTaken { .. }) => continue,
+                Ok(endpoint) => {
+                    self.opened_as_tool();
+                    return Ok(endpoint);
+                }
                 other => return other,
             }
         }
@@ -247,4 +251,8 @@ pub trait Transport {
     /// Runs when the last module of this process leaves: removes the domain's files if no
     /// module of it lives anymore.
     fn sweep_if_empty(&self) -> bool;
+
+    /// Marks this transport as a tool's: a tool is short-lived and may run while a system
+    /// starts in the domain, so when it leaves it tidies only what is certainly dead.
+    fn opened_as_tool(&self) {}
 }
