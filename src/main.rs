@@ -134,6 +134,12 @@ fn parse_var(text: &str) -> Result<(String, String), String> {
 }
 
 fn main() -> ExitCode {
+    // Output piped into `head` and closed: end quietly, as Unix tools do, rather than panic
+    // on the failed write.
+    // SAFETY: restoring the default disposition of SIGPIPE, before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let filter =
         tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into());
     tracing_subscriber::fmt()

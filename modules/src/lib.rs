@@ -19,4 +19,5 @@ pub mod high_level;
 pub mod intrusion;
 pub mod mobility;
 pub mod moser;
+pub mod service_thread;
 pub mod sonar;

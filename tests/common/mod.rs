@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod arm;
+
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};

@@ -7,6 +7,7 @@ use std::time::Duration;
 use clap::Parser;
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
+use modbot_modules::service_thread::serve_module;
 use modbot_runtime::bus::bridge::{self, Bridge};
 use modbot_runtime::bus::{PlantParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
@@ -17,8 +18,9 @@ use modbot_runtime::{signals, Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
 /// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`);
-/// `switches()` → one line per assembly switch: `GENERATION TICK STEP` (the largest change of
-/// commanded position at that cycle, rad); `block(axis, on)` blocks or frees an axis's link in
+/// `switches()` → one line per assembly switch: `GENERATION TICK STEP MISSED` (the largest
+/// change of commanded position at that cycle, rad, and the cycles missed within five ticks of
+/// it); `block(axis, on)` blocks or frees an axis's link in
 /// the simulation.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-bus", version)]
@@ -54,7 +56,10 @@ fn switches_method(
     let b = bridge::lock(&l.0);
     let mut text = format!("max_step {:e}\n", b.max_step);
     for s in &b.switches {
-        text.push_str(&format!("{} {} {:e}\n", s.generation, s.tick, s.step));
+        text.push_str(&format!(
+            "{} {} {:e} {}\n",
+            s.generation, s.tick, s.step, s.missed_near
+        ));
     }
     reply.push(Value::Text(&text));
     Ok(())
@@ -99,39 +104,51 @@ fn main() -> anyhow::Result<()> {
         .set(shared.clone())
         .map_err(|_| anyhow::anyhow!("the bus bridge was set twice"))?;
     let transport = cli.module.transport()?;
-    let node = transport.node(&format!("grid.host.{}", cli.host))?;
+    let node = Arc::new(transport.threadsafe_node(&format!("grid.host.{}", cli.host))?);
     let mut host = Host::new(&node, &grid, &Registry::builtin(), &cli.host)?;
-    let mut module = ModuleBuilder::new(
-        cli.module
-            .name
-            .as_deref()
-            .unwrap_or(&host_module(&cli.host)),
-        cli.module.addr.unwrap_or(199),
-    )
-    .mode(cli.module.receive_mode())
-    .method("bus", bus_method)
-    .method("switches", switches_method)
-    .method("block", block_method)
-    .open(transport, Ledger(shared.clone()))?;
     signals::install_termination_handler()?;
+    // Listening on the grid, the bus announces itself: its module (the ledger, switches and
+    // block methods) runs on a thread of its own, so a method call never delays a cycle.
+    let name = cli
+        .module
+        .name
+        .clone()
+        .unwrap_or_else(|| host_module(&cli.host));
+    let (addr, mode) = (cli.module.addr.unwrap_or(199), cli.module.receive_mode());
+    let ledger = Ledger(shared.clone());
+    let service = serve_module(move || {
+        Ok(ModuleBuilder::new(&name, addr)
+            .mode(mode)
+            .method("bus", bus_method)
+            .method("switches", switches_method)
+            .method("block", block_method)
+            .open(transport, ledger)?)
+    })?;
+    // Hosts run just below the coordinator, which must preempt them.
+    if let Some(p) = grid.priority {
+        if let Err(why) =
+            modbot_runtime::supervisor::rt::fifo_for_this_thread(p.saturating_sub(1).max(1))
+        {
+            tracing::debug!("serving thread: {why}");
+        }
+    }
     let now = || MonotonicClock.now_ns();
     // The bus polls for its release every tenth of a period instead of sleeping on the
     // wake-up event (whose timeout has millisecond granularity): its watchdog must see a lost
     // coordinator within three periods, not four or five.
     let poll = Duration::from_nanos((period_ns / 10).max(20_000));
-    let mut last_service = std::time::Instant::now();
-    while !signals::termination_requested() {
+    while !signals::termination_requested() && !service.is_finished() {
         if host.serve(&now)? == 0 {
+            // Nothing waits to be served: only now may the watchdog judge the silence (after
+            // a slow moment of this process, a release may be waiting that it has not seen).
+            bridge::lock(&shared).watch(now());
             // Idle: a bounded piece of an assembly's preparation, then a short sleep.
             host.prepare_step(&node, Registry::builtin)?;
             std::thread::sleep(poll);
         }
-        bridge::lock(&shared).watch(now());
-        if last_service.elapsed() >= Duration::from_millis(5) {
-            last_service = std::time::Instant::now();
-            while module.poll_once()? {}
-            module.housekeeping();
-        }
     }
-    Ok(())
+    match service.join() {
+        Ok(result) => result,
+        Err(_) => anyhow::bail!("the service thread panicked"),
+    }
 }

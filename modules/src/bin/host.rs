@@ -1,9 +1,11 @@
 //! `modbot-host`: a component host of the time grid — steps the components of one host name.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser;
 use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
+use modbot_modules::service_thread::serve_module;
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::host::Host;
@@ -28,27 +30,39 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let grid = cli.grid.load()?;
     let transport = cli.module.transport()?;
-    let node = transport.node(&format!("grid.host.{}", cli.host))?;
+    let node = Arc::new(transport.threadsafe_node(&format!("grid.host.{}", cli.host))?);
     let mut host = Host::new(&node, &grid, &Registry::builtin(), &cli.host)?;
-    let mut module = ModuleBuilder::new(
-        cli.module
-            .name
-            .as_deref()
-            .unwrap_or(&grid.host_module(&cli.host)),
-        cli.module.addr.unwrap_or(200),
-    )
-    .mode(cli.module.receive_mode())
-    .open(transport, ())?;
     signals::install_termination_handler()?;
+    // Listening on the grid, the host announces itself: its module runs on a thread of its own.
+    let name = cli
+        .module
+        .name
+        .clone()
+        .unwrap_or_else(|| grid.host_module(&cli.host));
+    let (addr, mode) = (cli.module.addr.unwrap_or(200), cli.module.receive_mode());
+    let service = serve_module(move || {
+        Ok(ModuleBuilder::new(&name, addr)
+            .mode(mode)
+            .open(transport, ())?)
+    })?;
+    // Hosts run just below the coordinator, which must preempt them.
+    if let Some(p) = grid.priority {
+        if let Err(why) =
+            modbot_runtime::supervisor::rt::fifo_for_this_thread(p.saturating_sub(1).max(1))
+        {
+            tracing::debug!("serving thread: {why}");
+        }
+    }
     let now = || MonotonicClock.now_ns();
-    while !signals::termination_requested() {
+    while !signals::termination_requested() && !service.is_finished() {
         host.wait_and_serve(Duration::from_millis(5), &now)?;
         host.prepare_step(&node, Registry::builtin)?;
-        while module.poll_once()? {}
-        module.housekeeping();
     }
     if host.missing > 0 {
         tracing::warn!("{} input version(s) were missing", host.missing);
     }
-    Ok(())
+    match service.join() {
+        Ok(result) => result,
+        Err(_) => anyhow::bail!("the service thread panicked"),
+    }
 }

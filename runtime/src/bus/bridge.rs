@@ -38,7 +38,12 @@ pub struct Switch {
     pub tick: u64,
     /// The largest change of commanded position on any axis from the cycle before, rad.
     pub step: f64,
+    /// Cycles missed within [`NEAR_SWITCH`] ticks of it, before or after.
+    pub missed_near: u64,
 }
+
+/// How many ticks around a switch count as its neighbourhood for missed cycles.
+pub const NEAR_SWITCH: u64 = 5;
 
 /// Switches the bridge remembers.
 const SWITCHES_KEPT: usize = 1024;
@@ -67,6 +72,8 @@ pub struct Bridge {
     pub max_step: f64,
     /// The position commanded at the last cycle, per axis.
     last_target: Vec<f64>,
+    /// The tick of the last release after which cycles were missed, and how many.
+    last_miss: (u64, u64),
 }
 
 impl Bridge {
@@ -86,6 +93,7 @@ impl Bridge {
             switches: Vec::new(),
             max_step: 0.0,
             last_target: vec![0.0; n],
+            last_miss: (0, 0),
         }
     }
 
@@ -109,7 +117,21 @@ impl Bridge {
     ) -> &[AxisActual] {
         if self.last_release_ns != 0 {
             let gap = now_ns.saturating_sub(self.last_release_ns);
-            self.missed += ((gap + self.period_ns / 2) / self.period_ns).saturating_sub(1);
+            let missed = ((gap + self.period_ns / 2) / self.period_ns).saturating_sub(1);
+            if missed > 0 {
+                tracing::debug!(
+                    "{missed} bus cycle(s) missed before tick {}: {} us since the last release",
+                    served.tick,
+                    gap / 1000
+                );
+                self.missed += missed;
+                self.last_miss = (served.tick, missed);
+                if let Some(s) = self.switches.last_mut() {
+                    if served.tick <= s.tick + NEAR_SWITCH {
+                        s.missed_near += missed;
+                    }
+                }
+            }
         }
         self.last_release_ns = now_ns;
         let switched = served.generation != self.generation;
@@ -142,10 +164,17 @@ impl Bridge {
                 if self.switches.len() == SWITCHES_KEPT {
                     self.switches.remove(0);
                 }
+                let (miss_tick, misses) = self.last_miss;
+                let missed_near = if misses > 0 && miss_tick + NEAR_SWITCH >= served.tick {
+                    misses
+                } else {
+                    0
+                };
                 self.switches.push(Switch {
                     generation: served.generation,
                     tick: served.tick,
                     step,
+                    missed_near,
                 });
             } else {
                 self.max_step = self.max_step.max(step);

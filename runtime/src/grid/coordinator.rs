@@ -26,7 +26,7 @@ use super::ledger::{self, ComponentRow, GridRow};
 use super::recorder::Recorder;
 use super::spec::{GridSpec, OverrunPolicy};
 use super::tick::TickSource;
-use super::wire::{self, Pub, Sub};
+use super::wire::{self, Pub, Sub, Threadsafe};
 use crate::stats::Histogram;
 use crate::transport::TransportError;
 
@@ -58,12 +58,14 @@ struct Comp {
     latency: Histogram,
 }
 
-struct HostLink {
+/// The coordinator's link to one host: its release notices and its wake-up. Opened on any
+/// thread (an assembly's links are opened off the tick thread) and handed to the coordinator.
+pub struct HostLink {
     /// The host's name and the generation of its components (0: the system's own).
     name: String,
     generation: u16,
-    release: Pub,
-    wake: Notifier<ipc::Service>,
+    release: Pub<Threadsafe>,
+    wake: Notifier<Threadsafe>,
     /// Released something this tick: wake it.
     woken: bool,
 }
@@ -86,9 +88,10 @@ impl Incoming {
     }
 }
 
-/// The coordinator's link to `host` of `spec`.
-fn link(
-    node: &Node<ipc::Service>,
+/// The coordinator's link to `host` of `spec`. Opening one takes milliseconds (files, maps):
+/// never do it on the tick thread while the grid runs.
+pub fn link(
+    node: &Node<Threadsafe>,
     spec: &GridSpec,
     host: &str,
 ) -> Result<HostLink, TransportError> {
@@ -147,7 +150,7 @@ pub struct Coordinator<W: Write> {
     spec: GridSpec,
     comps: Vec<Comp>,
     hosts: Vec<HostLink>,
-    done: Sub,
+    done: Sub<Threadsafe>,
     recorder: Option<Recorder<W>>,
     /// Scratch: the valid version of every component, for the recorder.
     versions: Vec<u64>,
@@ -171,6 +174,8 @@ pub struct Coordinator<W: Write> {
     switches: Vec<(u16, String, u64, u64)>,
     /// Host processes of replaced assemblies, to be stopped (module names).
     retired: Vec<String>,
+    /// Links to hosts no longer released, to be dropped off the tick thread.
+    retired_links: Vec<HostLink>,
 }
 
 /// An assembly being prepared while the current one runs.
@@ -211,7 +216,7 @@ pub enum SwitchState {
 impl<W: Write> Coordinator<W> {
     /// Opens the grid's services on `node`; with `trace`, records every output at every tick.
     pub fn new(
-        node: &Node<ipc::Service>,
+        node: &Node<Threadsafe>,
         spec: GridSpec,
         trace: Option<W>,
     ) -> Result<Coordinator<W>, TransportError> {
@@ -243,6 +248,7 @@ impl<W: Write> Coordinator<W> {
             incoming: None,
             switches: Vec::new(),
             retired: Vec::new(),
+            retired_links: Vec::new(),
         })
     }
 
@@ -618,7 +624,13 @@ impl<W: Write> Coordinator<W> {
             .filter(|h| h.generation != 0)
             .map(|h| self.spec.host_module(&h.name))
             .collect();
-        self.hosts.retain(|h| h.generation == 0);
+        // Dropping a link unmaps shared memory (milliseconds): the old assembly's links are
+        // handed out with [`Coordinator::take_retired_links`] to be dropped off this thread.
+        let (keep, old_links): (Vec<HostLink>, Vec<HostLink>) = std::mem::take(&mut self.hosts)
+            .into_iter()
+            .partition(|h| h.generation == 0);
+        self.hosts = keep;
+        self.retired_links.extend(old_links);
         let offset = self.hosts.len();
         self.hosts.extend(inc.hosts);
         self.comps.truncate(base);
@@ -682,16 +694,37 @@ impl<W: Write> Coordinator<W> {
         Ok(())
     }
 
-    /// One bounded step of the preparation, between ticks: opens the link to one more host of
-    /// the assembly being prepared.
-    pub fn prepare_step(&mut self, node: &Node<ipc::Service>) -> Result<(), TransportError> {
+    /// The hosts of the assembly being prepared whose links are still to be opened (with
+    /// [`link`], off the tick thread) and handed over with [`Coordinator::add_incoming_link`].
+    pub fn incoming_links_wanted(&self) -> Option<(GridSpec, Vec<String>)> {
+        let inc = self.incoming.as_ref()?;
+        Some((inc.spec.clone(), inc.host_names[inc.hosts.len()..].to_vec()))
+    }
+
+    /// Takes the link to the next host of the assembly being prepared; a link that is not the
+    /// one expected (of another generation, or a host out of turn) is refused and returned.
+    pub fn add_incoming_link(&mut self, link: Box<HostLink>) -> Result<(), Box<HostLink>> {
         let Some(inc) = self.incoming.as_mut() else {
+            return Err(link);
+        };
+        let expected = inc.host_names.get(inc.hosts.len());
+        if expected != Some(&link.name) || link.generation != inc.spec.host_generation(&link.name) {
+            return Err(link);
+        }
+        inc.hosts.push(*link);
+        Ok(())
+    }
+
+    /// One bounded step of the preparation on the calling thread: opens the link to one more
+    /// host of the assembly being prepared (milliseconds: for tests and tools, not a running
+    /// grid's tick thread).
+    pub fn prepare_step(&mut self, node: &Node<Threadsafe>) -> Result<(), TransportError> {
+        let Some((spec, wanted)) = self.incoming_links_wanted() else {
             return Ok(());
         };
-        if inc.hosts.len() < inc.host_names.len() {
-            let name = inc.host_names[inc.hosts.len()].clone();
-            let l = link(node, &inc.spec, &name)?;
-            inc.hosts.push(l);
+        if let Some(name) = wanted.first() {
+            let l = link(node, &spec, name)?;
+            let _ = self.add_incoming_link(Box::new(l));
         }
         Ok(())
     }
@@ -726,11 +759,13 @@ impl<W: Write> Coordinator<W> {
     /// Gives up the assembly being prepared; returns its hosts' module names.
     pub fn abort_switch(&mut self) -> Vec<String> {
         match self.incoming.take() {
-            Some(inc) => inc
-                .host_names
-                .iter()
-                .map(|h| inc.spec.host_module(h))
-                .collect(),
+            Some(mut inc) => {
+                self.retired_links.append(&mut inc.hosts);
+                inc.host_names
+                    .iter()
+                    .map(|h| inc.spec.host_module(h))
+                    .collect()
+            }
             None => Vec::new(),
         }
     }
@@ -767,6 +802,11 @@ impl<W: Write> Coordinator<W> {
     }
 
     /// The module names of the hosts of replaced assemblies, to be stopped; each once.
+    /// The links to the hosts of the assembly that was replaced, to be dropped elsewhere.
+    pub fn take_retired_links(&mut self) -> Vec<HostLink> {
+        std::mem::take(&mut self.retired_links)
+    }
+
     pub fn take_retired(&mut self) -> Vec<String> {
         std::mem::take(&mut self.retired)
     }

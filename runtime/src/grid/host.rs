@@ -25,7 +25,7 @@ use zerocopy::{FromBytes, IntoBytes};
 
 use super::component::{Component, Registry};
 use super::spec::GridSpec;
-use super::wire::{self, Pub, Sub};
+use super::wire::{self, Pub, Sub, Threadsafe};
 use crate::transport::TransportError;
 
 /// Versions kept per source: LET only ever reads one of the newest two.
@@ -33,7 +33,7 @@ const KEPT: usize = 4;
 
 /// The outputs of one source component, as one consumer reads them.
 struct Source {
-    sub: Sub,
+    sub: Sub<Threadsafe>,
     ring: Vec<(u64, Vec<PortValue>)>,
     next: usize,
     zeros: Vec<PortValue>,
@@ -83,15 +83,16 @@ struct Hosted {
     /// The binding of the assembly being prepared: it replaces `binding` at the first release
     /// of its generation.
     next: Option<Binding>,
-    out: Pub,
+    out: Pub<Threadsafe>,
     out_len: usize,
 }
 
 /// An assembly a system host is preparing for: its bindings, opened one source at a time.
 struct Preparing {
     spec: GridSpec,
-    /// Per hosted component, the sources opened so far.
-    opened: Vec<Vec<Source>>,
+    /// Per hosted component, its sources: opened on a thread of their own (milliseconds each,
+    /// which the serving thread must not spend).
+    opening: std::sync::mpsc::Receiver<Result<Vec<Vec<Source>>, TransportError>>,
 }
 
 thread_local! {
@@ -110,11 +111,11 @@ pub struct Host {
     name: String,
     generation: u16,
     hosted: Vec<Hosted>,
-    releases: Sub,
-    done: Pub,
-    wake: Listener<ipc::Service>,
+    releases: Sub<Threadsafe>,
+    done: Pub<Threadsafe>,
+    wake: Listener<Threadsafe>,
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
-    prepare: Option<Sub>,
+    prepare: Option<Sub<Threadsafe>>,
     /// The newest generation it was asked to prepare, and its loader.
     loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, String>>)>,
     preparing: Option<Preparing>,
@@ -122,6 +123,22 @@ pub struct Host {
     spec: GridSpec,
     /// Inputs that were not found in the version the notice named.
     pub missing: u64,
+    /// Where bindings replaced at a switch go to be dropped, off the serving thread.
+    reaper: std::sync::mpsc::Sender<Binding>,
+}
+
+/// A thread that drops what it is sent. It is started before the serving thread raises its
+/// priority, so it runs at normal priority.
+fn reaper() -> Result<std::sync::mpsc::Sender<Binding>, TransportError> {
+    let (tx, rx) = std::sync::mpsc::channel::<Binding>();
+    std::thread::Builder::new()
+        .name("reaper".into())
+        .spawn(move || rx.into_iter().for_each(drop))
+        .map_err(|e| TransportError::Ipc {
+            op: "reaper thread",
+            detail: e.to_string(),
+        })?;
+    Ok(tx)
 }
 
 /// Why a host could not start.
@@ -135,7 +152,7 @@ pub enum HostError {
     Transport(#[from] TransportError),
 }
 
-fn source(node: &Node<ipc::Service>, spec: &GridSpec, s: usize) -> Result<Source, TransportError> {
+fn source(node: &Node<Threadsafe>, spec: &GridSpec, s: usize) -> Result<Source, TransportError> {
     let zeros: Vec<PortValue> = spec.output_types(s).iter().map(|t| t.zero()).collect();
     Ok(Source {
         sub: wire::out_subscriber(node, &spec.out_service(s))?,
@@ -143,6 +160,23 @@ fn source(node: &Node<ipc::Service>, spec: &GridSpec, s: usize) -> Result<Source
         next: 0,
         zeros,
     })
+}
+
+/// Waits (up to 10 s) until every source's host publishes, and connects to it here: the first
+/// receive would otherwise map the publisher's memory on the serving thread, at the switch.
+fn connect(node: &Node<Threadsafe>, spec: &GridSpec, hosted: &[usize], opened: &[Vec<Source>]) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    for (&c, sources) in hosted.iter().zip(opened) {
+        for (s, source) in spec.sources(c).into_iter().zip(sources) {
+            let service = spec.out_service(s);
+            while wire::out_publishers(node, &service).unwrap_or(0) == 0
+                && std::time::Instant::now() < deadline
+            {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            let _ = source.sub.has_samples();
+        }
+    }
 }
 
 fn input_bindings(spec: &GridSpec, c: usize) -> Vec<(usize, usize)> {
@@ -154,7 +188,7 @@ fn input_bindings(spec: &GridSpec, c: usize) -> Vec<(usize, usize)> {
 impl Host {
     /// Instantiates and initialises the components of `host` and opens their channels.
     pub fn new(
-        node: &Node<ipc::Service>,
+        node: &Node<Threadsafe>,
         spec: &GridSpec,
         registry: &Registry,
         host: &str,
@@ -214,6 +248,7 @@ impl Host {
             preparing: None,
             spec: spec.clone(),
             missing: 0,
+            reaper: reaper()?,
         })
     }
 
@@ -257,7 +292,7 @@ impl Host {
     /// releases are never held up for long. Answers the coordinator when it is ready.
     pub fn prepare_step(
         &mut self,
-        node: &Node<ipc::Service>,
+        node: &std::sync::Arc<Node<Threadsafe>>,
         registry: fn() -> Registry,
     ) -> Result<(), TransportError> {
         let Some(notices) = self.prepare.as_ref() else {
@@ -301,10 +336,26 @@ impl Host {
             match rx.try_recv() {
                 Ok(Ok(spec)) => {
                     self.loading = None;
-                    self.preparing = Some(Preparing {
-                        spec,
-                        opened: self.hosted.iter().map(|_| Vec::new()).collect(),
+                    let (tx, rx) = std::sync::mpsc::channel();
+                    let (node, opening) = (node.clone(), spec.clone());
+                    let hosted: Vec<usize> = self.hosted.iter().map(|h| h.index).collect();
+                    std::thread::spawn(move || {
+                        let opened = hosted
+                            .iter()
+                            .map(|&c| {
+                                opening
+                                    .sources(c)
+                                    .into_iter()
+                                    .map(|s| source(&node, &opening, s))
+                                    .collect::<Result<Vec<_>, _>>()
+                            })
+                            .collect::<Result<Vec<_>, _>>();
+                        if let Ok(opened) = &opened {
+                            connect(&node, &opening, &hosted, opened);
+                        }
+                        let _ = tx.send(opened);
                     });
+                    self.preparing = Some(Preparing { spec, opening: rx });
                 }
                 Ok(Err(why)) => {
                     tracing::error!("assembly generation {generation} cannot be prepared: {why}");
@@ -318,21 +369,29 @@ impl Host {
                 }
             }
         }
-        let Some(prep) = self.preparing.as_mut() else {
-            return Ok(());
-        };
-        for (h, opened) in self.hosted.iter().zip(prep.opened.iter_mut()) {
-            let sources = prep.spec.sources(h.index);
-            if opened.len() < sources.len() {
-                opened.push(source(node, &prep.spec, sources[opened.len()])?);
-                return Ok(());
-            }
-        }
-        let Some(prep) = self.preparing.take() else {
+        let Some(prep) = self.preparing.as_ref() else {
             return Ok(());
         };
         let generation = prep.spec.generation();
-        for (h, sources) in self.hosted.iter_mut().zip(prep.opened) {
+        let opened = match prep.opening.try_recv() {
+            Ok(Ok(opened)) => opened,
+            Ok(Err(e)) => {
+                tracing::error!(
+                    "assembly generation {generation}: its inputs cannot be opened: {e}"
+                );
+                self.preparing = None;
+                return self.answer_ready(generation, Done::FAILED);
+            }
+            Err(std::sync::mpsc::TryRecvError::Empty) => return Ok(()),
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                self.preparing = None;
+                return self.answer_ready(generation, Done::FAILED);
+            }
+        };
+        let Some(prep) = self.preparing.take() else {
+            return Ok(());
+        };
+        for (h, sources) in self.hosted.iter_mut().zip(opened) {
             h.next = Some(Binding {
                 generation,
                 sources,
@@ -372,7 +431,12 @@ impl Host {
         };
         if h.next.as_ref().is_some_and(|b| b.generation == generation) {
             if let Some(next) = h.next.take() {
-                h.binding = next;
+                let old = std::mem::replace(&mut h.binding, next);
+                // Dropping its subscribers unmaps shared memory (milliseconds): not here.
+                if let Err(e) = self.reaper.send(old) {
+                    tracing::debug!("the reaper thread is gone; dropping here");
+                    drop(e.0);
+                }
             }
         }
         if h.binding.generation != generation {

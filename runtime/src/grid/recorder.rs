@@ -14,14 +14,14 @@ use zerocopy::FromBytes;
 
 use super::spec::GridSpec;
 use super::trace::TraceWriter;
-use super::wire::{self, Sub};
+use super::wire::{self, Sub, Threadsafe};
 use crate::transport::TransportError;
 
 /// Versions kept per component: LET only ever reads one of the newest two.
 const KEPT: usize = 4;
 
 struct Versions {
-    sub: Sub,
+    sub: Sub<Threadsafe>,
     /// (valid_from, outputs), newest overwriting the oldest.
     ring: Vec<(u64, Vec<PortValue>)>,
     next: usize,
@@ -39,7 +39,7 @@ pub struct Recorder<W: Write> {
 impl<W: Write> Recorder<W> {
     /// Subscribes to every component's outputs on `node`, writing the trace to `out`.
     pub fn new(
-        node: &Node<ipc::Service>,
+        node: &Node<Threadsafe>,
         spec: &GridSpec,
         out: W,
     ) -> Result<Recorder<W>, TransportError> {

@@ -52,9 +52,12 @@ pub struct Status {
     pub current: (String, u16),
     /// The state line as the coordinator wrote it (`idle`, `preparing ...`, `announced ...`).
     pub state: String,
-    /// Recent outcomes: generation, assembly, and (announced, tick) or the reason.
-    pub outcomes: Vec<(u16, String, Result<(u64, u64), String>)>,
+    /// Recent outcomes.
+    pub outcomes: Vec<Outcome>,
 }
+
+/// A switch's outcome: generation, assembly, and (announced tick, actual tick) or the reason.
+pub type Outcome = (u16, String, Result<(u64, u64), String>);
 
 /// Reads the coordinator's answer to `assembly()`.
 pub fn parse_status(text: &str) -> Result<Status, String> {
@@ -99,7 +102,7 @@ pub fn status<S>(module: &mut Module<S>) -> Result<Status, SwitchError> {
         COORDINATOR,
         "assembly",
         &[],
-        CallOptions::timeout(Duration::from_secs(1)),
+        CallOptions::timeout(Duration::from_secs(3)),
         |r| -> Result<String, SwitchError> {
             let args = r.map_err(|e| SwitchError::Call(e.clone()))?;
             args.text(0)
@@ -122,7 +125,7 @@ pub fn switch<S>(
         COORDINATOR,
         "switch",
         &[modbot_ipc_schema::Value::Text(name)],
-        CallOptions::timeout(Duration::from_secs(2)),
+        CallOptions::timeout(Duration::from_secs(5)),
         |r| -> Result<u16, SwitchError> {
             let args = r.map_err(|e| SwitchError::Call(e.clone()))?;
             let g = args
@@ -132,7 +135,15 @@ pub fn switch<S>(
         },
     )?;
     loop {
-        let now = status(module)?;
+        // The coordinator's service thread runs at normal priority: on a loaded machine one
+        // answer may be slow, which is no reason to give up before `timeout`.
+        let now = match status(module) {
+            Ok(now) => now,
+            Err(SwitchError::Call(CallError::Timeout { .. })) if asked.elapsed() < timeout => {
+                continue
+            }
+            Err(e) => return Err(e),
+        };
         if let Some((_, assembly, outcome)) = now.outcomes.iter().find(|o| o.0 == generation) {
             return match outcome {
                 Ok((announced, tick)) => Ok(Switched {

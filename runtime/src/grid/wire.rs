@@ -20,13 +20,19 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use iceoryx2::service::Service;
 
 use crate::transport::TransportError;
 
-pub type Pub = Publisher<ipc::Service, [u8], ()>;
-pub type Sub = Subscriber<ipc::Service, [u8], ()>;
-type PubSubFactory =
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>;
+/// The coordinator's grid ports: shareable between threads, so links to an assembly's hosts
+/// can be opened off the tick thread and handed to it. The services are the same as the
+/// hosts' (`ipc::Service`): the two differ only in how a process guards its own ports.
+pub type Threadsafe = ipc_threadsafe::Service;
+
+pub type Pub<S = ipc::Service> = Publisher<S, [u8], ()>;
+pub type Sub<S = ipc::Service> = Subscriber<S, [u8], ()>;
+type PubSubFactory<S> =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<S, [u8], ()>;
 
 /// Nodes (processes) a grid service serves at most.
 const MAX_NODES: usize = 256;
@@ -44,13 +50,13 @@ fn name(text: &str) -> Result<ServiceName, TransportError> {
     ServiceName::new(text).map_err(|e| err("grid service name")(&e))
 }
 
-fn pubsub(
-    node: &Node<ipc::Service>,
+fn pubsub<S: Service>(
+    node: &Node<S>,
     service: &str,
     depth: usize,
     publishers: usize,
     subscribers: usize,
-) -> Result<PubSubFactory, TransportError> {
+) -> Result<PubSubFactory<S>, TransportError> {
     node.service_builder(&name(service)?)
         .publish_subscribe::<[u8]>()
         .max_publishers(publishers)
@@ -64,7 +70,7 @@ fn pubsub(
         .map_err(|e| err("open grid service")(&e))
 }
 
-fn publisher(factory: &PubSubFactory, len: usize) -> Result<Pub, TransportError> {
+fn publisher<S: Service>(factory: &PubSubFactory<S>, len: usize) -> Result<Pub<S>, TransportError> {
     factory
         .publisher_builder()
         .initial_max_slice_len(len.max(1))
@@ -74,7 +80,10 @@ fn publisher(factory: &PubSubFactory, len: usize) -> Result<Pub, TransportError>
         .map_err(|e| err("grid publisher")(&e))
 }
 
-fn subscriber(factory: &PubSubFactory, depth: usize) -> Result<Sub, TransportError> {
+fn subscriber<S: Service>(
+    factory: &PubSubFactory<S>,
+    depth: usize,
+) -> Result<Sub<S>, TransportError> {
     factory
         .subscriber_builder()
         .buffer_size(depth)
@@ -84,39 +93,52 @@ fn subscriber(factory: &PubSubFactory, depth: usize) -> Result<Sub, TransportErr
 
 /// The publisher of a component's outputs (`service`: [`super::GridSpec::out_service`]),
 /// for records of `len` bytes (header included).
-pub fn out_publisher(
-    node: &Node<ipc::Service>,
+pub fn out_publisher<S: Service>(
+    node: &Node<S>,
     service: &str,
     len: usize,
-) -> Result<Pub, TransportError> {
+) -> Result<Pub<S>, TransportError> {
     publisher(&pubsub(node, service, OUT_DEPTH, 2, 64)?, len)
 }
 
 /// A reader of a component's outputs.
-pub fn out_subscriber(node: &Node<ipc::Service>, service: &str) -> Result<Sub, TransportError> {
+pub fn out_subscriber<S: Service>(node: &Node<S>, service: &str) -> Result<Sub<S>, TransportError> {
     subscriber(&pubsub(node, service, OUT_DEPTH, 2, 64)?, OUT_DEPTH)
 }
 
+/// How many publishers a component's outputs have (0 or 1: its host, once started).
+pub fn out_publishers<S: Service>(node: &Node<S>, service: &str) -> Result<usize, TransportError> {
+    Ok(pubsub(node, service, OUT_DEPTH, 2, 64)?
+        .dynamic_config()
+        .number_of_publishers())
+}
+
 /// The coordinator's side of a host's release notices ([`super::GridSpec::release_service`]).
-pub fn release_publisher(node: &Node<ipc::Service>, service: &str) -> Result<Pub, TransportError> {
+pub fn release_publisher<S: Service>(
+    node: &Node<S>,
+    service: &str,
+) -> Result<Pub<S>, TransportError> {
     let len = core::mem::size_of::<modbot_ipc_schema::grid::Release>();
     publisher(&pubsub(node, service, 256, 2, 2)?, len)
 }
 
 /// A host's side of its release notices.
-pub fn release_subscriber(node: &Node<ipc::Service>, service: &str) -> Result<Sub, TransportError> {
+pub fn release_subscriber<S: Service>(
+    node: &Node<S>,
+    service: &str,
+) -> Result<Sub<S>, TransportError> {
     subscriber(&pubsub(node, service, 256, 2, 2)?, 256)
 }
 
 /// The coordinator's side of the assembly notices.
-pub fn prepare_publisher(node: &Node<ipc::Service>) -> Result<Pub, TransportError> {
+pub fn prepare_publisher<S: Service>(node: &Node<S>) -> Result<Pub<S>, TransportError> {
     let len = core::mem::size_of::<modbot_ipc_schema::grid::Prepare>();
     publisher(&prepare_service(node)?, len)
 }
 
 /// A system host's side of the assembly notices: the newest one arrives even if it was sent
 /// before the host subscribed.
-pub fn prepare_subscriber(node: &Node<ipc::Service>) -> Result<Sub, TransportError> {
+pub fn prepare_subscriber<S: Service>(node: &Node<S>) -> Result<Sub<S>, TransportError> {
     prepare_service(node)?
         .subscriber_builder()
         .buffer_size(4)
@@ -124,7 +146,7 @@ pub fn prepare_subscriber(node: &Node<ipc::Service>) -> Result<Sub, TransportErr
         .map_err(|e| err("grid subscriber")(&e))
 }
 
-fn prepare_service(node: &Node<ipc::Service>) -> Result<PubSubFactory, TransportError> {
+fn prepare_service<S: Service>(node: &Node<S>) -> Result<PubSubFactory<S>, TransportError> {
     node.service_builder(&name("grid.assembly")?)
         .publish_subscribe::<[u8]>()
         .max_publishers(2)
@@ -138,20 +160,20 @@ fn prepare_service(node: &Node<ipc::Service>) -> Result<PubSubFactory, Transport
 }
 
 /// A host's side of the done notices.
-pub fn done_publisher(node: &Node<ipc::Service>) -> Result<Pub, TransportError> {
+pub fn done_publisher<S: Service>(node: &Node<S>) -> Result<Pub<S>, TransportError> {
     let len = core::mem::size_of::<modbot_ipc_schema::grid::Done>();
     publisher(&pubsub(node, "grid.done", 256, MAX_NODES, 2)?, len)
 }
 
 /// The coordinator's side of the done notices.
-pub fn done_subscriber(node: &Node<ipc::Service>) -> Result<Sub, TransportError> {
+pub fn done_subscriber<S: Service>(node: &Node<S>) -> Result<Sub<S>, TransportError> {
     subscriber(&pubsub(node, "grid.done", 256, MAX_NODES, 2)?, 256)
 }
 
-fn wake(
-    node: &Node<ipc::Service>,
+fn wake<S: Service>(
+    node: &Node<S>,
     service: &str,
-) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, TransportError> {
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<S>, TransportError> {
     node.service_builder(&name(service)?)
         .event()
         .max_nodes(MAX_NODES)
@@ -160,10 +182,10 @@ fn wake(
 }
 
 /// The coordinator's side of a host's wake-up ([`super::GridSpec::wake_service`]).
-pub fn wake_notifier(
-    node: &Node<ipc::Service>,
+pub fn wake_notifier<S: Service>(
+    node: &Node<S>,
     service: &str,
-) -> Result<Notifier<ipc::Service>, TransportError> {
+) -> Result<Notifier<S>, TransportError> {
     wake(node, service)?
         .notifier_builder()
         .create()
@@ -171,10 +193,10 @@ pub fn wake_notifier(
 }
 
 /// A host's wake-up.
-pub fn wake_listener(
-    node: &Node<ipc::Service>,
+pub fn wake_listener<S: Service>(
+    node: &Node<S>,
     service: &str,
-) -> Result<Listener<ipc::Service>, TransportError> {
+) -> Result<Listener<S>, TransportError> {
     wake(node, service)?
         .listener_builder()
         .create()
@@ -182,8 +204,8 @@ pub fn wake_listener(
 }
 
 /// Sends `bytes` on `publisher`, written in place.
-pub fn send(
-    publisher: &Pub,
+pub fn send<S: Service>(
+    publisher: &Pub<S>,
     len: usize,
     fill: impl FnOnce(&mut [u8]),
 ) -> Result<(), TransportError> {

@@ -450,9 +450,6 @@ impl Supervisor {
             source,
         })?;
         let pid = child.id();
-        for w in rt::apply(pid, &m.cpus, m.priority) {
-            self.say(&format!("warning: {}: {w}", m.name));
-        }
         let now = self.now_ns();
         let slot = &mut self.slots[i];
         slot.child = Some(child);
@@ -551,6 +548,13 @@ impl Supervisor {
             if slot.state == RunState::Starting && state == ModuleState::Running {
                 slot.state = RunState::Running;
                 self.status_dirty = true;
+                // Its start (loading, opening channels: milliseconds to seconds of work) ran
+                // at normal priority; now that it is up, its real-time settings apply, so a
+                // process starting beside a running grid never holds up the grid's threads.
+                let m = &self.spec.modules[i];
+                for w in rt::apply(pid, &m.cpus, m.priority) {
+                    self.say(&format!("warning: {}: {w}", m.name));
+                }
                 let name = self.spec.modules[i].name.clone();
                 self.say(&format!("{name} is up (pid {pid})"));
             }

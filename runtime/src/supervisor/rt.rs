@@ -50,6 +50,40 @@ pub fn apply(pid: u32, cpus: &[usize], priority: Option<u8>) -> Vec<String> {
     warnings
 }
 
+/// Puts the calling thread back to normal scheduling if it runs under SCHED_FIFO, and returns
+/// whether it did. A real-time process's service thread calls it, so its housekeeping never
+/// holds up the thread that keeps time (threads it starts afterwards inherit normal
+/// scheduling).
+pub fn leave_fifo_for_this_thread() -> bool {
+    // SAFETY: sched_getscheduler(0) only reads the calling thread's policy.
+    let policy = unsafe { libc::sched_getscheduler(0) };
+    if policy != libc::SCHED_FIFO {
+        return false;
+    }
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: `param` is a valid sched_param that outlives the call; pid 0 is the calling
+    // thread, and leaving SCHED_FIFO needs no privilege.
+    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) == 0 }
+}
+
+/// Runs the calling thread under SCHED_FIFO at `priority`; returns why not if refused. A grid
+/// process's real-time thread calls it as it starts serving, rather than wait for the
+/// supervisor, which applies a module's settings once the module is up.
+pub fn fifo_for_this_thread(priority: u8) -> Result<(), String> {
+    let param = libc::sched_param {
+        sched_priority: i32::from(priority),
+    };
+    // SAFETY: `param` is a valid sched_param that outlives the call; pid 0 is this thread.
+    if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
+        Ok(())
+    } else {
+        Err(format!(
+            "SCHED_FIFO priority {priority} not applied ({}); normal scheduling",
+            std::io::Error::last_os_error()
+        ))
+    }
+}
+
 fn cpu_set(cpus: &[usize]) -> Result<CpuSet, String> {
     let online = std::thread::available_parallelism().map_or(1, usize::from);
     let mut set = CpuSet::new();

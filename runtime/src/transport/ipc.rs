@@ -74,8 +74,24 @@ impl IpcTransport {
         &self.domain
     }
 
+    /// A node of this domain whose ports may move between threads (the coordinator's: it
+    /// opens an assembly's links off its tick thread).
+    pub fn threadsafe_node(
+        &self,
+        node_name: &str,
+    ) -> Result<Node<ipc_threadsafe::Service>, TransportError> {
+        self.node_of(node_name)
+    }
+
     /// A node of this domain that is not a module (the grid's channels use one).
     pub fn node(&self, node_name: &str) -> Result<Node<ipc::Service>, TransportError> {
+        self.node_of(node_name)
+    }
+
+    fn node_of<S: iceoryx2::service::Service>(
+        &self,
+        node_name: &str,
+    ) -> Result<Node<S>, TransportError> {
         let name = ipc!("node name", NodeName::new(node_name))?;
         ipc!(
             "node creation",
@@ -83,7 +99,7 @@ impl IpcTransport {
                 .name(&name)
                 .config(&self.config)
                 .signal_handling_mode(SignalHandlingMode::Disabled)
-                .create::<ipc::Service>()
+                .create::<S>()
         )
     }
 

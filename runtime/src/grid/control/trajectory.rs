@@ -133,6 +133,52 @@ struct Ptp {
     latched: bool,
     /// Whether the filters have settled at the target (always, without filters).
     settled: bool,
+    /// While tracking: where the running assembly commands the robot to be when this one takes over.
+    ahead: Lead,
+}
+
+/// Where the running assembly will have commanded the robot when a tracking component takes
+/// over: the demand it reads is one tick old, and its own command applies one tick later, so
+/// the newest demand is carried [`Lead::TICKS`] ticks ahead at its last rate. Taking over
+/// there, the command moves by one tick's motion at the switch, not by three.
+#[derive(Default)]
+struct Lead {
+    last: Vec<f64>,
+    ahead: Vec<f64>,
+    seen: bool,
+}
+
+impl Lead {
+    const TICKS: f64 = 2.0;
+
+    fn new(n: usize) -> Lead {
+        Lead {
+            last: vec![0.0; n],
+            ahead: vec![0.0; n],
+            seen: false,
+        }
+    }
+
+    /// Takes the newest demand; returns where it will be [`Lead::TICKS`] ticks on.
+    fn track(&mut self, demand: &[f64]) -> &[f64] {
+        for i in 0..self.last.len() {
+            let x = at(demand, i);
+            let rate = if self.seen && x.is_finite() && self.last[i].is_finite() {
+                x - self.last[i]
+            } else {
+                0.0
+            };
+            self.ahead[i] = x + Self::TICKS * rate;
+            self.last[i] = x;
+        }
+        self.seen = true;
+        &self.ahead
+    }
+
+    /// Not tracking any more.
+    fn forget(&mut self) {
+        self.seen = false;
+    }
 }
 
 impl Ptp {
@@ -158,6 +204,7 @@ impl Ptp {
             began: 0,
             moving: false,
             latched: false,
+            ahead: Lead::new(n),
             settled: true,
         })
     }
@@ -238,6 +285,7 @@ impl Ptp {
 impl Component for Ptp {
     fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let (goal, start) = (array(&inputs[0]), array(&inputs[1]));
+        self.ahead.forget();
         if !self.latched {
             self.latch(start);
             self.latched = true;
@@ -282,10 +330,13 @@ impl Component for Ptp {
         outputs[3] = PortValue::Bool(false);
     }
 
-    /// Rests at `start` (where the robot is commanded to be) until it takes over; the first
-    /// goal it sees after that is new, so it then moves from there.
+    /// Rests where the robot will be commanded to be when it takes over (`start`, carried
+    /// ahead: see [`Lead`]); the first goal it sees after that is new, so it then moves from
+    /// there.
     fn track(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        self.latch(array(&inputs[1]));
+        let mut ahead = std::mem::take(&mut self.ahead);
+        self.latch(ahead.track(array(&inputs[1])));
+        self.ahead = ahead;
         self.latched = true;
         rest(outputs, &self.target);
         outputs[3] = PortValue::Bool(true);
@@ -304,9 +355,11 @@ pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
 }
 
 pub(super) fn make_hold(p: &Params) -> Result<Box<dyn Component>, String> {
+    let n = axes(p)?;
     Ok(Box::new(Hold {
-        q: vec![0.0; axes(p)?],
+        q: vec![0.0; n],
         latched: false,
+        ahead: Lead::new(n),
     }))
 }
 
@@ -314,6 +367,8 @@ struct Hold {
     /// The position held.
     q: Vec<f64>,
     latched: bool,
+    /// While tracking: where the running assembly commands the robot to be when this one takes over.
+    ahead: Lead,
 }
 
 impl Component for Hold {
@@ -329,10 +384,15 @@ impl Component for Hold {
         rest(outputs, &self.q);
     }
 
-    /// Follows `start` until it takes over, then holds what it saw last.
-    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        self.latched = false;
-        self.step(tick, inputs, outputs);
+    /// Follows `start`, carried ahead (see [`Lead`]), until it takes over, then holds there.
+    fn track(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let ahead = self.ahead.track(array(&inputs[0]));
+        for (i, q) in self.q.iter_mut().enumerate() {
+            let x = at(ahead, i);
+            *q = if x.is_finite() { x } else { 0.0 };
+        }
+        self.latched = true;
+        rest(outputs, &self.q);
     }
 }
 

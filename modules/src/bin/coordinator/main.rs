@@ -1,0 +1,306 @@
+//! `modbot-coordinator`: the time grid's clock — releases components, collects their done
+//! notices, keeps the overrun ledger and, on request, a trace of every output.
+//!
+//! Two threads: the tick thread (`ticker.rs`, SCHED_FIFO where the system gives it) runs the
+//! grid and nothing else; the service thread (this file, back to normal scheduling once the
+//! grid runs) serves the module's methods, reads the directory, calls the supervisor and
+//! drives assembly switches (`switching.rs`). They talk through two channels.
+
+mod switching;
+mod ticker;
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::Parser;
+use modbot_ipc_schema::{Args, Value};
+use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
+use modbot_runtime::grid::coordinator::Coordinator;
+use modbot_runtime::grid::GridSpec;
+use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply};
+
+use switching::Switching;
+use ticker::{FromTick, ToTick};
+
+/// The coordinator: the only process of a system that reads the clock. The supervisor starts it
+/// when the system description has a grid.
+///
+/// Methods: `ledger()` → the overrun ledger (see `modbot top`); with assemblies,
+/// `switch(name)` → the generation the assembly gets (prepared while the current one runs,
+/// then switched at an announced tick), and `assembly()` → where the assemblies stand (see
+/// `modbot assembly`).
+#[derive(Debug, Parser)]
+#[command(name = "modbot-coordinator", version)]
+struct Cli {
+    #[command(flatten)]
+    module: ModuleArgs,
+    #[command(flatten)]
+    grid: GridArgs,
+    /// Run this many base ticks, then stop the system.
+    #[arg(long)]
+    ticks: Option<u64>,
+    /// Write every output at every tick to this file.
+    #[arg(long)]
+    trace: Option<PathBuf>,
+}
+
+/// The ledger as last encoded, for the `ledger` method, and the assembly switches.
+struct Shared {
+    /// The system's grid as started (assemblies are loaded against it).
+    grid: GridSpec,
+    ledger: Vec<u8>,
+    /// Whether the grid runs assemblies.
+    assemblies: bool,
+    /// A switch asked for and not begun yet: (assembly, generation).
+    requested: Option<(String, u16)>,
+    /// A switch is under way (asked for, or being prepared).
+    busy: bool,
+    /// The generation the next switch gets.
+    next_generation: u16,
+    /// `assembly()`'s answer, kept current by the main loop.
+    status: String,
+}
+
+fn switch_method(
+    s: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let name = args.text(0)?;
+    if !s.assemblies {
+        return Err(MethodError::Failed(
+            "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }".into(),
+        ));
+    }
+    modbot_runtime::system::assembly::check_assembly_name(name).map_err(MethodError::Failed)?;
+    if s.busy {
+        return Err(MethodError::Busy(
+            "an assembly is being prepared; switch again when it is done".into(),
+        ));
+    }
+    let generation = s.next_generation;
+    s.next_generation = s.next_generation.checked_add(1).ok_or_else(|| {
+        MethodError::Failed("this run has used every assembly generation (65535)".into())
+    })?;
+    s.requested = Some((name.to_owned(), generation));
+    s.busy = true;
+    reply.push(Value::I64(i64::from(generation)));
+    Ok(())
+}
+
+fn assembly_method(
+    s: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    reply.push(Value::Text(&s.status));
+    Ok(())
+}
+
+fn ledger_method(
+    s: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    reply.push(Value::Bytes(&s.ledger));
+    Ok(())
+}
+
+fn main() -> anyhow::Result<()> {
+    init_logging();
+    let cli = Cli::parse();
+    let grid = cli.grid.load()?;
+    let period_ns = grid.base_period.as_nanos() as u64;
+    let hosts: Vec<String> = grid.hosts().iter().map(|h| grid.host_module(h)).collect();
+    let assemblies = grid.assembly.is_some();
+    let transport = cli.module.transport()?;
+    let node = Arc::new(transport.threadsafe_node("grid.coordinator")?);
+    let trace = match &cli.trace {
+        Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p).map_err(
+            |e| anyhow::anyhow!("cannot write the trace to {}: {e}", p.display()),
+        )?)),
+        None => None,
+    };
+    // A due component's done notice may be on its way: wait up to a quarter of a tick for it
+    // (no longer: every release of the tick, the bus's among them, waits with it).
+    let coord = Coordinator::new(&node, grid.clone(), trace)?.with_grace(period_ns / 4);
+    let mut module = ModuleBuilder::new(
+        cli.module.name.as_deref().unwrap_or("coordinator"),
+        cli.module.addr.unwrap_or(250),
+    )
+    .mode(cli.module.receive_mode())
+    .method("ledger", ledger_method)
+    .method("switch", switch_method)
+    .method("assembly", assembly_method)
+    .open(
+        transport,
+        Shared {
+            assemblies,
+            next_generation: coord.spec().generation().saturating_add(1),
+            grid,
+            ledger: Vec::new(),
+            requested: None,
+            busy: false,
+            status: String::new(),
+        },
+    )?;
+    signals::install_termination_handler()?;
+    wait_for_hosts(&mut module, &hosts)?;
+
+    let (to_tick, commands) = std::sync::mpsc::channel();
+    let (tell, from_tick) = std::sync::mpsc::sync_channel(1024);
+    let mut switching = Switching::new(node.clone(), to_tick.clone())?;
+    // The tick thread inherits this thread's scheduling (SCHED_FIFO, where the system sets a
+    // grid priority); this thread then leaves it, so its work never delays a tick.
+    let max_ticks = cli.ticks;
+    let ticker = std::thread::Builder::new()
+        .name("tick".into())
+        .spawn(move || ticker::run(coord, period_ns, max_ticks, commands, tell))?;
+    if modbot_runtime::supervisor::rt::leave_fifo_for_this_thread() {
+        tracing::debug!(
+            "service thread back to normal scheduling; the tick thread keeps SCHED_FIFO"
+        );
+    }
+
+    let mut host_pids = HashMap::new();
+    let mut host_modules: Vec<(String, String)> = Vec::new();
+    let mut last_look = Instant::now();
+    let mut result = Ok(());
+    let mut ended = None;
+    while !signals::termination_requested() {
+        // SCHED_FIFO may be applied to every thread after this one left it (the supervisor
+        // does so once the coordinator is up): leave it again (one syscall).
+        modbot_runtime::supervisor::rt::leave_fifo_for_this_thread();
+        let mut busy = false;
+        for _ in 0..16 {
+            if !module.poll_once()? {
+                break;
+            }
+            busy = true;
+        }
+        module.housekeeping();
+        loop {
+            let message = match from_tick.try_recv() {
+                Ok(m) => m,
+                Err(std::sync::mpsc::TryRecvError::Empty) => break,
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    if ended.is_none() {
+                        result = Err(anyhow::anyhow!("the tick thread ended unexpectedly"));
+                        ended = Some(false);
+                    }
+                    break;
+                }
+            };
+            busy = true;
+            match message {
+                FromTick::Ticks(n) => switching.ticks(n),
+                FromTick::Ledger(bytes) => module.state_mut().ledger = bytes,
+                FromTick::State(state, failure) => switching.state(state, failure),
+                FromTick::Began(r) => switching.began(&mut module, r),
+                FromTick::Announced(at) => switching.announced(&mut module, at),
+                FromTick::Switched(generation, announced, at) => {
+                    switching.switched(&mut module, generation, announced, at)
+                }
+                FromTick::Retire(names) => names.iter().for_each(|n| retire(&mut module, n)),
+                FromTick::Drop(links) => drop(links),
+                FromTick::Hosts(list) => host_modules = list,
+                FromTick::Current(name, generation) => {
+                    switching.current(&mut module, name, generation)
+                }
+                FromTick::Ended(reached) => ended = Some(reached),
+                FromTick::Failed(why) => {
+                    result = Err(anyhow::anyhow!("{why}"));
+                    ended = Some(false);
+                }
+            }
+        }
+        if result.is_err() {
+            break;
+        }
+        if ended.is_none() {
+            switching.step(&mut module);
+        }
+        if last_look.elapsed() >= Duration::from_millis(200) {
+            last_look = Instant::now();
+            for host in notice_restarts(&mut module, &mut host_pids, &host_modules) {
+                let _ = to_tick.send(ToTick::HostRestarted(host));
+            }
+        }
+        if ended == Some(true) {
+            ended = Some(false);
+            if let Err(e) = module.call_owned("supervisor", "down", &[], CallOptions::default()) {
+                tracing::info!("no supervisor to stop the system: {e}");
+            }
+        }
+        if !busy {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+    drop(to_tick);
+    drop(switching);
+    if ticker.join().is_err() {
+        anyhow::bail!("the tick thread panicked");
+    }
+    result
+}
+
+/// Host modules whose process changed since the last look (the phone book, refreshed by the
+/// module's housekeeping, has their pids): their hosts lost what they were released.
+fn notice_restarts(
+    module: &mut Module<Shared>,
+    pids: &mut HashMap<String, u32>,
+    hosts: &[(String, String)],
+) -> Vec<String> {
+    let mut restarted = Vec::new();
+    for (host, name) in hosts {
+        let now = module
+            .ctx()
+            .phone_book()
+            .entries()
+            .find(|e| &e.name == name && e.alive)
+            .map_or(0, |e| e.pid);
+        let pid = pids.entry(name.clone()).or_insert(0);
+        if now != 0 && *pid != 0 && now != *pid {
+            restarted.push(host.clone());
+        }
+        if now != 0 {
+            *pid = now;
+        }
+    }
+    restarted
+}
+
+/// Waits until every host module is up (they listen before they announce).
+fn wait_for_hosts(module: &mut Module<Shared>, hosts: &[String]) -> anyhow::Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let up = module.list_modules()?;
+        let missing: Vec<&String> = hosts
+            .iter()
+            .filter(|h| !up.iter().any(|m| m.alive && &m.name == *h))
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        if Instant::now() > deadline || signals::termination_requested() {
+            anyhow::bail!("host(s) {missing:?} did not come up within 30 s");
+        }
+        module.housekeeping();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Asks the supervisor to stop the host module `name` for good.
+fn retire(module: &mut Module<Shared>, name: &str) {
+    if let Err(e) = module
+        .ctx()
+        .call("supervisor", "retire", &[Value::Text(name)])
+    {
+        tracing::warn!("cannot ask the supervisor to stop {name}: {e}");
+    }
+}

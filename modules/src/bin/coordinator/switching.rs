@@ -1,0 +1,303 @@
+//! An assembly switch, driven by the service thread: the assembly file is loaded on a thread,
+//! the supervisor starts its hosts, a thread opens the coordinator's links to them and hands
+//! them to the tick thread, the prepared hosts are pinged until they answer, and the tick
+//! thread is asked to announce the switch; the outcome is kept for `assembly()`.
+
+use std::sync::mpsc::{Receiver, Sender};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::Node;
+use modbot_ipc_schema::grid::Prepare;
+use modbot_ipc_schema::Value;
+use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::coordinator::{link, SwitchState};
+use modbot_runtime::grid::switch::Outcome;
+use modbot_runtime::grid::wire::{self, Pub, Threadsafe};
+use modbot_runtime::grid::GridSpec;
+use modbot_runtime::{system, Module};
+use zerocopy::IntoBytes;
+
+use crate::ticker::ToTick;
+use crate::Shared;
+
+/// How long a new assembly may take to be prepared.
+const PREPARE_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// Where a switch asked for stands.
+#[derive(Default)]
+enum Phase {
+    #[default]
+    Idle,
+    /// The assembly file is being loaded on a thread.
+    Loading(Receiver<Result<GridSpec, String>>),
+    /// The tick thread was asked to begin; its answer is awaited.
+    Beginning(Box<GridSpec>),
+    /// Its hosts start, the system's hosts load it, the links open.
+    Preparing { last_ping: Instant },
+    /// The tick thread was asked to announce the switch.
+    Announcing,
+    /// Its components track; it takes over at the tick.
+    Announced(u64),
+}
+
+/// The switch under way and the outcomes of the last ones.
+pub struct Switching {
+    phase: Phase,
+    /// (assembly, generation, when asked).
+    job: Option<(String, u16, Instant)>,
+    /// Generation, assembly, and the announced and actual ticks or why not.
+    outcomes: Vec<Outcome>,
+    /// The running assembly.
+    current: (String, u16),
+    /// The tick thread's last word on the switch, and its tick count.
+    state: SwitchState,
+    failure: Option<String>,
+    ticks: u64,
+    node: Arc<Node<Threadsafe>>,
+    prepare: Pub<Threadsafe>,
+    to_tick: Sender<ToTick>,
+}
+
+impl Switching {
+    pub fn new(node: Arc<Node<Threadsafe>>, to_tick: Sender<ToTick>) -> anyhow::Result<Switching> {
+        Ok(Switching {
+            phase: Phase::Idle,
+            job: None,
+            outcomes: Vec::new(),
+            current: ("none".into(), 0),
+            state: SwitchState::Idle,
+            failure: None,
+            ticks: 0,
+            prepare: wire::prepare_publisher(&node)?,
+            node,
+            to_tick,
+        })
+    }
+
+    pub fn ticks(&mut self, ticks: u64) {
+        self.ticks = ticks;
+    }
+
+    pub fn current(&mut self, module: &mut Module<Shared>, name: String, generation: u16) {
+        self.current = (name, generation);
+        self.publish(module);
+    }
+
+    pub fn state(&mut self, state: SwitchState, failure: Option<String>) {
+        self.state = state;
+        self.failure = failure;
+    }
+
+    /// The tick thread's answer to the begin request.
+    pub fn began(&mut self, module: &mut Module<Shared>, result: Result<(), String>) {
+        let Phase::Beginning(spec) = std::mem::take(&mut self.phase) else {
+            return;
+        };
+        let Some((name, generation, _)) = self.job.clone() else {
+            return;
+        };
+        if let Err(why) = result {
+            return self.fail(module, why);
+        }
+        let hosts = spec.assembly_hosts();
+        let notice = match Prepare::new(generation, &name) {
+            Ok(n) => n,
+            Err(e) => return self.fail(module, e.to_string()),
+        };
+        if let Err(e) = wire::send(&self.prepare, notice.as_bytes().len(), |b| {
+            b.copy_from_slice(notice.as_bytes())
+        }) {
+            return self.fail(module, format!("the assembly notice was not sent: {e}"));
+        }
+        for h in &hosts {
+            let args = [
+                Value::Text(h),
+                Value::Text(&name),
+                Value::I64(i64::from(generation)),
+            ];
+            if let Err(e) = module.ctx().call("supervisor", "spawn_host", &args) {
+                return self.fail(module, format!("the supervisor cannot start host {h}: {e}"));
+            }
+        }
+        // The links take milliseconds each to open: a thread of normal priority opens them
+        // and hands them to the tick thread in the order it expects.
+        let (node, to_tick) = (self.node.clone(), self.to_tick.clone());
+        std::thread::spawn(move || {
+            for h in &hosts {
+                match link(&node, &spec, h) {
+                    Ok(l) => {
+                        if to_tick.send(ToTick::Link(Box::new(l))).is_err() {
+                            return;
+                        }
+                    }
+                    Err(e) => {
+                        tracing::error!("the link to host {h} of the assembly failed: {e}");
+                        return;
+                    }
+                }
+            }
+        });
+        self.phase = Phase::Preparing {
+            last_ping: Instant::now(),
+        };
+        self.publish(module);
+    }
+
+    /// The tick thread's answer to the announce request.
+    pub fn announced(&mut self, module: &mut Module<Shared>, at: Option<u64>) {
+        if !matches!(self.phase, Phase::Announcing) {
+            return;
+        }
+        let Some((name, generation, asked)) = self.job.clone() else {
+            return;
+        };
+        match at {
+            Some(at) => {
+                tracing::info!(
+                    "assembly {name} (generation {generation}) prepared in {} ms: it takes over at tick {at}",
+                    asked.elapsed().as_millis()
+                );
+                self.phase = Phase::Announced(at);
+                self.publish(module);
+            }
+            None => self.fail(module, "the tick thread had no assembly to announce".into()),
+        }
+    }
+
+    /// An assembly took over at a tick.
+    pub fn switched(
+        &mut self,
+        module: &mut Module<Shared>,
+        generation: u16,
+        announced: u64,
+        at: u64,
+    ) {
+        let Some((name, g, _)) = self.job.clone() else {
+            return;
+        };
+        if g == generation {
+            self.outcomes.push((generation, name, Ok((announced, at))));
+            self.finish(module);
+        }
+    }
+
+    /// One step: starts a switch asked for, and moves the one under way along.
+    pub fn step(&mut self, module: &mut Module<Shared>) {
+        if let Some((name, generation)) = module.state_mut().requested.take() {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let system = module.state().grid.clone();
+            let loading = name.clone();
+            std::thread::spawn(move || {
+                let loaded =
+                    system::load_assembly(&system, &loading, generation, &Registry::builtin())
+                        .map_err(|e| e.to_string());
+                let _ = tx.send(loaded);
+            });
+            tracing::info!("switch to assembly {name} (generation {generation}) asked for");
+            self.job = Some((name, generation, Instant::now()));
+            self.phase = Phase::Loading(rx);
+            self.publish(module);
+        }
+        let Some((_, _, asked)) = self.job.clone() else {
+            return;
+        };
+        if matches!(self.phase, Phase::Preparing { .. } | Phase::Announced(_)) {
+            if let Some(why) = self.failure.clone() {
+                return self.fail(module, why);
+            }
+        }
+        match &mut self.phase {
+            Phase::Idle | Phase::Beginning(_) | Phase::Announcing => {}
+            Phase::Loading(rx) => match rx.try_recv() {
+                Ok(Ok(spec)) => {
+                    let _ = self.to_tick.send(ToTick::Begin(Box::new(spec.clone())));
+                    self.phase = Phase::Beginning(Box::new(spec));
+                }
+                Ok(Err(why)) => self.fail(module, why),
+                Err(std::sync::mpsc::TryRecvError::Empty) => {}
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    self.fail(module, "the assembly could not be loaded".into())
+                }
+            },
+            Phase::Preparing { last_ping } => {
+                if let SwitchState::Preparing {
+                    opened,
+                    hosts,
+                    ready,
+                    system_hosts,
+                    answered,
+                } = self.state
+                {
+                    if opened == hosts && ready >= system_hosts && answered == hosts {
+                        let _ = self.to_tick.send(ToTick::Announce);
+                        self.phase = Phase::Announcing;
+                    } else if last_ping.elapsed() >= Duration::from_millis(10) && opened == hosts {
+                        *last_ping = Instant::now();
+                        let _ = self.to_tick.send(ToTick::Ping);
+                    }
+                    if asked.elapsed() > PREPARE_TIMEOUT {
+                        let why = format!(
+                            "not prepared within {} s: {opened}/{hosts} host links open, {answered}/{hosts} hosts answering, {ready}/{system_hosts} system hosts ready",
+                            PREPARE_TIMEOUT.as_secs()
+                        );
+                        self.fail(module, why);
+                    }
+                } else if asked.elapsed() > PREPARE_TIMEOUT {
+                    self.fail(module, "the tick thread never began preparing".into());
+                }
+            }
+            Phase::Announced(at) => {
+                if self.ticks > *at + 2 {
+                    let why = format!("the switch announced for tick {at} did not happen");
+                    self.fail(module, why);
+                }
+            }
+        }
+    }
+
+    fn fail(&mut self, module: &mut Module<Shared>, why: String) {
+        let (name, generation) = self
+            .job
+            .as_ref()
+            .map_or((String::new(), 0), |j| (j.0.clone(), j.1));
+        tracing::error!(
+            "assembly {name} (generation {generation}) not switched to: {why}; the running one stays"
+        );
+        // The tick thread gives the assembly up and names its hosts, to be retired.
+        let _ = self.to_tick.send(ToTick::Abort);
+        self.outcomes.push((generation, name, Err(why)));
+        self.finish(module);
+    }
+
+    fn finish(&mut self, module: &mut Module<Shared>) {
+        self.job = None;
+        self.phase = Phase::Idle;
+        self.failure = None;
+        if self.outcomes.len() > 64 {
+            let _ = self.outcomes.remove(0);
+        }
+        module.state_mut().busy = false;
+        self.publish(module);
+    }
+
+    /// Writes `assembly()`'s answer: `current NAME GENERATION`, `state ...`, then one line
+    /// per outcome: `switched GEN NAME ANNOUNCED TOOK` or `failed GEN NAME REASON`.
+    fn publish(&self, module: &mut Module<Shared>) {
+        let mut text = format!("current {} {}\n", self.current.0, self.current.1);
+        text.push_str(&match (&self.job, &self.phase) {
+            (Some((name, g, _)), Phase::Announced(at)) => {
+                format!("state announced {g} {name} {at}\n")
+            }
+            (Some((name, g, _)), _) => format!("state preparing {g} {name}\n"),
+            _ => "state idle\n".to_owned(),
+        });
+        for (g, name, outcome) in &self.outcomes {
+            text.push_str(&match outcome {
+                Ok((announced, took)) => format!("switched {g} {name} {announced} {took}\n"),
+                Err(why) => format!("failed {g} {name} {why}\n"),
+            });
+        }
+        module.state_mut().status = text;
+    }
+}

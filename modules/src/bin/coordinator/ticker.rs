@@ -1,0 +1,250 @@
+//! The tick thread: the only thread that keeps time. It runs the coordinator's tick and a
+//! few commands from the service thread between ticks, each bounded to microseconds: it never
+//! opens a port, loads a file, calls a module or reads the directory (that is the service
+//! thread's work, see `main.rs`).
+
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
+use std::time::{Duration, Instant};
+
+use modbot_runtime::clock::{Clock, MonotonicClock};
+use modbot_runtime::grid::coordinator::{Coordinator, HostLink, SwitchState};
+use modbot_runtime::grid::ledger;
+use modbot_runtime::grid::tick::TimerTicks;
+use modbot_runtime::grid::GridSpec;
+use modbot_runtime::signals;
+
+pub type Coord = Coordinator<std::io::BufWriter<std::fs::File>>;
+
+/// Ticks between the announcement and the earliest switch, beyond two longest periods.
+const SWITCH_LEAD: u64 = 5;
+/// Commands taken between two ticks at most.
+const COMMANDS_PER_TICK: usize = 4;
+
+/// What the service thread asks of the tick thread.
+pub enum ToTick {
+    /// Prepare this assembly (a grid of a new generation): its links follow one by one.
+    Begin(Box<GridSpec>),
+    /// The link to the next host of the assembly being prepared.
+    Link(Box<HostLink>),
+    /// Send a warm-up release to the prepared hosts that have not answered one.
+    Ping,
+    /// The assembly is prepared: announce its switch.
+    Announce,
+    /// Give the assembly being prepared up.
+    Abort,
+    /// The host's process was restarted.
+    HostRestarted(String),
+}
+
+/// What the tick thread tells the service thread.
+pub enum FromTick {
+    /// The tick count, every few milliseconds.
+    Ticks(u64),
+    /// The ledger, encoded, every 200 ms and at the end.
+    Ledger(Vec<u8>),
+    /// The switch's state changed (with why an incoming assembly fails, once known).
+    State(SwitchState, Option<String>),
+    /// The answer to [`ToTick::Begin`].
+    Began(Result<(), String>),
+    /// The answer to [`ToTick::Announce`]: the tick of the switch.
+    Announced(Option<u64>),
+    /// An assembly took over: generation, announced tick, actual tick.
+    Switched(u16, u64, u64),
+    /// Host modules no longer served (the old assembly's, or an aborted one's).
+    Retire(Vec<String>),
+    /// Links no longer used, to be dropped off the tick thread (unmapping takes milliseconds).
+    Drop(Vec<HostLink>),
+    /// The hosts and their modules, at the start and after each switch.
+    Hosts(Vec<(String, String)>),
+    /// The running assembly: name and generation.
+    Current(String, u16),
+    /// The grid stopped: after the requested number of ticks (true), or on a signal.
+    Ended(bool),
+    /// The tick thread failed.
+    Failed(String),
+}
+
+/// Runs the grid until a termination signal or `max_ticks`; tells `out` what happens.
+pub fn run(
+    mut coord: Coord,
+    period_ns: u64,
+    max_ticks: Option<u64>,
+    commands: Receiver<ToTick>,
+    out: SyncSender<FromTick>,
+) {
+    if let Some(p) = coord.spec().priority {
+        if let Err(why) = modbot_runtime::supervisor::rt::fifo_for_this_thread(p) {
+            tracing::debug!("tick thread: {why}");
+        }
+    }
+    if let Err(e) = tick(&mut coord, period_ns, max_ticks, &commands, &out) {
+        let _ = out.send(FromTick::Failed(e.to_string()));
+        return;
+    }
+    let pending = coord.drain(&|| MonotonicClock.now_ns(), 200_000_000);
+    let _ = out.send(FromTick::Ledger(encoded_ledger(&coord, true)));
+    let (g, rows) = coord.ledger(true);
+    println!("{}", ledger::render(&g, &rows));
+    if pending > 0 {
+        println!("{pending} release(s) still running at the end");
+    }
+    match coord.finish() {
+        Ok(missing) if missing > 0 => {
+            tracing::warn!("{missing} output version(s) were missing from the trace")
+        }
+        Ok(_) => {}
+        Err(e) => {
+            let _ = out.send(FromTick::Failed(format!("the trace: {e}")));
+            return;
+        }
+    }
+    let reached = !signals::termination_requested();
+    let _ = out.send(FromTick::Ended(reached));
+}
+
+fn tick(
+    coord: &mut Coord,
+    period_ns: u64,
+    max_ticks: Option<u64>,
+    commands: &Receiver<ToTick>,
+    out: &SyncSender<FromTick>,
+) -> anyhow::Result<()> {
+    let silent = coord.warm_up(20, Duration::from_secs(10))?;
+    anyhow::ensure!(
+        silent == 0,
+        "{silent} host(s) did not answer the warm-up releases"
+    );
+    tracing::info!(
+        "{} host(s) ready: ticking every {} us",
+        coord.spec().hosts().len(),
+        period_ns / 1000
+    );
+    tell(out, hosts_of(coord));
+    tell(out, current_of(coord));
+    let mut ticks = TimerTicks::new(period_ns)?;
+    let mut reported = Reported::default();
+    let mut last_ticks = Instant::now();
+    let mut last_ledger = Instant::now();
+    while !signals::termination_requested() && max_ticks.is_none_or(|n| coord.ticks() < n) {
+        match coord.step(&mut ticks) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => break,
+            Err(e) => return Err(e.into()),
+        }
+        for _ in 0..COMMANDS_PER_TICK {
+            match commands.try_recv() {
+                Ok(command) => obey(coord, command, out),
+                Err(TryRecvError::Empty) => break,
+                // The service thread is gone: the process is ending.
+                Err(TryRecvError::Disconnected) => return Ok(()),
+            }
+        }
+        reported.report(coord, out);
+        if last_ticks.elapsed() >= Duration::from_millis(5) {
+            last_ticks = Instant::now();
+            tell(out, FromTick::Ticks(coord.ticks()));
+        }
+        if last_ledger.elapsed() >= Duration::from_millis(200) {
+            last_ledger = Instant::now();
+            tell(out, FromTick::Ledger(encoded_ledger(coord, false)));
+        }
+    }
+    Ok(())
+}
+
+fn obey(coord: &mut Coord, command: ToTick, out: &SyncSender<FromTick>) {
+    match command {
+        ToTick::Begin(spec) => tell(out, FromTick::Began(coord.begin_switch(*spec))),
+        ToTick::Link(link) => {
+            if coord.add_incoming_link(link).is_err() {
+                tracing::debug!("a link for an assembly no longer prepared is dropped");
+            }
+        }
+        ToTick::Ping => coord.ping_incoming(),
+        ToTick::Announce => tell(out, FromTick::Announced(coord.announce(SWITCH_LEAD))),
+        ToTick::Abort => {
+            let hosts = coord.abort_switch();
+            if !hosts.is_empty() {
+                tell(out, FromTick::Retire(hosts));
+            }
+            let links = coord.take_retired_links();
+            if !links.is_empty() {
+                tell(out, FromTick::Drop(links));
+            }
+        }
+        ToTick::HostRestarted(host) => {
+            coord.host_restarted(&host);
+        }
+    }
+}
+
+/// What the service thread was last told, so only changes are sent.
+#[derive(Default)]
+struct Reported {
+    state: Option<SwitchState>,
+    failure: Option<String>,
+    switches: usize,
+}
+
+impl Reported {
+    fn report(&mut self, coord: &mut Coord, out: &SyncSender<FromTick>) {
+        let retired = coord.take_retired();
+        if !retired.is_empty() {
+            tell(out, FromTick::Retire(retired));
+        }
+        let links = coord.take_retired_links();
+        if !links.is_empty() {
+            tell(out, FromTick::Drop(links));
+        }
+        let state = coord.switch_state();
+        if self.state.as_ref() != Some(&state) || self.failure.as_deref() != coord.switch_failure()
+        {
+            self.failure = coord.switch_failure().map(str::to_owned);
+            self.state = Some(state.clone());
+            tell(out, FromTick::State(state, self.failure.clone()));
+        }
+        if coord.switches().len() > self.switches {
+            for (generation, _, announced, at) in &coord.switches()[self.switches..] {
+                tell(out, FromTick::Switched(*generation, *announced, *at));
+            }
+            self.switches = coord.switches().len();
+            tell(out, hosts_of(coord));
+            tell(out, current_of(coord));
+        }
+    }
+}
+
+fn hosts_of(coord: &Coord) -> FromTick {
+    let spec = coord.spec();
+    FromTick::Hosts(
+        spec.hosts()
+            .into_iter()
+            .map(|h| {
+                let module = spec.host_module(&h);
+                (h, module)
+            })
+            .collect(),
+    )
+}
+
+fn current_of(coord: &Coord) -> FromTick {
+    match &coord.spec().assembly {
+        Some(a) => FromTick::Current(a.name.clone(), a.generation),
+        None => FromTick::Current("none".into(), 0),
+    }
+}
+
+fn encoded_ledger(coord: &Coord, done: bool) -> Vec<u8> {
+    let (g, rows) = coord.ledger(done);
+    let mut bytes = Vec::new();
+    ledger::encode(&g, &rows, &mut bytes);
+    bytes
+}
+
+/// Sends without ever blocking the tick: the channel is bounded, and a full one (the service
+/// thread stalled for a long time) loses the message, which is logged.
+fn tell(out: &SyncSender<FromTick>, message: FromTick) {
+    if let Err(std::sync::mpsc::TrySendError::Full(_)) = out.try_send(message) {
+        tracing::warn!("the service thread is behind: a message from the tick thread was lost");
+    }
+}

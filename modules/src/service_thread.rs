@@ -1,0 +1,55 @@
+//! A grid process's module, served on a thread of its own at normal scheduling: its method
+//! calls, heartbeats and directory reads (milliseconds, now and then) never hold up the thread
+//! that serves the grid, which may run under SCHED_FIFO.
+
+use std::time::Duration;
+
+use modbot_runtime::supervisor::rt::leave_fifo_for_this_thread;
+use modbot_runtime::{signals, Module};
+
+/// Starts the thread: it opens the module with `open` (so the module announces itself only
+/// after the caller opened its grid channels), then serves it until a termination signal.
+/// Returns once the module is open, or with the error that kept it from opening.
+pub fn serve_module<S: 'static>(
+    open: impl FnOnce() -> anyhow::Result<Module<S>> + Send + 'static,
+) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<()>>> {
+    let (opened_tx, opened) = std::sync::mpsc::channel();
+    let handle = std::thread::Builder::new().name("service".into()).spawn(
+        move || -> anyhow::Result<()> {
+            leave_fifo_for_this_thread();
+            let mut module = match open() {
+                Ok(m) => {
+                    let _ = opened_tx.send(Ok(()));
+                    m
+                }
+                Err(e) => {
+                    let text = e.to_string();
+                    let _ = opened_tx.send(Err(e));
+                    anyhow::bail!("{text}");
+                }
+            };
+            while !signals::termination_requested() {
+                // The supervisor sets SCHED_FIFO on every thread of the process once it is
+                // up, which may come after this thread began: leave it again (one syscall).
+                leave_fifo_for_this_thread();
+                let mut served = 0;
+                while served < 16 && module.poll_once()? {
+                    served += 1;
+                }
+                module.housekeeping();
+                if served == 0 {
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+            }
+            Ok(())
+        },
+    )?;
+    match opened.recv() {
+        Ok(Ok(())) => Ok(handle),
+        Ok(Err(e)) => Err(e),
+        Err(_) => match handle.join() {
+            Ok(Err(e)) => Err(e),
+            _ => anyhow::bail!("the service thread ended before the module was open"),
+        },
+    }
+}
