@@ -1,299 +1,327 @@
-//! modbot's benchmarks. Every measurement runs between separate processes and is compared with
-//! a baseline measured in the same run.
+//! modbot's benchmarks: latency, zero copy, grid jitter, scale, faults and swaps, each measured
+//! between separate processes and compared with a baseline measured in the same run.
 //!
-//! `modbot-benches rtt [--quick]`: the round trip of an EXEC→REPLY method call between two
-//! module processes in busy-poll mode, against a raw iceoryx2 `[u8]` publish-subscribe
-//! ping-pong. Both copy the payload in and out, both spin on their own core.
+//! # Commands
+//! - `modbot-benches all [--quick] [--pin] [--fifo] [--out DIR]`: every benchmark in order
+//!   (calls, snapshots, grid, scale, faults, swaps). A benchmark that fails leaves a note in
+//!   the report and the run goes on. Writes `report.md`, `report.json` and the SVG plots into
+//!   `target/bench-report/` (next to the `release` directory this executable is in) or `DIR`,
+//!   and prints `report.md`. `--quick` finishes in under 3 minutes.
+//!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
+//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps [options]`: one benchmark, with
+//!   the same report.
+//! - `modbot-benches child ROLE ARGS...` (hidden): one side of a benchmark, started by the
+//!   benchmark itself.
+//!
+//! Options: `--pin` puts the two sides of a two-process benchmark on cores 0 and 1; `--fifo`
+//! runs the blocking paths (and the grid) under SCHED_FIFO, which needs root or CAP_SYS_NICE.
+//!
+//! # Layout
+//! - [`opts`]: the options of a run.
+//! - [`report`]: rows, baselines and ratios, `report.json` and `report.md`.
+//! - [`targets`]: the targets, checked against the rows (met, missed by how much, or
+//!   not measured and why).
+//! - [`plots`]: the SVG plots.
+//! - [`machine`]: the date and the machine the run was made on.
+//! - [`procs`]: child processes (stopped on drop, dying with their parent), pinning,
+//!   SCHED_FIFO, isolated domains cleaned on drop, the modbot binaries the system benchmarks
+//!   start.
+//! - [`sample`]: warm-up, sample counts, histograms, the cross-process clock.
+//! - [`raw`], [`uds`]: the baselines, raw iceoryx2 and Unix-domain sockets.
+//! - Benchmarks, one file each, each with `run` and its child roles in `child`: [`calls`] (1,
+//!   method-call round trip), [`snapshots`] (2, blackboard snapshots), [`grid`] (3, tick error
+//!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
+//!   restart), [`swaps`] (6, assembly swaps).
 
-use std::process::{Child, Command};
-use std::time::{Duration, Instant};
+mod calls;
+mod faults;
+mod grid;
+mod machine;
+mod opts;
+mod plots;
+mod procs;
+mod raw;
+mod report;
+mod sample;
+mod scale;
+mod snapshots;
+mod supervised;
+mod swaps;
+mod targets;
+mod uds;
+
+use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::{bail, Context};
-use clap::{Parser, Subcommand};
-use hdrhistogram::Histogram;
-use iceoryx2::prelude::*;
-use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::{
-    CallOptions, Ctx, Domain, IpcTransport, MethodError, ModuleBuilder, ReceiveMode, Reply,
-};
+use clap::{Args, Parser, Subcommand};
+
+use opts::Opts;
+use report::Report;
 
 #[derive(Debug, Parser)]
-#[command(name = "modbot-benches")]
+#[command(
+    name = "modbot-benches",
+    about = "modbot's benchmarks, each against a baseline of the same run"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
 }
 
+/// The options every benchmark command takes.
+#[derive(Debug, Clone, Args)]
+struct RunArgs {
+    /// Fewer samples: `all --quick` finishes in under 3 minutes.
+    #[arg(long)]
+    quick: bool,
+    /// Pin the two sides of a benchmark to cores 0 and 1.
+    #[arg(long)]
+    pin: bool,
+    /// Run blocking paths and the grid under SCHED_FIFO (root or CAP_SYS_NICE).
+    #[arg(long)]
+    fifo: bool,
+    /// Where report.md, report.json and the plots go [default: target/bench-report].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
 #[derive(Debug, Subcommand)]
 enum Cmd {
-    /// Method-call round trip against raw iceoryx2, busy-poll, separate processes.
-    Rtt {
-        /// Fewer round trips.
-        #[arg(long)]
-        quick: bool,
+    /// Every benchmark, in order, into one report.
+    All(RunArgs),
+    /// 1: method-call round trip against raw iceoryx2 and Unix sockets, 8 B to 1 MiB.
+    Calls(RunArgs),
+    /// 2: blackboard snapshot delivery, 8 B to 1 MiB, against Unix sockets.
+    Snapshots(RunArgs),
+    /// 3: grid tick error, release-to-done latency and coordinator CPU at 1 kHz.
+    Grid(RunArgs),
+    /// 4: start-up, /dev/shm, RSS and call round trip from 2 to 254 modules.
+    Scale(RunArgs),
+    /// 5: fault detection, restart and quick stop.
+    Faults(RunArgs),
+    /// 6: assembly swaps: preparation, switch tick error, missed bus cycles.
+    Swaps(RunArgs),
+    /// One side of a benchmark (started by the benchmarks themselves).
+    #[command(hide = true)]
+    Child {
+        role: String,
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
     },
-    /// (internal) the echo module.
-    EchoModule { domain: String, core: usize },
-    /// (internal) the raw iceoryx2 pong side.
-    RawPong {
-        domain: String,
-        core: usize,
-        max: usize,
+}
+
+type RunFn = fn(&Opts, &mut Report) -> anyhow::Result<()>;
+
+/// A benchmark: its name, its entry point, and whether it starts the modbot binaries.
+struct Bench {
+    name: &'static str,
+    run: RunFn,
+    needs_binaries: bool,
+}
+
+/// Every benchmark, in the order `all` runs them.
+const BENCHES: [Bench; 6] = [
+    Bench {
+        name: "calls",
+        run: calls::run,
+        needs_binaries: false,
     },
-}
+    Bench {
+        name: "snapshots",
+        run: snapshots::run,
+        needs_binaries: false,
+    },
+    Bench {
+        name: "grid",
+        run: grid::run,
+        needs_binaries: true,
+    },
+    Bench {
+        name: "scale",
+        run: scale::run,
+        needs_binaries: true,
+    },
+    Bench {
+        name: "faults",
+        run: faults::run,
+        needs_binaries: true,
+    },
+    Bench {
+        name: "swaps",
+        run: swaps::run,
+        needs_binaries: true,
+    },
+];
 
-fn pin(core: usize) {
-    let mut set = nix::sched::CpuSet::new();
-    if set.set(core).is_ok() {
-        if let Err(e) = nix::sched::sched_setaffinity(nix::unistd::Pid::from_raw(0), &set) {
-            eprintln!("warning: cannot pin to core {core}: {e}");
-        }
-    }
-}
+/// Runs `role` with `args` if it is one of a benchmark's child roles.
+type ChildFn = fn(&str, &[String]) -> Option<anyhow::Result<()>>;
 
-fn echo(_: &mut (), _: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
-    for v in args.as_slice() {
-        reply.push(*v);
-    }
-    Ok(())
-}
+/// The child roles of every benchmark; `None` from one means "not mine".
+const CHILDREN: [ChildFn; 8] = [
+    calls::child,
+    snapshots::child,
+    raw::child,
+    uds::child,
+    grid::child,
+    scale::child,
+    faults::child,
+    swaps::child,
+];
 
-const SIZES: [usize; 3] = [8, 64, 4096];
-
-fn stats(h: &Histogram<u64>) -> (u64, u64, u64, u64) {
-    (
-        h.value_at_quantile(0.5),
-        h.value_at_quantile(0.99),
-        h.value_at_quantile(0.999),
-        h.max(),
-    )
-}
-
-/// Removes a domain's files when dropped.
-struct Cleanup(Domain);
-impl Drop for Cleanup {
-    fn drop(&mut self) {
-        self.0.remove_files();
-    }
-}
-
-struct Guard(Child);
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = nix::sys::signal::kill(
-            nix::unistd::Pid::from_raw(self.0.id() as i32),
-            nix::sys::signal::Signal::SIGTERM,
-        );
-        let _ = self.0.wait();
-    }
-}
-
-fn rtt(quick: bool) -> anyhow::Result<()> {
-    let n = if quick { 5_000 } else { 50_000 };
-    let warm = n / 10;
-    let name = format!("bench_{}", std::process::id());
-    let domain = Domain::new(&name)?;
-    // Declared first, dropped last: whatever happens, nothing of the run stays in /dev/shm.
-    let _cleanup = Cleanup(domain.clone());
-    let me = std::env::current_exe()?;
-    let cores = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
-    if cores < 2 {
-        bail!("busy-poll round trips need two cores; this machine has {cores}");
-    }
-    pin(0);
-    let mut rows = Vec::new();
-
-    // modbot: EXEC → REPLY through the module runtime.
-    {
-        let _server = Guard(
-            Command::new(&me)
-                .args(["echo-module", &name, "1"])
-                .spawn()?,
-        );
-        let mut tool = ModuleBuilder::new("bench", 0)
-            .mode(ReceiveMode::BusyPoll)
-            .open_tool(IpcTransport::new(&domain)?, ())?;
-        let start = Instant::now();
-        while tool
-            .call_owned(
-                "echo",
-                "echo",
-                &[],
-                CallOptions::timeout(Duration::from_millis(200)),
-            )
-            .is_err()
-        {
-            if start.elapsed() > Duration::from_secs(10) {
-                bail!("the echo module did not come up");
-            }
-        }
-        for size in SIZES {
-            let payload = vec![0x5a_u8; size];
-            let mut h = Histogram::<u64>::new(3)?;
-            for i in 0..n + warm {
-                let t = Instant::now();
-                tool.call_blocking(
-                    "echo",
-                    "echo",
-                    &[Value::Bytes(&payload)],
-                    CallOptions::default(),
-                    |r| r.map(|a| a.len()).map_err(|e| e.clone()),
-                )
-                .context("echo call")?;
-                if i >= warm {
-                    h.record(t.elapsed().as_nanos() as u64)?;
-                }
-            }
-            rows.push(("modbot call (busy)", size, stats(&h)));
-        }
-    }
-
-    // raw iceoryx2: [u8] ping-pong, payload copied in and out.
-    {
-        let max = *SIZES.iter().max().unwrap();
-        let _server = Guard(
-            Command::new(&me)
-                .args(["raw-pong", &name, "1", &max.to_string()])
-                .spawn()?,
-        );
-        let (publisher, subscriber, _node) = raw_ports(&name, "ping", "pong", max)?;
-        handshake(&publisher, &subscriber)?;
-        let mut sink = vec![0u8; max];
-        for size in SIZES {
-            let payload = vec![0x5a_u8; size];
-            let mut h = Histogram::<u64>::new(3)?;
-            let deadline = Instant::now() + Duration::from_secs(30);
-            for i in 0..n + warm {
-                let t = Instant::now();
-                let s = publisher.loan_slice_uninit(size)?;
-                let s = s.write_from_slice(&payload);
-                s.send()?;
-                loop {
-                    if let Some(r) = subscriber.receive()? {
-                        sink[..r.payload().len()].copy_from_slice(r.payload());
-                        break;
-                    }
-                    if Instant::now() > deadline {
-                        bail!("the raw pong process does not answer");
-                    }
-                }
-                if i >= warm {
-                    h.record(t.elapsed().as_nanos() as u64)?;
-                }
-            }
-            rows.push(("raw iceoryx2 (busy)", size, stats(&h)));
-        }
-    }
-    domain.remove_files();
-
-    println!("round trips: {n} per row after {warm} warm-up, two processes pinned to cores 0 and 1, busy-poll\n");
-    println!("| path | payload | p50 µs | p99 µs | p99.9 µs | max µs | p50 ratio to raw |");
-    println!("|---|---|---|---|---|---|---|");
-    for (path, size, (p50, p99, p999, max)) in &rows {
-        let raw = rows
-            .iter()
-            .find(|r| r.0.starts_with("raw") && r.1 == *size)
-            .map(|r| r.2 .0)
-            .unwrap_or(1);
-        let us = |ns: u64| ns as f64 / 1000.0;
-        println!(
-            "| {path} | {size} B | {:.2} | {:.2} | {:.2} | {:.1} | {:.2} |",
-            us(*p50),
-            us(*p99),
-            us(*p999),
-            us(*max),
-            *p50 as f64 / raw as f64
-        );
-    }
-    // Every process of the run has exited: nothing of the domain may stay behind.
-    domain.remove_files();
-    Ok(())
-}
-
-/// Pings until the pong process answers (its ports may not be connected yet), then drains what
-/// the extra pings brought back.
-fn handshake(publisher: &RawPub, subscriber: &RawSub) -> anyhow::Result<()> {
-    let deadline = Instant::now() + Duration::from_secs(10);
-    'ping: loop {
-        publisher
-            .loan_slice_uninit(1)?
-            .write_from_slice(&[0])
-            .send()?;
-        let wait = Instant::now() + Duration::from_millis(20);
-        while Instant::now() < wait {
-            if subscriber.receive()?.is_some() {
-                break 'ping;
-            }
-        }
-        if Instant::now() > deadline {
-            bail!("the raw pong process does not answer");
-        }
-    }
-    let settle = Instant::now() + Duration::from_millis(50);
-    while Instant::now() < settle {
-        let _ = subscriber.receive()?;
-    }
-    Ok(())
-}
-
-type RawPub = iceoryx2::port::publisher::Publisher<ipc::Service, [u8], ()>;
-type RawSub = iceoryx2::port::subscriber::Subscriber<ipc::Service, [u8], ()>;
-
-fn raw_ports(
-    domain: &str,
-    out: &str,
-    inp: &str,
-    max: usize,
-) -> anyhow::Result<(RawPub, RawSub, Node<ipc::Service>)> {
-    let mut cfg = iceoryx2::config::Config::default();
-    cfg.global.prefix = FileName::new(Domain::new(domain)?.prefix().as_bytes())?;
-    let node = NodeBuilder::new()
-        .config(&cfg)
-        .signal_handling_mode(SignalHandlingMode::Disabled)
-        .create::<ipc::Service>()?;
-    let svc = |n: &str| {
-        node.service_builder(&n.try_into().unwrap())
-            .publish_subscribe::<[u8]>()
-            .subscriber_max_buffer_size(4)
-            .open_or_create()
+fn opts_from(args: &RunArgs) -> anyhow::Result<Opts> {
+    let exe = std::env::current_exe().context("cannot find this executable")?;
+    let out = match &args.out {
+        Some(dir) => dir.clone(),
+        // <target>/release/modbot-benches → <target>/bench-report
+        None => exe
+            .parent()
+            .and_then(|d| d.parent())
+            .map(|t| t.join("bench-report"))
+            .context("cannot place the report next to this executable: give --out DIR")?,
     };
-    let publisher = svc(&format!("raw.{out}"))?
-        .publisher_builder()
-        .initial_max_slice_len(max)
-        .create()?;
-    let subscriber = svc(&format!("raw.{inp}"))?.subscriber_builder().create()?;
-    Ok((publisher, subscriber, node))
+    Ok(Opts {
+        quick: args.quick,
+        pin: args.pin,
+        fifo: args.fifo,
+        out,
+        exe,
+    })
+}
+
+/// Runs `benches` into one report, writes it with its plots, and prints report.md.
+fn run_benches(args: &RunArgs, benches: &[&Bench]) -> anyhow::Result<()> {
+    let opts = opts_from(args)?;
+    if let Err(e) = modbot_runtime::signals::install_termination_handler() {
+        eprintln!("warning: Ctrl-C will not stop the run cleanly: {e}");
+    }
+    let mut report = Report {
+        date: machine::today_utc(),
+        machine: machine::describe(),
+        ..Report::default()
+    };
+    for (k, v) in [
+        ("quick", opts.quick),
+        ("pin", opts.pin),
+        ("fifo", opts.fifo),
+    ] {
+        report.options.insert(k.to_owned(), v.into());
+    }
+    let binaries = if benches.iter().any(|b| b.needs_binaries) {
+        procs::ensure_binaries(&opts).map_err(|e| format!("{e:#}"))
+    } else {
+        Ok(())
+    };
+    let mut timings = Vec::new();
+    let started = Instant::now();
+    for bench in benches {
+        if procs::interrupted() {
+            report.note(format!("{}: not run, the run was interrupted", bench.name));
+            continue;
+        }
+        if let (true, Err(e)) = (bench.needs_binaries, &binaries) {
+            report.note(format!("{}: not run: {e}", bench.name));
+            continue;
+        }
+        eprintln!("running {} ...", bench.name);
+        let t = Instant::now();
+        if let Err(e) = (bench.run)(&opts, &mut report) {
+            report.note(format!("{}: failed: {e:#}", bench.name));
+        }
+        timings.push(format!("{} {:.1} s", bench.name, t.elapsed().as_secs_f64()));
+    }
+    timings.push(format!("total {:.1} s", started.elapsed().as_secs_f64()));
+    report.note(format!("run time: {}", timings.join(", ")));
+    let left = leftovers();
+    if !left.is_empty() {
+        report.note(format!(
+            "files of this run were left in /dev/shm or /tmp/iceoryx2 and are removed now: {}",
+            left.iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        remove(&left);
+    }
+    report.drop_rows_without_baseline();
+    report.resolve()?;
+    targets::evaluate(&mut report);
+    std::fs::create_dir_all(&opts.out)
+        .with_context(|| format!("cannot create {}", opts.out.display()))?;
+    let plots = plots::write_all(&mut report, &opts.out);
+    report
+        .write(&opts.out)
+        .with_context(|| format!("cannot write the report into {}", opts.out.display()))?;
+    println!("{}", report.markdown());
+    eprintln!(
+        "report: {} ({} plots)",
+        opts.out.join("report.md").display(),
+        plots.len()
+    );
+    if procs::interrupted() {
+        bail!("interrupted: the report holds what was measured before");
+    }
+    Ok(())
+}
+
+/// Files of any domain of this run (`modbot_bench_{pid}_…`) still in /dev/shm or
+/// /tmp/iceoryx2.
+fn leftovers() -> Vec<PathBuf> {
+    let prefix = format!("modbot_{}", procs::domain_name(""));
+    let mut found = Vec::new();
+    for dir in ["/dev/shm", "/tmp/iceoryx2"] {
+        collect(std::path::Path::new(dir), &prefix, &mut found);
+    }
+    found
+}
+
+fn collect(dir: &std::path::Path, prefix: &str, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        if e.file_name().to_string_lossy().starts_with(prefix) {
+            out.push(e.path());
+        } else if e.file_type().is_ok_and(|t| t.is_dir()) {
+            collect(&e.path(), prefix, out);
+        }
+    }
+}
+
+fn remove(paths: &[PathBuf]) {
+    for p in paths {
+        let _ = if p.is_dir() {
+            std::fs::remove_dir_all(p)
+        } else {
+            std::fs::remove_file(p)
+        };
+    }
+}
+
+fn bench(name: &str) -> &'static Bench {
+    BENCHES
+        .iter()
+        .find(|b| b.name == name)
+        .expect("every subcommand names a benchmark")
 }
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
-        Cmd::Rtt { quick } => rtt(quick),
-        Cmd::EchoModule { domain, core } => {
-            pin(core);
-            let module = ModuleBuilder::new("echo", 1)
-                .mode(ReceiveMode::BusyPoll)
-                .method("echo", echo)
-                .open(IpcTransport::new(&Domain::new(&domain)?)?, ())?;
-            module.run()?;
-            Ok(())
-        }
-        Cmd::RawPong { domain, core, max } => {
-            pin(core);
-            modbot_runtime::signals::install_termination_handler()?;
-            let (publisher, subscriber, _node) = raw_ports(&domain, "pong", "ping", max)?;
-            let mut buf = vec![0u8; max];
-            while !modbot_runtime::signals::termination_requested() {
-                if let Some(r) = subscriber.receive()? {
-                    let len = r.payload().len();
-                    buf[..len].copy_from_slice(r.payload());
-                    drop(r);
-                    let s = publisher.loan_slice_uninit(len)?;
-                    s.write_from_slice(&buf[..len]).send()?;
+        Cmd::All(args) => run_benches(&args, &BENCHES.iter().collect::<Vec<_>>()),
+        Cmd::Calls(args) => run_benches(&args, &[bench("calls")]),
+        Cmd::Snapshots(args) => run_benches(&args, &[bench("snapshots")]),
+        Cmd::Grid(args) => run_benches(&args, &[bench("grid")]),
+        Cmd::Scale(args) => run_benches(&args, &[bench("scale")]),
+        Cmd::Faults(args) => run_benches(&args, &[bench("faults")]),
+        Cmd::Swaps(args) => run_benches(&args, &[bench("swaps")]),
+        Cmd::Child { role, args } => {
+            procs::child_setup();
+            for child in CHILDREN {
+                if let Some(result) = child(&role, &args) {
+                    return result.with_context(|| format!("child {role}"));
                 }
             }
-            Ok(())
+            bail!("unknown child role '{role}'")
         }
     }
 }

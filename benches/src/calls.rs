@@ -1,0 +1,407 @@
+//! Benchmark 1: the round trip of a method call (EXEC→REPLY) between two module processes,
+//! against raw iceoryx2 and a Unix socket, for payloads from 8 B to 1 MiB.
+//!
+//! Rows (param `bytes`, the payload):
+//! - `calls.modbot_busy`: both modules in busy-poll mode; baseline `calls.raw_iceoryx2_busy`;
+//! - `calls.modbot_blocking`: both in blocking mode (Event wake-ups); baseline
+//!   `calls.uds_blocking`;
+//! - `calls.raw_iceoryx2_busy`, `calls.raw_iceoryx2_event`, `calls.uds_blocking`: the
+//!   baselines, each its own.
+//!
+//! Every path copies the payload in on the way out and out on the way back, on both sides:
+//! the modbot client copies the answer out of shared memory, as the raw client does. The echo
+//! module answers with its arguments. Frames beyond the default 64 KiB need a domain with a
+//! larger maximum frame ([`modbot_runtime::Domain::with_max_frame`]): every size class runs in
+//! a domain sized for it, so small calls are not measured in a 1 MiB system.
+//!
+//! Child role `calls-echo DOMAIN MAX_FRAME MODE CORE PRIO`: the echo module.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use modbot_ipc_schema::{Args, Value};
+use modbot_runtime::{
+    CallOptions, Ctx, Domain, IpcTransport, MethodError, Module, ModuleBuilder, ReceiveMode, Reply,
+};
+
+use crate::opts::Opts;
+use crate::procs::{self, Proc, Scratch};
+use crate::raw::{RawPorts, Wait};
+use crate::report::{Report, Row};
+use crate::sample::{self, size_label, Plan};
+use crate::uds;
+
+/// The payloads, in bytes.
+pub const SIZES: [usize; 5] = [8, 64, 4096, 64 * 1024, 1 << 20];
+
+/// SCHED_FIFO priority of both sides of the blocking rows under `--fifo`.
+const FIFO_PRIO: u8 = 50;
+
+/// The largest frame a call with a payload of `bytes` needs (encoding and header included).
+pub fn frame_for(bytes: usize) -> usize {
+    bytes + 64
+}
+
+/// Payload sizes grouped by the domain's max frame they need: the default, or larger.
+fn size_classes(sizes: &[usize]) -> Vec<(usize, Vec<usize>)> {
+    let mut classes: Vec<(usize, Vec<usize>)> = Vec::new();
+    for &s in sizes {
+        let frame = frame_for(s).max(modbot_runtime::domain::DEFAULT_MAX_FRAME);
+        match classes.iter_mut().find(|(f, _)| *f == frame) {
+            Some((_, v)) => v.push(s),
+            None => classes.push((frame, vec![s])),
+        }
+    }
+    classes
+}
+
+/// Measures the rows of one path into the report.
+type PathFn<'a> = Box<dyn Fn(&mut Report) -> anyhow::Result<()> + 'a>;
+
+/// Runs benchmark 1.
+pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
+    if procs::cores() < 2 {
+        bail!(
+            "busy-poll round trips need two cores; this machine has {}",
+            procs::cores()
+        );
+    }
+    let _pinned = procs::pin(procs::core_for(opts, 0))?;
+    let fifo = opts.fifo.then_some(FIFO_PRIO);
+    for (max_frame, sizes) in size_classes(&SIZES) {
+        let class = size_label(*sizes.last().unwrap_or(&0));
+        let paths: [(&str, PathFn<'_>); 5] = [
+            (
+                "modbot busy",
+                Box::new(|r| modbot(opts, r, ReceiveMode::BusyPoll, max_frame, &sizes, None)),
+            ),
+            (
+                "modbot blocking",
+                Box::new(|r| modbot(opts, r, ReceiveMode::Blocking, max_frame, &sizes, fifo)),
+            ),
+            (
+                "raw iceoryx2 busy",
+                Box::new(|r| raw(opts, r, Wait::Busy, max_frame, &sizes, None)),
+            ),
+            (
+                "raw iceoryx2 event",
+                Box::new(|r| raw(opts, r, Wait::Event, max_frame, &sizes, fifo)),
+            ),
+            ("uds", Box::new(|r| unix(opts, r, &sizes, fifo))),
+        ];
+        for (what, path) in paths {
+            procs::check_interrupted()?;
+            if let Err(e) = path(report) {
+                procs::check_interrupted()?;
+                report.note(format!(
+                    "calls: {what} (payloads up to {class}) failed: {e:#}"
+                ));
+            }
+        }
+    }
+    report.note(format!(
+        "calls: the modbot rows use CallOptions::default() (2 s timeout, 2 retransmissions, so \
+         the request payload is also kept for retransmission); every path copies the payload in \
+         and out on both sides; {}",
+        if opts.pin {
+            "client pinned to core 0, server to core 1"
+        } else {
+            "processes not pinned (--pin pins them to cores 0 and 1)"
+        }
+    ));
+    if opts.fifo {
+        report.note(format!(
+            "calls: the blocking rows (modbot_blocking, raw_iceoryx2_event, uds_blocking) ran \
+             both sides under SCHED_FIFO {FIFO_PRIO}; busy rows never run under SCHED_FIFO"
+        ));
+    }
+    Ok(())
+}
+
+fn mode_arg(mode: ReceiveMode) -> &'static str {
+    match mode {
+        ReceiveMode::BusyPoll => "busy",
+        ReceiveMode::Blocking => "blocking",
+    }
+}
+
+/// The modbot rows of one mode, for `sizes` in a domain of `max_frame`.
+fn modbot(
+    opts: &Opts,
+    report: &mut Report,
+    mode: ReceiveMode,
+    max_frame: usize,
+    sizes: &[usize],
+    fifo: Option<u8>,
+) -> anyhow::Result<()> {
+    let row = match mode {
+        ReceiveMode::BusyPoll => "calls.modbot_busy",
+        ReceiveMode::Blocking => "calls.modbot_blocking",
+    };
+    let what = format!("calls_{}_{}", mode_arg(mode), max_frame >> 10);
+    // Declared first, dropped last: after the processes, nothing of the run stays behind.
+    let scratch = Scratch::new(&what, Some(max_frame))?;
+    let domain = scratch.domain.clone();
+    let mut child = procs::spawn_role(
+        opts,
+        "calls-echo",
+        &[
+            domain.name().to_owned(),
+            max_frame.to_string(),
+            mode_arg(mode).to_owned(),
+            procs::core_arg(procs::core_for(opts, 1)),
+            uds::prio_arg(fifo),
+        ],
+    )?;
+    let mut tool = ModuleBuilder::new("bench", 0)
+        .mode(mode)
+        .open_tool(IpcTransport::new(&domain)?, ())
+        .context("opening the benchmark's module")?;
+    wait_for_echo(&mut tool, &mut child)?;
+    let _fifo = procs::set_fifo(fifo)?;
+    for &size in sizes {
+        match modbot_size(opts, &mut tool, size) {
+            Ok(h) => {
+                let r = Row::from_histogram(row, &h).param("bytes", size);
+                let r = match mode {
+                    ReceiveMode::BusyPoll => r.against("calls.raw_iceoryx2_busy", &[]),
+                    ReceiveMode::Blocking => r.against("calls.uds_blocking", &[]),
+                };
+                report.push(r);
+            }
+            Err(e) => {
+                procs::check_interrupted()?;
+                report.note(format!(
+                    "calls: {row} with {} failed: {e:#}",
+                    size_label(size)
+                ));
+                child.check_running()?;
+            }
+        }
+    }
+    if max_frame > modbot_runtime::domain::DEFAULT_MAX_FRAME {
+        let (reserved, used) = procs::shm_usage(&domain);
+        report.note(format!(
+            "calls: the {} domain with a max frame of {} (two modules, {} mode) reserved {} of \
+             /dev/shm, {} of it touched",
+            size_label(*sizes.last().unwrap_or(&0)),
+            crate::report::format_value(max_frame as u64, Some("bytes")),
+            mode.name(),
+            crate::report::format_value(reserved, Some("bytes")),
+            crate::report::format_value(used, Some("bytes")),
+        ));
+    }
+    drop(tool);
+    child.stop()?;
+    Ok(())
+}
+
+/// Calls until the echo module answers (it is starting, and the tool must learn its methods).
+fn wait_for_echo(tool: &mut Module<()>, child: &mut Proc) -> anyhow::Result<()> {
+    let end = Instant::now() + Duration::from_secs(15);
+    loop {
+        let answer = tool.call_owned(
+            "echo",
+            "echo",
+            &[],
+            CallOptions::timeout(Duration::from_millis(200)),
+        );
+        match answer {
+            Ok(_) => return Ok(()),
+            Err(e) => {
+                child
+                    .check_running()
+                    .context("waiting for the echo module")?;
+                procs::check_interrupted()?;
+                if Instant::now() > end {
+                    bail!("the echo module did not answer within 15 s: {e}");
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        }
+    }
+}
+
+fn modbot_size(
+    opts: &Opts,
+    tool: &mut Module<()>,
+    size: usize,
+) -> anyhow::Result<hdrhistogram::Histogram<u64>> {
+    let payload = vec![0x5a_u8; size];
+    let mut sink: Vec<u8> = Vec::with_capacity(size);
+    let plan = Plan::for_bytes(opts, size);
+    sample::record(&plan, || {
+        let t = Instant::now();
+        let got = tool.call_blocking(
+            "echo",
+            "echo",
+            &[Value::Bytes(&payload)],
+            CallOptions::default(),
+            |r| match r {
+                Ok(args) => match args.as_slice().first() {
+                    Some(Value::Bytes(b)) => {
+                        sink.clear();
+                        sink.extend_from_slice(b);
+                        Ok(b.len())
+                    }
+                    other => Err(format!("unexpected answer {other:?}")),
+                },
+                Err(e) => Err(e.to_string()),
+            },
+        );
+        let ns = sample::since(t);
+        match got {
+            Ok(len) if len == size => Ok(ns),
+            Ok(len) => bail!("echo answered {len} bytes for {size}"),
+            Err(e) => bail!("echo call: {e}"),
+        }
+    })
+}
+
+/// The raw iceoryx2 rows of one wait mode.
+fn raw(
+    opts: &Opts,
+    report: &mut Report,
+    wait: Wait,
+    max_frame: usize,
+    sizes: &[usize],
+    fifo: Option<u8>,
+) -> anyhow::Result<()> {
+    let row = match wait {
+        Wait::Busy => "calls.raw_iceoryx2_busy",
+        Wait::Event => "calls.raw_iceoryx2_event",
+    };
+    let max = sizes.iter().copied().max().unwrap_or(8);
+    let scratch = Scratch::new(&format!("raw_{}_{}", wait.arg(), max_frame >> 10), None)?;
+    let domain = scratch.domain.clone();
+    let mut child = procs::spawn_role(
+        opts,
+        "raw-echo",
+        &[
+            domain.name().to_owned(),
+            max.to_string(),
+            wait.arg().to_owned(),
+            procs::core_arg(procs::core_for(opts, 1)),
+            uds::prio_arg(fifo),
+        ],
+    )?;
+    let ports = RawPorts::open(&domain, "ping", "pong", max, wait)?;
+    ports.handshake(&mut child)?;
+    let _fifo = procs::set_fifo(fifo)?;
+    let mut sink = vec![0u8; max];
+    for &size in sizes {
+        let payload = vec![0x5a_u8; size];
+        let plan = Plan::for_bytes(opts, size);
+        let h = sample::record(&plan, || {
+            let t = Instant::now();
+            let len = ports.round_trip(&payload, &mut sink)?;
+            let ns = sample::since(t);
+            if len != size {
+                bail!("raw echo answered {len} bytes for {size}");
+            }
+            Ok(ns)
+        })?;
+        report.push(
+            Row::from_histogram(row, &h)
+                .param("bytes", size)
+                .is_baseline(),
+        );
+    }
+    drop(ports);
+    child.stop()?;
+    Ok(())
+}
+
+/// The Unix-socket rows.
+fn unix(opts: &Opts, report: &mut Report, sizes: &[usize], fifo: Option<u8>) -> anyhow::Result<()> {
+    let max = sizes.iter().copied().max().unwrap_or(8);
+    let mut scratch = Scratch::new(&format!("uds_{}", max >> 10), None)?;
+    let path = scratch.path("echo.sock");
+    let mut child = procs::spawn_role(
+        opts,
+        "uds-echo",
+        &[
+            path.display().to_string(),
+            procs::core_arg(procs::core_for(opts, 1)),
+            uds::prio_arg(fifo),
+        ],
+    )?;
+    let mut client = uds::Client::connect(&path, &mut child)?;
+    let _fifo = procs::set_fifo(fifo)?;
+    for &size in sizes {
+        let payload = vec![0x5a_u8; size];
+        let plan = Plan::for_bytes(opts, size);
+        let h = sample::record(&plan, || {
+            let t = Instant::now();
+            let len = client.echo(&payload)?;
+            let ns = sample::since(t);
+            if len != size {
+                bail!("uds echo answered {len} bytes for {size}");
+            }
+            Ok(ns)
+        })?;
+        report.push(
+            Row::from_histogram("calls.uds_blocking", &h)
+                .param("bytes", size)
+                .is_baseline(),
+        );
+    }
+    drop(client);
+    child.stop()?;
+    drop(scratch);
+    Ok(())
+}
+
+/// The child roles of this benchmark.
+pub fn child(role: &str, args: &[String]) -> Option<anyhow::Result<()>> {
+    (role == "calls-echo").then(|| echo_module(args))
+}
+
+fn echo(_: &mut (), _: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
+    for v in args.as_slice() {
+        reply.push(*v);
+    }
+    Ok(())
+}
+
+fn echo_module(args: &[String]) -> anyhow::Result<()> {
+    let [domain, max_frame, mode, core, prio] = args else {
+        bail!("usage: child calls-echo DOMAIN MAX_FRAME busy|blocking CORE PRIO");
+    };
+    let _pinned = procs::pin(procs::parse_core(core)?)?;
+    let mode = match mode.as_str() {
+        "busy" => ReceiveMode::BusyPoll,
+        "blocking" => ReceiveMode::Blocking,
+        other => bail!("mode '{other}': expected busy or blocking"),
+    };
+    let _fifo = procs::set_fifo(uds::parse_prio(prio)?)?;
+    let max_frame: usize = max_frame
+        .parse()
+        .with_context(|| format!("max frame '{max_frame}'"))?;
+    let domain = Domain::new(domain)?.with_max_frame(max_frame);
+    let module = ModuleBuilder::new("echo", 1)
+        .mode(mode)
+        .method("echo", echo)
+        .open(IpcTransport::new(&domain)?, ())?;
+    module.run()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn payloads_up_to_64_kib_share_the_default_domain() {
+        let classes = size_classes(&SIZES);
+        assert_eq!(classes.len(), 2);
+        assert_eq!(
+            classes[0],
+            (
+                modbot_runtime::domain::DEFAULT_MAX_FRAME,
+                vec![8, 64, 4096, 65536]
+            )
+        );
+        assert_eq!(classes[1].1, vec![1 << 20]);
+    }
+}
