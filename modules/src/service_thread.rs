@@ -1,10 +1,10 @@
 //! A grid process's module, served on a thread of its own at normal scheduling: its method
 //! calls, heartbeats and directory reads (milliseconds, now and then) never hold up the thread
-//! that serves the grid, which may run under SCHED_FIFO.
+//! that serves the grid, which may run under SCHED_FIFO (started before that thread raises
+//! its priority, this one keeps the normal one).
 
 use std::time::Duration;
 
-use modbot_runtime::supervisor::rt::leave_fifo_for_this_thread;
 use modbot_runtime::{signals, Module};
 
 /// Starts the thread: it opens the module with `open` (so the module announces itself only
@@ -16,7 +16,6 @@ pub fn serve_module<S: 'static>(
     let (opened_tx, opened) = std::sync::mpsc::channel();
     let handle = std::thread::Builder::new().name("service".into()).spawn(
         move || -> anyhow::Result<()> {
-            leave_fifo_for_this_thread();
             let mut module = match open() {
                 Ok(m) => {
                     let _ = opened_tx.send(Ok(()));
@@ -29,9 +28,6 @@ pub fn serve_module<S: 'static>(
                 }
             };
             while !signals::termination_requested() {
-                // The supervisor sets SCHED_FIFO on every thread of the process once it is
-                // up, which may come after this thread began: leave it again (one syscall).
-                leave_fifo_for_this_thread();
                 let mut served = 0;
                 while served < 16 && module.poll_once()? {
                     served += 1;

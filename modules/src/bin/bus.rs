@@ -124,14 +124,7 @@ fn main() -> anyhow::Result<()> {
             .method("block", block_method)
             .open(transport, ledger)?)
     })?;
-    // Hosts run just below the coordinator, which must preempt them.
-    if let Some(p) = grid.priority {
-        if let Err(why) =
-            modbot_runtime::supervisor::rt::fifo_for_this_thread(p.saturating_sub(1).max(1))
-        {
-            tracing::debug!("serving thread: {why}");
-        }
-    }
+    modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
     let now = || MonotonicClock.now_ns();
     // The bus polls for its release every tenth of a period instead of sleeping on the
     // wake-up event (whose timeout has millisecond granularity): its watchdog must see a lost

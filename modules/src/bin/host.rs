@@ -45,14 +45,7 @@ fn main() -> anyhow::Result<()> {
             .mode(mode)
             .open(transport, ())?)
     })?;
-    // Hosts run just below the coordinator, which must preempt them.
-    if let Some(p) = grid.priority {
-        if let Err(why) =
-            modbot_runtime::supervisor::rt::fifo_for_this_thread(p.saturating_sub(1).max(1))
-        {
-            tracing::debug!("serving thread: {why}");
-        }
-    }
+    modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
     let now = || MonotonicClock.now_ns();
     while !signals::termination_requested() && !service.is_finished() {
         host.wait_and_serve(Duration::from_millis(5), &now)?;

@@ -89,7 +89,8 @@ impl Incoming {
 }
 
 /// The coordinator's link to `host` of `spec`. Opening one takes milliseconds (files, maps):
-/// never do it on the tick thread while the grid runs.
+/// never do it on the tick thread while the grid runs; hand it over with
+/// [`Coordinator::add_incoming_link`].
 pub fn link(
     node: &Node<Threadsafe>,
     spec: &GridSpec,
@@ -694,13 +695,6 @@ impl<W: Write> Coordinator<W> {
         Ok(())
     }
 
-    /// The hosts of the assembly being prepared whose links are still to be opened (with
-    /// [`link`], off the tick thread) and handed over with [`Coordinator::add_incoming_link`].
-    pub fn incoming_links_wanted(&self) -> Option<(GridSpec, Vec<String>)> {
-        let inc = self.incoming.as_ref()?;
-        Some((inc.spec.clone(), inc.host_names[inc.hosts.len()..].to_vec()))
-    }
-
     /// Takes the link to the next host of the assembly being prepared; a link that is not the
     /// one expected (of another generation, or a host out of turn) is refused and returned.
     pub fn add_incoming_link(&mut self, link: Box<HostLink>) -> Result<(), Box<HostLink>> {
@@ -712,20 +706,6 @@ impl<W: Write> Coordinator<W> {
             return Err(link);
         }
         inc.hosts.push(*link);
-        Ok(())
-    }
-
-    /// One bounded step of the preparation on the calling thread: opens the link to one more
-    /// host of the assembly being prepared (milliseconds: for tests and tools, not a running
-    /// grid's tick thread).
-    pub fn prepare_step(&mut self, node: &Node<Threadsafe>) -> Result<(), TransportError> {
-        let Some((spec, wanted)) = self.incoming_links_wanted() else {
-            return Ok(());
-        };
-        if let Some(name) = wanted.first() {
-            let l = link(node, &spec, name)?;
-            let _ = self.add_incoming_link(Box::new(l));
-        }
         Ok(())
     }
 

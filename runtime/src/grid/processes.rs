@@ -97,8 +97,9 @@ pub fn add_processes(
         args: common.clone(),
         restart: policy.clone(),
         cpus: Vec::new(),
-        // Just below the coordinator: a host must answer within its period.
-        priority: grid.priority.map(|p| p.saturating_sub(1).max(1)),
+        // A grid process puts only its serving thread under SCHED_FIFO itself
+        // (`GridSpec::host_priority`); its other threads stay at normal priority.
+        priority: None,
         mlock: grid.mlock,
         env: Vec::new(),
         mode: ReceiveMode::Blocking,
@@ -164,7 +165,8 @@ pub fn add_processes(
             ..RestartPolicy::default()
         },
         cpus: grid.cpus.clone(),
-        priority: grid.priority,
+        // The coordinator puts its tick thread under SCHED_FIFO itself, and nothing else.
+        priority: None,
         mlock: grid.mlock,
         env: Vec::new(),
         mode: ReceiveMode::Blocking,

@@ -347,6 +347,12 @@ fn connect(
 }
 
 impl GridSpec {
+    /// The SCHED_FIFO priority of the hosts' serving threads: just below the coordinator's
+    /// tick thread, which must preempt them.
+    pub fn host_priority(&self) -> Option<u8> {
+        self.priority.map(|p| p.saturating_sub(1).max(1))
+    }
+
     /// Checks the declarations against the component types of `registry`. Takes time linear
     /// in the size of the description.
     pub fn build(

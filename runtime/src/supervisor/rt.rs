@@ -50,37 +50,24 @@ pub fn apply(pid: u32, cpus: &[usize], priority: Option<u8>) -> Vec<String> {
     warnings
 }
 
-/// Puts the calling thread back to normal scheduling if it runs under SCHED_FIFO, and returns
-/// whether it did. A real-time process's service thread calls it, so its housekeeping never
-/// holds up the thread that keeps time (threads it starts afterwards inherit normal
-/// scheduling).
-pub fn leave_fifo_for_this_thread() -> bool {
-    // SAFETY: sched_getscheduler(0) only reads the calling thread's policy.
-    let policy = unsafe { libc::sched_getscheduler(0) };
-    if policy != libc::SCHED_FIFO {
-        return false;
-    }
-    let param = libc::sched_param { sched_priority: 0 };
-    // SAFETY: `param` is a valid sched_param that outlives the call; pid 0 is the calling
-    // thread, and leaving SCHED_FIFO needs no privilege.
-    unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) == 0 }
-}
-
-/// Runs the calling thread under SCHED_FIFO at `priority`; returns why not if refused. A grid
-/// process's real-time thread calls it as it starts serving, rather than wait for the
-/// supervisor, which applies a module's settings once the module is up.
-pub fn fifo_for_this_thread(priority: u8) -> Result<(), String> {
+/// Runs the calling thread under SCHED_FIFO at `priority` (none: leaves it alone), with
+/// reset-on-fork: every thread it starts afterwards (a loader, a port opener) runs at normal
+/// priority. A grid process calls it on the one thread that keeps time or serves releases;
+/// a refusal is a warning, naming `what`, and the thread runs with normal scheduling.
+pub fn real_time_thread(priority: Option<u8>, what: &str) {
+    let Some(priority) = priority else {
+        return;
+    };
     let param = libc::sched_param {
         sched_priority: i32::from(priority),
     };
+    let policy = libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK;
     // SAFETY: `param` is a valid sched_param that outlives the call; pid 0 is this thread.
-    if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) } == 0 {
-        Ok(())
-    } else {
-        Err(format!(
-            "SCHED_FIFO priority {priority} not applied ({}); normal scheduling",
+    if unsafe { libc::sched_setscheduler(0, policy, &param) } != 0 {
+        tracing::warn!(
+            "{what}: SCHED_FIFO priority {priority} not applied ({}); normal scheduling",
             std::io::Error::last_os_error()
-        ))
+        );
     }
 }
 

@@ -154,18 +154,13 @@ fn main() -> anyhow::Result<()> {
 
     let (to_tick, commands) = std::sync::mpsc::channel();
     let (tell, from_tick) = std::sync::mpsc::sync_channel(1024);
-    let mut switching = Switching::new(node.clone(), to_tick.clone())?;
-    // The tick thread inherits this thread's scheduling (SCHED_FIFO, where the system sets a
-    // grid priority); this thread then leaves it, so its work never delays a tick.
+    let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies)?;
+    // The tick thread puts itself under SCHED_FIFO (the grid's priority); this thread keeps
+    // normal scheduling, so its work never delays a tick.
     let max_ticks = cli.ticks;
     let ticker = std::thread::Builder::new()
         .name("tick".into())
         .spawn(move || ticker::run(coord, period_ns, max_ticks, commands, tell))?;
-    if modbot_runtime::supervisor::rt::leave_fifo_for_this_thread() {
-        tracing::debug!(
-            "service thread back to normal scheduling; the tick thread keeps SCHED_FIFO"
-        );
-    }
 
     let mut host_pids = HashMap::new();
     let mut host_modules: Vec<(String, String)> = Vec::new();
@@ -173,9 +168,6 @@ fn main() -> anyhow::Result<()> {
     let mut result = Ok(());
     let mut ended = None;
     while !signals::termination_requested() {
-        // SCHED_FIFO may be applied to every thread after this one left it (the supervisor
-        // does so once the coordinator is up): leave it again (one syscall).
-        modbot_runtime::supervisor::rt::leave_fifo_for_this_thread();
         let mut busy = false;
         for _ in 0..16 {
             if !module.poll_once()? {

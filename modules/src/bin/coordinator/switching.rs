@@ -55,12 +55,17 @@ pub struct Switching {
     failure: Option<String>,
     ticks: u64,
     node: Arc<Node<Threadsafe>>,
-    prepare: Pub<Threadsafe>,
+    /// The assembly notices to the system's hosts (only in a grid with assemblies).
+    prepare: Option<Pub<Threadsafe>>,
     to_tick: Sender<ToTick>,
 }
 
 impl Switching {
-    pub fn new(node: Arc<Node<Threadsafe>>, to_tick: Sender<ToTick>) -> anyhow::Result<Switching> {
+    pub fn new(
+        node: Arc<Node<Threadsafe>>,
+        to_tick: Sender<ToTick>,
+        assemblies: bool,
+    ) -> anyhow::Result<Switching> {
         Ok(Switching {
             phase: Phase::Idle,
             job: None,
@@ -69,7 +74,11 @@ impl Switching {
             state: SwitchState::Idle,
             failure: None,
             ticks: 0,
-            prepare: wire::prepare_publisher(&node)?,
+            prepare: if assemblies {
+                Some(wire::prepare_publisher(&node)?)
+            } else {
+                None
+            },
             node,
             to_tick,
         })
@@ -105,10 +114,12 @@ impl Switching {
             Ok(n) => n,
             Err(e) => return self.fail(module, e.to_string()),
         };
-        if let Err(e) = wire::send(&self.prepare, notice.as_bytes().len(), |b| {
-            b.copy_from_slice(notice.as_bytes())
-        }) {
-            return self.fail(module, format!("the assembly notice was not sent: {e}"));
+        if let Some(prepare) = &self.prepare {
+            if let Err(e) = wire::send(prepare, notice.as_bytes().len(), |b| {
+                b.copy_from_slice(notice.as_bytes())
+            }) {
+                return self.fail(module, format!("the assembly notice was not sent: {e}"));
+            }
         }
         for h in &hosts {
             let args = [

@@ -72,11 +72,7 @@ pub fn run(
     commands: Receiver<ToTick>,
     out: SyncSender<FromTick>,
 ) {
-    if let Some(p) = coord.spec().priority {
-        if let Err(why) = modbot_runtime::supervisor::rt::fifo_for_this_thread(p) {
-            tracing::debug!("tick thread: {why}");
-        }
-    }
+    modbot_runtime::supervisor::rt::real_time_thread(coord.spec().priority, "tick thread");
     if let Err(e) = tick(&mut coord, period_ns, max_ticks, &commands, &out) {
         let _ = out.send(FromTick::Failed(e.to_string()));
         return;
