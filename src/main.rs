@@ -66,6 +66,14 @@ enum Command {
         /// format), so runs can be compared byte for byte.
         #[arg(long, value_name = "OUT")]
         trace: Option<PathBuf>,
+        /// Run the grid in lockstep: each tick as soon as every release due at it can be
+        /// made, as fast as the machine goes; no overruns, the same trace every run.
+        #[arg(long)]
+        lockstep: bool,
+        /// Switch to assembly NAME at tick TICK (repeatable); with --lockstep the run is
+        /// reproducible, switches included.
+        #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_runtime::grid::switch::parse_scripted)]
+        switches: Vec<(u64, String)>,
     },
     /// A live table of the grid: per component its host, period, execution time, overruns
     /// and jitter, and the measured tick rate. Refreshes in place until Ctrl-C.
@@ -157,11 +165,18 @@ fn main() -> ExitCode {
             vars,
             ticks,
             trace,
+            lockstep,
+            switches,
         } => up_cmd::up(
             &file,
             run_for,
             &vars,
-            &modbot_runtime::grid::processes::GridRun { ticks, trace },
+            &modbot_runtime::grid::processes::GridRun {
+                ticks,
+                trace,
+                lockstep,
+                switches,
+            },
         ),
         Command::Top { once } => tool::top(&cli.domain, once),
         Command::Bus => tool::bus(&cli.domain),

@@ -6,23 +6,12 @@
 
 mod common;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use common::arm::{all_axes, arm, bus_ledger, one_arm_at_a_time};
 use common::TestDomain;
 use nix::sys::signal::Signal;
-
-/// A number in the bus ledger's first line after `label` (as in "missed 0").
-fn ledger_number(ledger: &str, label: &str) -> u64 {
-    let first = ledger.lines().next().unwrap_or_default();
-    let words: Vec<&str> = first.split_whitespace().collect();
-    let at = words
-        .iter()
-        .position(|w| *w == label)
-        .unwrap_or_else(|| panic!("{label} in {first}"));
-    words[at + 1].parse().unwrap()
-}
 
 /// `switched to NAME (generation G) at tick T, announced for tick A, ...` → (G, T, A).
 fn switched(line: &str) -> (u16, u64, u64) {
@@ -58,18 +47,78 @@ fn switched(line: &str) -> (u16, u64, u64) {
     )
 }
 
-fn up(sut: &mut TestDomain, vars: &[&str]) -> u32 {
+/// Which clock a run's grid keeps.
+#[derive(Clone, Copy, PartialEq)]
+enum Clock {
+    RealTime,
+    Lockstep,
+}
+
+/// `modbot up` of the arm (`file`: its system description) with `vars`; returns when every
+/// drive is enabled.
+fn up_with(sut: &mut TestDomain, file: &Path, clock: Clock, vars: &[&str]) -> u32 {
     let domain = format!("domain={}", sut.name());
-    let file = arm();
     let mut args = vec!["up", file.to_str().unwrap(), "--var", domain.as_str()];
     for v in vars {
         args.extend(["--var", v]);
+    }
+    if clock == Clock::Lockstep {
+        args.push("--lockstep");
     }
     let up = sut.spawn_logged("modbot", &args);
     sut.wait_for("every drive enabled", Duration::from_secs(60), || {
         all_axes(&bus_ledger(sut), "operation enabled")
     });
     up
+}
+
+/// The arm of `examples/arm.lua` in lockstep: no timing the machine may not give.
+fn up(sut: &mut TestDomain, vars: &[&str]) -> u32 {
+    up_with(sut, &arm(), Clock::Lockstep, vars)
+}
+
+/// A copy of the arm's description and assemblies in a directory of the test's own, with more
+/// assemblies; removed on drop.
+struct ArmCopy {
+    dir: PathBuf,
+}
+
+impl ArmCopy {
+    fn new(sut: &TestDomain, extra: &[(&str, &str)]) -> ArmCopy {
+        let dir = std::env::temp_dir().join(format!("{}.arm", sut.name()));
+        let examples = arm().parent().unwrap().to_path_buf();
+        std::fs::create_dir_all(dir.join("arm")).unwrap();
+        std::fs::copy(arm(), dir.join("arm.lua")).unwrap();
+        for entry in std::fs::read_dir(examples.join("arm")).unwrap() {
+            let path = entry.unwrap().path();
+            std::fs::copy(&path, dir.join("arm").join(path.file_name().unwrap())).unwrap();
+        }
+        for (name, body) in extra {
+            std::fs::write(dir.join("arm").join(format!("{name}.lua")), body).unwrap();
+        }
+        ArmCopy { dir }
+    }
+
+    fn system(&self) -> PathBuf {
+        self.dir.join("arm.lua")
+    }
+}
+
+impl Drop for ArmCopy {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// `hold.lua` and a `sleeper` with the `fault` policy on the same host, fed by a ramp: the
+/// assembly's host stalls as the sleeper's params say.
+fn hold_with_sleeper(params: &str) -> String {
+    let hold = std::fs::read_to_string(arm().parent().unwrap().join("arm/hold.lua")).unwrap();
+    format!(
+        "{hold}\ncomponent \"clock\" {{ type = \"ramp\", host = \"ctrl\", period = 1 }}\n\
+         component \"slow\" {{ type = \"sleeper\", host = \"ctrl\", period = 1, policy = \"fault\", \
+         params = {{ {params} }} }}\nconnect \"clock.y -> slow.u\"\n"
+    )
 }
 
 fn down(sut: &mut TestDomain, up: u32) -> String {
@@ -80,23 +129,22 @@ fn down(sut: &mut TestDomain, up: u32) -> String {
     output
 }
 
-/// 100 swaps between `ptp` and `ptp_smooth` while the robot moves: no bus cycle is missed
-/// around any switch (the bus records the cycles missed within five ticks of each), each
-/// switch is at its announced tick (as the bus saw it), and no switch changes the commanded
-/// position by more than one tick's motion at the speed limit.
+/// 100 swaps between `ptp` and `ptp_smooth` while the robot moves, in lockstep: each switch
+/// is at its announced tick (as the bus saw it), and no switch changes the commanded position
+/// by more than one tick's motion at the speed limit. (Missed bus cycles around switches on the
+/// real-time clock are measured by `modbot-benches swaps`.)
 #[test]
-fn a_hundred_swaps_while_the_robot_moves_cost_no_bus_cycle_and_keep_the_command_continuous() {
+fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_the_command_continuous(
+) {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("swaps");
     let up = up(&mut sut, &["dwell=0"]);
     sut.modbot_ok(&["assembly", "switch", "ptp"]);
     std::thread::sleep(Duration::from_millis(300));
-    let before = bus_ledger(&sut);
-    let missed_before = ledger_number(&before, "missed");
     let mut announced = Vec::new();
     for i in 0..100 {
         let name = if i % 2 == 0 { "ptp_smooth" } else { "ptp" };
-        let out = sut.modbot_ok(&["assembly", "switch", name, "--timeout", "30"]);
+        let out = sut.modbot_ok(&["assembly", "switch", name, "--timeout", "60"]);
         let (generation, tick, at) = switched(out.lines().last().unwrap_or_default());
         assert_eq!(
             tick, at,
@@ -106,33 +154,25 @@ fn a_hundred_swaps_while_the_robot_moves_cost_no_bus_cycle_and_keep_the_command_
         // Let it move a little between swaps.
         std::thread::sleep(Duration::from_millis(20));
     }
-    let after = bus_ledger(&sut);
     // `modbot call` prints the text answer quoted, with its newlines escaped.
     let switches = String::from_utf8_lossy(&sut.modbot(&["call", "host_bus.switches"]).stdout)
         .trim()
         .trim_matches('"')
         .replace("\\n", "\n");
-    println!("{}", after.lines().take(2).collect::<Vec<_>>().join("\n"));
-    let missed_anywhere = ledger_number(&after, "missed") - missed_before;
-    let cycles = ledger_number(&after, "cycles") - ledger_number(&before, "cycles");
-    // The bus's own record: the tick of each generation's first cycle, the step, and the
-    // cycles missed within five ticks of the switch.
+    // The bus's own record: the tick of each generation's first cycle and the step.
     let one_tick = 1.0 * 0.001 * 1.000_001; // v_max (rad/s) × base period, rounding allowed
     let mut seen = 0;
-    let mut missed_near = 0;
     for line in switches.lines() {
         let words: Vec<&str> = line.split_whitespace().collect();
-        let (Some(g), Some(t), Some(step), Some(missed)) = (
+        let (Some(g), Some(t), Some(step)) = (
             words.first().and_then(|w| w.parse::<u16>().ok()),
             words.get(1).and_then(|w| w.parse::<u64>().ok()),
             words.get(2).and_then(|w| w.parse::<f64>().ok()),
-            words.get(3).and_then(|w| w.parse::<u64>().ok()),
         ) else {
             continue;
         };
         if let Some(&(_, at)) = announced.iter().find(|a| a.0 == g) {
             seen += 1;
-            missed_near += missed;
             assert_eq!(
                 t, at,
                 "generation {g} took over the bus at the announced tick"
@@ -144,20 +184,6 @@ fn a_hundred_swaps_while_the_robot_moves_cost_no_bus_cycle_and_keep_the_command_
         }
     }
     assert_eq!(seen, 100, "the bus saw every switch:\n{switches}");
-    // A debug build on a shared 2-core machine misses a cycle now and then whatever happens (a
-    // late timer wake-up; the benchmark measures that in release). What the swaps must not do
-    // is cost cycles: the misses within five ticks of the 100 switches (1100 cycles) are no
-    // more frequent than elsewhere, up to chance (a switch that costs a cycle costs 100).
-    let near_cycles = 100 * 11;
-    let elsewhere = (missed_anywhere - missed_near) as f64 / (cycles - near_cycles).max(1) as f64;
-    let expected = elsewhere * near_cycles as f64;
-    println!(
-        "bus cycles missed during the 100 swaps: {missed_anywhere} of {cycles}; within five ticks of a switch: {missed_near} (at the rate elsewhere: {expected:.1})"
-    );
-    assert!(
-        (missed_near as f64) <= 3.0 * expected + 3.0,
-        "the swaps cost bus cycles: {missed_near} missed within five ticks of a switch, {expected:.1} expected at the rate elsewhere\n{switches}"
-    );
     let max_step: f64 = switches
         .lines()
         .find_map(|l| {
@@ -171,7 +197,7 @@ fn a_hundred_swaps_while_the_robot_moves_cost_no_bus_cycle_and_keep_the_command_
         .unwrap_or(0.0);
     assert!(
         max_step > 1e-4,
-        "the robot was moving: largest step {max_step} rad\n{after}\n{switches}\n{}",
+        "the robot was moving: largest step {max_step} rad\n{switches}\n{}",
         sut.output_of(up)
     );
     down(&mut sut, up);
@@ -196,9 +222,13 @@ fn a_blocked_axis_faults_the_assembly_and_a_switch_to_hold_recovers() {
         ledger.contains("SAFE STOP") && ledger.contains("the assembly faulted"),
         "{ledger}"
     );
+    // The ledger `modbot top` reads is refreshed every 200 ms.
+    sut.wait_for("the ledger to say why", Duration::from_secs(20), || {
+        sut.modbot_ok(&["top", "--once"]).contains("faulted")
+    });
     let top = sut.modbot_ok(&["top", "--once"]);
     assert!(
-        top.contains("faulted") && top.contains("component watch reports an unsafe state"),
+        top.contains("component watch reports an unsafe state"),
         "{top}"
     );
     sut.modbot_ok(&["call", "host_bus.block", "2", "false"]);
@@ -241,7 +271,8 @@ fn a_switch_to_an_unknown_assembly_fails_with_the_reason_and_the_robot_keeps_hol
 fn a_killed_host_of_a_fault_policy_assembly_quick_stops_every_drive() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("killhost");
-    let up = up(&mut sut, &[]);
+    // Real time: in lockstep the grid would wait for the host's restart instead.
+    let up = up_with(&mut sut, &arm(), Clock::RealTime, &[]);
     sut.modbot_ok(&["assembly", "switch", "ptp"]);
     let host: u32 = sut
         .ls_field("host_ctrl_g2", "PID")
@@ -253,5 +284,96 @@ fn a_killed_host_of_a_fault_policy_assembly_quick_stops_every_drive() {
     });
     let ledger = bus_ledger(&sut);
     assert!(ledger.contains("the assembly faulted"), "{ledger}");
+    down(&mut sut, up);
+}
+
+/// Runs the arm in lockstep for `ticks` with a switch to `ptp` at tick 300; returns the trace
+/// of the system's own components (the bus's outputs at every tick).
+fn lockstep_arm_trace(sut: &mut TestDomain, ticks: u64, tag: &str) -> String {
+    let more = ["--var", "dwell=0", "--lockstep", "--switch", "300:ptp"];
+    let (trace, output) = sut.traced_up(&arm(), ticks, &more, tag);
+    assert!(
+        output.contains("took over"),
+        "the switch happened:\n{output}"
+    );
+    trace
+}
+
+/// The arm in lockstep, with a switch from `hold` to `ptp` at tick 300 of a 1500-tick run:
+/// two runs give byte-identical traces of the bus (the robot's every position and state), and
+/// the robot moved.
+#[test]
+fn a_lockstep_arm_run_with_a_swap_gives_the_same_trace_twice() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("armlock");
+    let first = lockstep_arm_trace(&mut sut, 1500, "a");
+    let second = lockstep_arm_trace(&mut sut, 1500, "b");
+    assert_eq!(first.lines().count(), 1501, "a header and a line per tick");
+    assert!(first == second, "two lockstep runs give the same trace");
+    let position = |tick: usize| {
+        first
+            .lines()
+            .nth(tick + 1)
+            .and_then(|l| {
+                l.split_whitespace()
+                    .find(|w| w.starts_with("robot.link_position="))
+            })
+            .unwrap_or_default()
+            .to_owned()
+    };
+    assert_ne!(
+        position(299),
+        position(1499),
+        "the robot moved after the switch"
+    );
+}
+
+/// An incoming assembly whose host stalls (4 ms at each of its first 30 tracking releases of
+/// a 1 ms grid, with the `fault` policy) is still switched to: its first ticks are slow, and
+/// a late release near the switch postpones it instead of failing it.
+#[test]
+fn an_incoming_assembly_whose_host_stalls_for_its_first_ticks_is_still_switched_to() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("slowstart");
+    let copy = ArmCopy::new(
+        &sut,
+        &[(
+            "slowstart",
+            &hold_with_sleeper("sleep_ms = 4, sleep_tracking = 30"),
+        )],
+    );
+    let up = up_with(&mut sut, &copy.system(), Clock::RealTime, &[]);
+    let out = sut.modbot_ok(&["assembly", "switch", "slowstart", "--timeout", "60"]);
+    assert!(out.contains("switched to slowstart"), "{out}");
+    let top = sut.modbot_ok(&["top", "--once"]);
+    assert!(!top.contains("faulted"), "{top}");
+    down(&mut sut, up);
+}
+
+/// A `fault` component of an assembly that stalls once it is live (20 ms at every release of
+/// a 1 ms grid) faults the assembly after the switch, and the bus stops the drives.
+#[test]
+fn a_fault_component_that_stalls_after_the_switch_still_faults_the_assembly() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("stalllive");
+    let copy = ArmCopy::new(
+        &sut,
+        &[(
+            "stalllive",
+            &hold_with_sleeper("sleep_ms = 20, sleep_live = true"),
+        )],
+    );
+    let up = up_with(&mut sut, &copy.system(), Clock::RealTime, &[]);
+    let out = sut.modbot_ok(&["assembly", "switch", "stalllive", "--timeout", "60"]);
+    assert!(out.contains("switched to stalllive"), "{out}");
+    sut.wait_for("every drive in quick stop", Duration::from_secs(20), || {
+        all_axes(&bus_ledger(&sut), "quick stop active")
+    });
+    // The ledger `modbot top` reads is refreshed every 200 ms.
+    sut.wait_for("the ledger to say why", Duration::from_secs(20), || {
+        sut.modbot_ok(&["top", "--once"]).contains("faulted")
+    });
+    let top = sut.modbot_ok(&["top", "--once"]);
+    assert!(top.contains("component slow overran its deadline"), "{top}");
     down(&mut sut, up);
 }

@@ -45,7 +45,9 @@
 //!  0     8    tick: the release tick it answers
 //!  8     2    component index
 //! 10     2    status: 0 ok, 1 the step failed, 2 the component reports an unsafe state
-//!             (a monitor's breach): its assembly faults
+//!             (a monitor's breach): its assembly faults, 3 stale: an input's version that
+//!             the release names was not there (overwritten while the host was held up), so
+//!             the release was not executed — LET is never served with another version
 //! 12     2    generation, as in the release it answers
 //! 14     2    reserved, 0
 //! 16     8    execution time of the step, ns
@@ -383,6 +385,8 @@ impl Done {
     pub const FAILED: u16 = 1;
     /// The component reports an unsafe state: its assembly faults.
     pub const UNSAFE: u16 = 2;
+    /// A version the release names was not there: the release was not executed.
+    pub const STALE: u16 = 3;
 
     pub fn new(tick: u64, component: u16, status: u16, exec_ns: u64, latency_ns: u64) -> Done {
         Done {
@@ -481,6 +485,8 @@ mod tests {
         assert_eq!(back.generation.get(), 0x0102);
         let d = Done::new(7, 3, Done::UNSAFE, 0, 0).of_generation(5);
         assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300020005000000");
+        let d = Done::new(7, 3, Done::STALE, 0, 0);
+        assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300030000000000");
     }
 
     #[test]

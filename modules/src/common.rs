@@ -68,6 +68,9 @@ pub struct GridArgs {
     /// The assembly's generation.
     #[arg(long, requires = "assembly")]
     pub generation: Option<u16>,
+    /// Run the grid in lockstep whatever the description says (`modbot up --lockstep`).
+    #[arg(long)]
+    pub lockstep: bool,
 }
 
 impl GridArgs {
@@ -75,9 +78,12 @@ impl GridArgs {
     pub fn load(&self) -> anyhow::Result<GridSpec> {
         let resolver = DefaultResolver::for_file(&self.system);
         let spec = system::load_with_vars(&self.system, &resolver, &self.vars)?;
-        let grid = spec
+        let mut grid = spec
             .grid
             .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))?;
+        if self.lockstep {
+            grid.timing.clock = modbot_runtime::grid::GridClock::Lockstep;
+        }
         match (&self.assembly, self.generation) {
             (Some(name), Some(generation)) => Ok(system::load_assembly(
                 &grid,

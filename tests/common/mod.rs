@@ -95,6 +95,40 @@ impl TestDomain {
         pid
     }
 
+    /// `modbot up FILE --var domain=<this domain> --ticks N --trace OUT` with `more`
+    /// arguments: waits for it to exit 0 and leave no files behind; returns the trace and what
+    /// `modbot up` printed.
+    pub fn traced_up(
+        &mut self,
+        file: &std::path::Path,
+        ticks: u64,
+        more: &[&str],
+        tag: &str,
+    ) -> (String, String) {
+        let trace = std::env::temp_dir().join(format!("{}.{tag}.trace", self.name()));
+        let domain = format!("domain={}", self.name());
+        let n = ticks.to_string();
+        let mut args = vec![
+            "up",
+            file.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--ticks",
+            &n,
+            "--trace",
+            trace.to_str().unwrap(),
+        ];
+        args.extend_from_slice(more);
+        let up = self.spawn_logged("modbot", &args);
+        let status = self.wait_exit(up, Duration::from_secs(120));
+        let output = self.output_of(up);
+        assert_eq!(status.code(), Some(0), "{output}");
+        assert_eq!(self.leftover_files(), Vec::<PathBuf>::new());
+        let text = std::fs::read_to_string(&trace).unwrap_or_default();
+        let _ = std::fs::remove_file(&trace);
+        (text, output)
+    }
+
     /// What the process `pid`, started with [`TestDomain::spawn_logged`], printed so far.
     pub fn output_of(&self, pid: u32) -> String {
         let (name, _) = self

@@ -96,10 +96,17 @@ fn main() -> anyhow::Result<()> {
     );
     let axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
     let period_ns = grid.base_period.as_nanos() as u64;
-    let shared = Arc::new(Mutex::new(Bridge::new(
+    let bridge = Bridge::new(
         Box::new(SimBackend::new(axes, PlantParams::default())),
         period_ns,
-    )));
+    );
+    let shared = Arc::new(Mutex::new(
+        if grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep {
+            bridge.lockstep()
+        } else {
+            bridge
+        },
+    ));
     bridge::process_bridge()
         .set(shared.clone())
         .map_err(|_| anyhow::anyhow!("the bus bridge was set twice"))?;
@@ -126,18 +133,21 @@ fn main() -> anyhow::Result<()> {
     })?;
     modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
     let now = || MonotonicClock.now_ns();
-    // The bus polls for its release every tenth of a period instead of sleeping on the
-    // wake-up event (whose timeout has millisecond granularity): its watchdog must see a lost
-    // coordinator within three periods, not four or five.
-    let poll = Duration::from_nanos((period_ns / 10).max(20_000));
+    // The bus sleeps on its wake-up until released, or until its watchdog must look (the
+    // silence reaching three periods; a deadline to the microsecond), whichever comes first.
     while !signals::termination_requested() && !service.is_finished() {
         if host.serve(&now)? == 0 {
             // Nothing waits to be served: only now may the watchdog judge the silence (after
             // a slow moment of this process, a release may be waiting that it has not seen).
-            bridge::lock(&shared).watch(now());
-            // Idle: a bounded piece of an assembly's preparation, then a short sleep.
+            let next = {
+                let mut b = bridge::lock(&shared);
+                b.watch(now());
+                b.next_look_ns(now())
+            };
+            // Idle: a bounded piece of an assembly's preparation, then sleep.
             host.prepare_step(&node, Registry::builtin)?;
-            std::thread::sleep(poll);
+            // At most 5 ms at a time, to look at the termination flag.
+            host.wait(Some(Duration::from_nanos(next.clamp(1_000, 5_000_000))));
         }
     }
     match service.join() {

@@ -48,11 +48,15 @@ fn main() -> anyhow::Result<()> {
     modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
     let now = || MonotonicClock.now_ns();
     while !signals::termination_requested() && !service.is_finished() {
-        host.wait_and_serve(Duration::from_millis(5), &now)?;
+        // Wakes up for its releases; every 5 ms also to look at the termination flag.
+        host.wait_and_serve(Some(Duration::from_millis(5)), &now)?;
         host.prepare_step(&node, Registry::builtin)?;
     }
-    if host.missing > 0 {
-        tracing::warn!("{} input version(s) were missing", host.missing);
+    if host.stale > 0 {
+        tracing::warn!(
+            "{} release(s) not executed: an input's version was gone",
+            host.stale
+        );
     }
     match service.join() {
         Ok(result) => result,

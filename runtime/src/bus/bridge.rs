@@ -18,6 +18,10 @@ use super::cia402::DriveState;
 /// Base periods without a release after which the coordinator counts as lost.
 pub const LOST_AFTER: u64 = 3;
 
+/// In lockstep (a simulation that waits for its slowest process, and for an assembly being
+/// prepared) the coordinator counts as lost only after this long without a release.
+pub const LOCKSTEP_LOST_AFTER_NS: u64 = 30_000_000_000;
+
 /// Why the drives were stopped.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SafeStop {
@@ -74,6 +78,11 @@ pub struct Bridge {
     last_target: Vec<f64>,
     /// The tick of the last release after which cycles were missed, and how many.
     last_miss: (u64, u64),
+    /// Silence after which the coordinator counts as lost, ns.
+    lost_after_ns: u64,
+    /// The grid runs in lockstep: releases come as fast as the grid goes, so gaps between
+    /// them are not missed cycles.
+    lockstep: bool,
 }
 
 impl Bridge {
@@ -94,7 +103,29 @@ impl Bridge {
             max_step: 0.0,
             last_target: vec![0.0; n],
             last_miss: (0, 0),
+            lost_after_ns: LOST_AFTER * period_ns.max(1),
+            lockstep: false,
         }
+    }
+
+    /// For a grid in lockstep: no missed cycles are counted, and the watchdog waits
+    /// [`LOCKSTEP_LOST_AFTER_NS`].
+    pub fn lockstep(mut self) -> Bridge {
+        self.lockstep = true;
+        self.lost_after_ns = LOCKSTEP_LOST_AFTER_NS;
+        self
+    }
+
+    /// How long from `now_ns` until the watchdog must look again: when the silence since the
+    /// last release reaches its limit, or, while it cycles the bus itself, the next period.
+    pub fn next_look_ns(&self, now_ns: u64) -> u64 {
+        if self.safe_stop.is_some() && now_ns >= self.last_release_ns + self.lost_after_ns {
+            return (self.last_cycle_ns + self.period_ns).saturating_sub(now_ns);
+        }
+        if self.last_release_ns == 0 {
+            return self.lost_after_ns;
+        }
+        (self.last_release_ns + self.lost_after_ns).saturating_sub(now_ns)
     }
 
     pub fn axes(&self) -> usize {
@@ -115,7 +146,7 @@ impl Bridge {
         served: &Served,
         commands: impl Fn(usize) -> AxisCommand,
     ) -> &[AxisActual] {
-        if self.last_release_ns != 0 {
+        if self.last_release_ns != 0 && !self.lockstep {
             let gap = now_ns.saturating_sub(self.last_release_ns);
             let missed = ((gap + self.period_ns / 2) / self.period_ns).saturating_sub(1);
             if missed > 0 {
@@ -226,7 +257,7 @@ impl Bridge {
             return false; // the grid has not started serving the bus yet
         }
         let silent = now_ns.saturating_sub(self.last_release_ns);
-        if silent < LOST_AFTER * self.period_ns {
+        if silent < self.lost_after_ns {
             return false;
         }
         if self.safe_stop.is_none() {
@@ -482,6 +513,26 @@ mod tests {
         assert_eq!(sut.switches.len(), 1);
         assert!((sut.switches[0].step - 0.0005).abs() < 1e-12);
         assert!((sut.demand_position(0) - 0.0015).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_watchdog_looks_again_when_the_silence_reaches_three_periods() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(1, PlantParams::default())), MS);
+        sut.serve(10 * MS, |_| AxisCommand::default());
+        assert_eq!(sut.next_look_ns(10 * MS), 3 * MS);
+        assert_eq!(sut.next_look_ns(12 * MS + 500), MS - 500);
+        assert_eq!(sut.next_look_ns(14 * MS), 0);
+    }
+
+    #[test]
+    fn in_lockstep_gaps_between_releases_are_not_missed_cycles_and_the_watchdog_waits_long() {
+        let mut sut =
+            Bridge::new(Box::new(SimBackend::new(1, PlantParams::default())), MS).lockstep();
+        sut.serve(10 * MS, |_| AxisCommand::default());
+        sut.serve(500 * MS, |_| AxisCommand::default());
+        assert_eq!((sut.cycles, sut.missed), (2, 0));
+        assert!(!sut.watch(600 * MS));
+        assert_eq!(sut.next_look_ns(500 * MS), LOCKSTEP_LOST_AFTER_NS);
     }
 
     #[test]

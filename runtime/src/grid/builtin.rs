@@ -15,7 +15,7 @@
 //! | `delay` | `u: f64` | `y: f64` = the u of the previous release | `initial` (f64, 0) |
 //! | `vec_gain` | `u: f64[n]` | `y: f64[n]` = k · u | `n` (i64 1..=64, required), `k` (f64, required) |
 //! | `pack` | `a: f64`, `b: f64` | `v: f64[2]` = [a, b] | |
-//! | `sleeper` | `u: f64` | `y: f64` = u | `sleep_ms` (f64 ≥ 0, 0), `sleep_at` (i64, -1: never) |
+//! | `sleeper` | `u: f64` | `y: f64` = u | `sleep_ms` (f64 ≥ 0, 0), `sleep_at` (i64, -1: never), `sleep_tracking` (i64: its first n tracking releases sleep, 0), `sleep_live` (bool: every release that is not tracking sleeps, false) |
 
 use std::f64::consts::PI;
 use std::time::Duration;
@@ -65,6 +65,8 @@ pub fn register_all(registry: &mut Registry) {
         Ok(Box::new(Sleeper {
             sleep: sleep_of(p)?,
             at: u64::try_from(p.i64("sleep_at")?).ok(),
+            tracking: u64::try_from(p.i64("sleep_tracking")?).unwrap_or(0),
+            live: p.bool("sleep_live")?,
         }))
     });
     super::control::register(registry);
@@ -302,10 +304,14 @@ fn sleeper_info(p: &Params) -> Result<ComponentInfo, String> {
     if !p.is_empty() {
         sleep_of(p)?;
     }
-    let doc = "y = u; sleeps sleep_ms when released at tick sleep_at, to provoke an overrun";
+    let doc = "y = u; sleeps sleep_ms when released at tick sleep_at, on its first \
+               sleep_tracking tracking releases, or on every live release (sleep_live), to \
+               provoke an overrun";
     let params = vec![
         f64_param("sleep_ms", 0.0),
         ParamDecl::optional("sleep_at", ParamType::I64, ParamValue::I64(-1)),
+        ParamDecl::optional("sleep_tracking", ParamType::I64, ParamValue::I64(0)),
+        ParamDecl::optional("sleep_live", ParamType::Bool, ParamValue::Bool(false)),
     ];
     f64_info("sleeper", doc, &["u"], &["y"], params)
 }
@@ -322,11 +328,23 @@ struct Sleeper {
     sleep: Duration,
     /// The release tick that sleeps; none when negative.
     at: Option<u64>,
+    /// Tracking releases (of an assembly being prepared) left that sleep.
+    tracking: u64,
+    /// Every live release sleeps.
+    live: bool,
 }
 
 impl Component for Sleeper {
     fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        if self.at == Some(tick) && !self.sleep.is_zero() {
+        if (self.at == Some(tick) || self.live) && !self.sleep.is_zero() {
+            std::thread::sleep(self.sleep);
+        }
+        put(&mut outputs[0], inputs[0].as_f64());
+    }
+
+    fn track(&mut self, _tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        if self.tracking > 0 && !self.sleep.is_zero() {
+            self.tracking -= 1;
             std::thread::sleep(self.sleep);
         }
         put(&mut outputs[0], inputs[0].as_f64());

@@ -17,14 +17,15 @@
 
 use std::io::Write;
 
+use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use modbot_ipc_schema::grid::{Done, Release, MAX_SOURCES, PING, READY};
 use zerocopy::IntoBytes;
 
 use super::ledger::{self, ComponentRow, GridRow};
-use super::recorder::Recorder;
-use super::spec::{GridSpec, OverrunPolicy};
+use super::recorder::{self, Recorder};
+use super::spec::{GridClock, GridSpec, OverrunPolicy};
 use super::tick::TickSource;
 use super::wire::{self, Pub, Sub, Threadsafe};
 use crate::stats::Histogram;
@@ -35,6 +36,22 @@ use crate::transport::TransportError;
 /// many periods.
 pub const FAULT_AFTER: u64 = 3;
 
+/// In lockstep, how long the coordinator waits for a due release before it gives up on
+/// lockstep for that tick and counts an overrun (a dead or stopped host).
+pub const LOCKSTEP_STUCK: core::time::Duration = core::time::Duration::from_secs(10);
+
+/// How far past its first announced tick a switch may be postponed because the incoming
+/// assembly's releases near the switch were late, before it fails.
+pub const MAX_POSTPONE_TICKS: u64 = 2000;
+
+/// What the trace records of a release that did not go as LET planned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Miss {
+    /// Still running at its deadline (`# overrun`).
+    Overrun,
+    /// Not executed: an input's version was gone (`# stale`).
+    Stale,
+}
 /// One component, as the coordinator tracks it.
 struct Comp {
     period: u64,
@@ -53,6 +70,8 @@ struct Comp {
     in_a_row: u64,
     late: u64,
     failed: u64,
+    /// Releases not executed: an input's version was gone when the host served it.
+    stale: u64,
     exec_min: u64,
     exec: Histogram,
     latency: Histogram,
@@ -123,6 +142,7 @@ fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
             in_a_row: 0,
             late: 0,
             failed: 0,
+            stale: 0,
             exec_min: u64::MAX,
             exec: Histogram::new(),
             latency: Histogram::new(),
@@ -152,6 +172,9 @@ pub struct Coordinator<W: Write> {
     comps: Vec<Comp>,
     hosts: Vec<HostLink>,
     done: Sub<Threadsafe>,
+    /// Hosts notify it after each batch of done notices: the coordinator sleeps on it while it
+    /// waits for a due one.
+    done_wake: Listener<Threadsafe>,
     recorder: Option<Recorder<W>>,
     /// Scratch: the valid version of every component, for the recorder.
     versions: Vec<u64>,
@@ -165,8 +188,9 @@ pub struct Coordinator<W: Write> {
     /// How long to wait at a tick for a due component's late done notice before calling it
     /// an overrun (absorbs the wake-up latency of the notice).
     grace_ns: u64,
-    /// Every overrun: (tick, component, the release still running), for the trace.
-    overrun_log: Vec<(u64, usize, u64)>,
+    /// Every overrun (tick, component, the release still running) and stale release (its
+    /// tick twice), for the trace.
+    overrun_log: Vec<(u64, usize, u64, Miss)>,
     /// Ticks and time at the last rate measurement, and the rate then.
     rate: (u64, u64, f64),
     /// The assembly being prepared, if one is.
@@ -194,6 +218,10 @@ struct Incoming {
     answered: Vec<bool>,
     /// Tracking from this tick; the switch at the second.
     schedule: Option<(u64, u64)>,
+    /// The switch tick first announced (a late release near the switch postpones it).
+    first_at: u64,
+    /// Ticks between the last late release and the switch.
+    lead: u64,
     failure: Option<String>,
 }
 
@@ -236,6 +264,7 @@ impl<W: Write> Coordinator<W> {
             comps,
             hosts,
             done: wire::done_subscriber(node)?,
+            done_wake: wire::done_wake_listener(node)?,
             recorder,
             spec,
             tick: 0,
@@ -360,9 +389,7 @@ impl<W: Write> Coordinator<W> {
     pub fn run_tick(&mut self, now_ns: u64) -> std::io::Result<()> {
         let n = self.tick;
         self.take_done(n);
-        if self.fault.is_none() {
-            self.await_due(n);
-        }
+        self.await_due(n);
         for (c, comp) in self.comps.iter_mut().enumerate() {
             comp.take_ready(n);
             self.versions[c] = comp.valid_from;
@@ -382,6 +409,21 @@ impl<W: Write> Coordinator<W> {
         }
         self.release_due(n, now_ns);
         self.release_incoming(n, now_ns);
+        self.wake_hosts();
+        self.tick += 1;
+        Ok(())
+    }
+
+    /// Between ticks, while the grid waits (in lockstep, for an assembly being prepared):
+    /// takes the done notices that arrived (warm-up answers, hosts ready) and wakes the hosts
+    /// that were sent something.
+    pub fn between_ticks(&mut self) {
+        self.take_done(self.tick);
+        self.wake_hosts();
+    }
+
+    /// Wakes every host that was sent a release since it was last woken.
+    fn wake_hosts(&mut self) {
         let incoming = self.incoming.as_mut().map(|i| i.hosts.iter_mut());
         for h in self.hosts.iter_mut().chain(incoming.into_iter().flatten()) {
             if std::mem::take(&mut h.woken) {
@@ -390,8 +432,6 @@ impl<W: Write> Coordinator<W> {
                 }
             }
         }
-        self.tick += 1;
-        Ok(())
     }
 
     fn take_done(&mut self, n: u64) {
@@ -441,7 +481,12 @@ impl<W: Write> Coordinator<W> {
             comp.exec_min = comp.exec_min.min(done.exec_ns.get());
             comp.latency.record(done.latency_ns.get());
             let status = done.status.get();
-            if status != Done::OK && status != Done::UNSAFE {
+            if status == Done::STALE {
+                comp.stale += 1;
+                if !incoming && c < recorder::recorded(spec) {
+                    self.overrun_log.push((m, c, m, Miss::Stale));
+                }
+            } else if status != Done::OK && status != Done::UNSAFE {
                 comp.failed += 1;
             } else if n <= m + comp.period {
                 comp.ready = Some(m + comp.period);
@@ -480,20 +525,70 @@ impl<W: Write> Coordinator<W> {
         self.spec.assembly.as_ref().map_or(0, |a| a.base)
     }
 
-    /// Gives components due at `n` whose release still runs the grace period to report done.
-    fn await_due(&mut self, n: u64) {
-        let late = |comps: &[Comp]| {
-            comps
-                .iter()
-                .any(|c| n.is_multiple_of(c.period) && c.pending.is_some())
+    /// Whether a component due at `n` (of the running assembly unless it faulted — it is not
+    /// released then —, or of the incoming one once it runs alongside) still runs its
+    /// previous release.
+    fn due_pending(&self, n: u64) -> bool {
+        let late = |c: &Comp| n.is_multiple_of(c.period) && c.pending.is_some();
+        let awaited = if self.fault.is_some() {
+            self.base()
+        } else {
+            self.comps.len()
         };
-        if self.grace_ns == 0 || !late(&self.comps) {
+        self.comps[..awaited].iter().any(late)
+            || self
+                .incoming
+                .as_ref()
+                .is_some_and(|i| i.schedule.is_some() && i.comps.iter().any(late))
+    }
+
+    /// Waits for the done notices of components due at `n` whose release still runs: in real
+    /// time for the grace (spinning for `spin_us` of it, then asleep on the done wake-up, never
+    /// keeping a core from the hosts), in lockstep until they are done.
+    fn await_due(&mut self, n: u64) {
+        let lockstep = self.spec.timing.clock == GridClock::Lockstep;
+        if (!lockstep && self.grace_ns == 0) || !self.due_pending(n) {
             return;
         }
-        let until = std::time::Instant::now() + core::time::Duration::from_nanos(self.grace_ns);
-        while late(&self.comps) && std::time::Instant::now() < until {
+        let start = std::time::Instant::now();
+        let budget = if lockstep {
+            LOCKSTEP_STUCK
+        } else {
+            core::time::Duration::from_nanos(self.grace_ns)
+        };
+        let spin = core::time::Duration::from_micros(self.spec.timing.spin_us).min(budget);
+        while start.elapsed() < spin {
             core::hint::spin_loop();
             self.take_done(n);
+            if !self.due_pending(n) {
+                return;
+            }
+        }
+        loop {
+            // Taken before looking: a done notice sent after this wakes the wait below.
+            super::wait::drain(&self.done_wake);
+            self.take_done(n);
+            if !self.due_pending(n) {
+                return;
+            }
+            let left = budget.saturating_sub(start.elapsed());
+            if left.is_zero() || crate::signals::termination_requested() {
+                if lockstep && left.is_zero() {
+                    tracing::error!(
+                        "lockstep: a release due at tick {n} is not done after {} s (a host \
+                         stopped or died): counted as an overrun",
+                        LOCKSTEP_STUCK.as_secs()
+                    );
+                }
+                return;
+            }
+            // In lockstep, look at the termination flag now and then.
+            let slice = if lockstep {
+                left.min(core::time::Duration::from_millis(100))
+            } else {
+                left
+            };
+            super::wait::wait(&self.done_wake, Some(slice));
         }
     }
 
@@ -510,7 +605,9 @@ impl<W: Write> Coordinator<W> {
                 let comp = &mut self.comps[c];
                 comp.overruns += 1;
                 comp.in_a_row += 1;
-                self.overrun_log.push((n, c, m));
+                if c < recorder::recorded(&self.spec) {
+                    self.overrun_log.push((n, c, m, Miss::Overrun));
+                }
                 if comp.fault_policy && comp.in_a_row >= FAULT_AFTER && self.fault.is_none() {
                     let name = &self.spec.components[c].name;
                     let why = format!(
@@ -553,11 +650,37 @@ impl<W: Write> Coordinator<W> {
         let Some(inc) = self.incoming.as_mut() else {
             return;
         };
-        let Some((from, at)) = inc.schedule else {
+        let Some((from, mut at)) = inc.schedule else {
             return;
         };
         if n < from || inc.failure.is_some() {
             return;
+        }
+        // Tracking outputs are obeyed by nothing: an overrun is only counted (a fresh process
+        // is slow at first). A late release whose outputs the switch tick would read postpones
+        // the switch; `fault` applies once the assembly is live.
+        let late_near_switch = (base..inc.comps.len()).find(|&c| {
+            let x = &inc.comps[c];
+            n.is_multiple_of(x.period) && x.pending.is_some() && n + x.period >= at
+        });
+        if let Some(c) = late_near_switch {
+            let later = n + 2 * inc.spec.assembly_max_period() + inc.lead;
+            if later > inc.first_at + MAX_POSTPONE_TICKS {
+                let name = &inc.spec.components[c].name;
+                inc.fail(format!(
+                    "component {name} overran its deadline at tick {n} while it was prepared, \
+                     and the switch was postponed {} ticks already",
+                    at - inc.first_at
+                ));
+                return;
+            }
+            tracing::info!(
+                "component {} of the incoming assembly is late at tick {n}: the switch moves \
+                 from tick {at} to {later}",
+                inc.spec.components[c].name
+            );
+            at = later;
+            inc.schedule = Some((from, at));
         }
         let generation = inc.spec.generation();
         let mut versions = [0u64; MAX_SOURCES];
@@ -567,16 +690,6 @@ impl<W: Write> Coordinator<W> {
                 continue;
             }
             if comp.pending.is_some() {
-                // Tracking outputs are obeyed by nothing: an overrun is only counted (a fresh
-                // process is slow at first). From the releases the switch tick reads on,
-                // `fault` gives up the assembly.
-                if comp.fault_policy && n + comp.period >= at {
-                    let name = &inc.spec.components[c].name;
-                    inc.fail(format!(
-                        "component {name} overran its deadline at tick {n} while it was prepared"
-                    ));
-                    return;
-                }
                 inc.comps[c].overruns += 1;
                 continue;
             }
@@ -689,6 +802,8 @@ impl<W: Write> Coordinator<W> {
             hosts: Vec::new(),
             ready: 0,
             schedule: None,
+            first_at: 0,
+            lead: 0,
             failure: None,
             spec,
         });
@@ -726,13 +841,25 @@ impl<W: Write> Coordinator<W> {
     }
 
     /// The assembly being prepared runs alongside from the next tick and takes over at the
-    /// returned tick: after each of its components was released twice (the longest period
-    /// twice) plus `lead` ticks.
+    /// returned tick: after it tracked for the grid's `track_ticks`, and each of its
+    /// components was released twice (the longest period twice), plus `lead` ticks. A late
+    /// release near the switch postpones it (see [`Coordinator::switch_state`]).
     pub fn announce(&mut self, lead: u64) -> Option<u64> {
-        let from = self.tick;
+        // Its hosts subscribed to the system's outputs before now, and a subscriber gets only
+        // what is published after it: the first tracking release must name versions of the
+        // system's components published from now on (released at this tick or later).
+        let longest_base = self.comps[..self.base()]
+            .iter()
+            .map(|c| c.period)
+            .max()
+            .unwrap_or(1);
+        let from = self.tick + longest_base;
+        let track = self.spec.timing.track_ticks;
         let inc = self.incoming.as_mut()?;
-        let at = from + 2 * inc.spec.assembly_max_period() + lead;
+        let at = from + track.max(2 * inc.spec.assembly_max_period()) + lead;
         inc.schedule = Some((from, at));
+        inc.first_at = at;
+        inc.lead = lead;
         Some(at)
     }
 
@@ -847,6 +974,7 @@ impl<W: Write> Coordinator<W> {
                     overruns: c.overruns,
                     late: c.late,
                     failed: c.failed,
+                    stale: c.stale,
                     exec_min: if c.exec.count() == 0 { 0 } else { c.exec_min },
                     exec_p50: e50,
                     exec_p99: e99,
@@ -866,9 +994,16 @@ impl<W: Write> Coordinator<W> {
             Some(rec) => {
                 let missing = rec.missing;
                 let mut out = rec.finish()?;
-                for &(t, c, m) in &self.overrun_log {
-                    let name = &self.spec.components[c].name;
-                    writeln!(out, "# overrun tick={t} component={name} release={m}")?;
+                for &(t, c, m, miss) in &self.overrun_log {
+                    let Some(name) = self.spec.components.get(c).map(|x| &x.name) else {
+                        continue;
+                    };
+                    match miss {
+                        Miss::Overrun => {
+                            writeln!(out, "# overrun tick={t} component={name} release={m}")?
+                        }
+                        Miss::Stale => writeln!(out, "# stale tick={t} component={name}")?,
+                    }
                 }
                 out.flush()?;
                 Ok(missing)

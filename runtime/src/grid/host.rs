@@ -16,53 +16,21 @@
 use core::time::Duration;
 
 use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
 use modbot_ipc_schema::grid::{
-    read_record, record_len, write_record, Done, OutHeader, PortValue, Prepare, Release,
-    OUT_HEADER_LEN, PING, READY,
+    record_len, write_record, Done, OutHeader, PortValue, Prepare, Release, OUT_HEADER_LEN, PING,
+    READY,
 };
-use zerocopy::{FromBytes, IntoBytes};
+use zerocopy::IntoBytes;
 
 use super::component::{Component, Registry};
 use super::spec::GridSpec;
+use super::versions::{self, Versions};
 use super::wire::{self, Pub, Sub, Threadsafe};
 use crate::transport::TransportError;
 
-/// Versions kept per source: LET only ever reads one of the newest two.
-const KEPT: usize = 4;
-
-/// The outputs of one source component, as one consumer reads them.
-struct Source {
-    sub: Sub<Threadsafe>,
-    ring: Vec<(u64, Vec<PortValue>)>,
-    next: usize,
-    zeros: Vec<PortValue>,
-}
-
-impl Source {
-    /// Takes what arrived, then lends the version `want` (0: the initial zeros); `None` if it
-    /// never arrived.
-    fn version(&mut self, want: u64) -> Option<&[PortValue]> {
-        while let Ok(Some(sample)) = self.sub.receive() {
-            let bytes = sample.payload();
-            let Ok((header, record)) = OutHeader::ref_from_prefix(bytes) else {
-                continue;
-            };
-            let slot = &mut self.ring[self.next];
-            if read_record(record, &mut slot.1).is_ok() {
-                slot.0 = header.valid_from.get();
-                self.next = (self.next + 1) % KEPT;
-            }
-        }
-        if want == 0 {
-            return Some(&self.zeros);
-        }
-        self.ring
-            .iter()
-            .find(|(from, _)| *from == want)
-            .map(|(_, v)| v.as_slice())
-    }
-}
+type Source = Versions<Threadsafe>;
 
 /// Where one component's inputs come from, for one assembly generation.
 struct Binding {
@@ -113,6 +81,8 @@ pub struct Host {
     hosted: Vec<Hosted>,
     releases: Sub<Threadsafe>,
     done: Pub<Threadsafe>,
+    /// Notified once per batch of done notices (the coordinator may sleep on it).
+    done_wake: Notifier<Threadsafe>,
     wake: Listener<Threadsafe>,
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
     prepare: Option<Sub<Threadsafe>>,
@@ -121,8 +91,8 @@ pub struct Host {
     preparing: Option<Preparing>,
     /// The spec it was made from, to load other assemblies against.
     spec: GridSpec,
-    /// Inputs that were not found in the version the notice named.
-    pub missing: u64,
+    /// Releases not executed because an input's version the notice named was not there.
+    pub stale: u64,
     /// Where bindings replaced at a switch go to be dropped, off the serving thread.
     reaper: std::sync::mpsc::Sender<Binding>,
 }
@@ -152,14 +122,20 @@ pub enum HostError {
     Transport(#[from] TransportError),
 }
 
-fn source(node: &Node<Threadsafe>, spec: &GridSpec, s: usize) -> Result<Source, TransportError> {
+/// The outputs of component `s` as read by component `reader` of `spec`.
+fn source(
+    node: &Node<Threadsafe>,
+    spec: &GridSpec,
+    reader: usize,
+    s: usize,
+) -> Result<Source, TransportError> {
     let zeros: Vec<PortValue> = spec.output_types(s).iter().map(|t| t.zero()).collect();
-    Ok(Source {
-        sub: wire::out_subscriber(node, &spec.out_service(s))?,
-        ring: (0..KEPT).map(|_| (u64::MAX, zeros.clone())).collect(),
-        next: 0,
+    let depth = versions::depth(spec.components[reader].period, spec.components[s].period);
+    Ok(Versions::new(
+        wire::out_subscriber(node, &spec.out_service(s))?,
         zeros,
-    })
+        depth,
+    ))
 }
 
 /// Waits (up to 10 s) until every source's host publishes, and connects to it here: the first
@@ -174,7 +150,7 @@ fn connect(node: &Node<Threadsafe>, spec: &GridSpec, hosted: &[usize], opened: &
             {
                 std::thread::sleep(std::time::Duration::from_millis(5));
             }
-            let _ = source.sub.has_samples();
+            source.connect();
         }
     }
 }
@@ -211,7 +187,7 @@ impl Host {
             let sources = spec
                 .sources(c)
                 .into_iter()
-                .map(|s| source(node, spec, s))
+                .map(|s| source(node, spec, c, s))
                 .collect::<Result<Vec<_>, TransportError>>()?;
             let out_len = OUT_HEADER_LEN + record_len(&out_types);
             hosted.push(Hosted {
@@ -242,12 +218,13 @@ impl Host {
             hosted,
             releases: wire::release_subscriber(node, &spec.release_service(host))?,
             done: wire::done_publisher(node)?,
+            done_wake: wire::done_wake_notifier(node)?,
             wake: wire::wake_listener(node, &spec.wake_service(host))?,
             prepare,
             loading: None,
             preparing: None,
             spec: spec.clone(),
-            missing: 0,
+            stale: 0,
             reaper: reaper()?,
         })
     }
@@ -256,20 +233,27 @@ impl Host {
         &self.name
     }
 
-    /// Sleeps until released or `timeout` passed, then serves every release waiting.
+    /// Sleeps until released or `timeout` passed (`None`: until released), then serves every
+    /// release waiting.
     pub fn wait_and_serve(
         &mut self,
-        timeout: Duration,
+        timeout: Option<Duration>,
         now: &dyn Fn() -> u64,
     ) -> Result<usize, TransportError> {
-        if let Err(e) = self.wake.timed_wait(|_| {}, timeout) {
-            tracing::debug!("host wait: {e:?}");
-        }
+        self.wait(timeout);
         self.serve(now)
     }
 
-    /// Serves every release notice waiting; returns how many.
+    /// Sleeps until released or `timeout` passed (`None`: until released); whether it was.
+    /// [`Host::serve`] takes the wake-up.
+    pub fn wait(&self, timeout: Option<Duration>) -> bool {
+        super::wait::wait(&self.wake, timeout)
+    }
+
+    /// Serves every release notice waiting, then tells the coordinator once; returns how many.
     pub fn serve(&mut self, now: &dyn Fn() -> u64) -> Result<usize, TransportError> {
+        // Taken before looking: a release sent after this wakes the next wait.
+        super::wait::drain(&self.wake);
         let mut served = 0;
         while let Some(sample) = self.releases.receive().map_err(|e| TransportError::Ipc {
             op: "receive release",
@@ -282,6 +266,11 @@ impl Host {
             drop(sample);
             self.step(&release, now)?;
             served += 1;
+        }
+        if served > 0 {
+            if let Err(e) = self.done_wake.notify() {
+                tracing::debug!("done wake-up not sent: {e:?}");
+            }
         }
         Ok(served)
     }
@@ -346,7 +335,7 @@ impl Host {
                                 opening
                                     .sources(c)
                                     .into_iter()
-                                    .map(|s| source(&node, &opening, s))
+                                    .map(|s| source(&node, &opening, c, s))
                                     .collect::<Result<Vec<_>, _>>()
                             })
                             .collect::<Result<Vec<_>, _>>();
@@ -451,20 +440,32 @@ impl Host {
         for (slot, v) in versions.iter_mut().zip(release.versions()) {
             *slot = v;
         }
+        // LET: every input exactly as valid at n, or the release is not executed.
+        let mut stale = None;
         for (i, &(s, port)) in h.binding.inputs.iter().enumerate() {
             let Some(source) = h.binding.sources.get_mut(s) else {
-                continue;
+                stale = Some((i, 0));
+                break;
             };
-            match source.version(versions[s]) {
+            match source.get(versions[s]) {
                 Some(values) => h.inputs[i].assign(&values[port]),
                 None => {
-                    self.missing += 1;
-                    tracing::warn!(
-                        "component {c} at tick {n}: input {i} version {} missing",
-                        versions[s]
-                    );
+                    stale = Some((i, versions[s]));
+                    break;
                 }
             }
+        }
+        if let Some((i, version)) = stale {
+            self.stale += 1;
+            tracing::warn!(
+                "component {} at tick {n}: input {i} version {version} is gone (the host was \
+                 held up); the release is not executed",
+                h.name
+            );
+            let done = Done::new(n, c as u16, Done::STALE, 0, 0).of_generation(generation);
+            return wire::send(&self.done, done.as_bytes().len(), |buf| {
+                buf.copy_from_slice(done.as_bytes())
+            });
         }
         SERVING.with(|s| s.set((generation, release.flags.get())));
         let start = now();

@@ -6,7 +6,8 @@
 //! - grid: state (text: running, faulted, done), fault (text), ticks, missed ticks, tick rate
 //!   (f64, Hz over the last second), tick error p50, p99, max (ns);
 //! - per component ([`FIELDS`] values): name, host, period (ticks), policy, releases, overruns,
-//!   late completions, failed steps, exec min, p50, p99, max (ns), release latency p50, p99
+//!   late completions, failed steps, stale releases (not executed: an input's version was
+//!   gone), exec min, p50, p99, max (ns), release latency p50, p99
 //!   (ns).
 
 use modbot_ipc_schema::value::Values;
@@ -15,7 +16,7 @@ use modbot_ipc_schema::Value;
 use crate::stats::Histogram;
 
 /// Values per component row.
-pub const FIELDS: usize = 14;
+pub const FIELDS: usize = 15;
 /// Values in the grid row.
 pub const GRID_FIELDS: usize = 8;
 
@@ -30,6 +31,7 @@ pub struct ComponentRow {
     pub overruns: u64,
     pub late: u64,
     pub failed: u64,
+    pub stale: u64,
     pub exec_min: u64,
     pub exec_p50: u64,
     pub exec_p99: u64,
@@ -85,6 +87,7 @@ pub fn encode(grid: &GridRow, rows: &[ComponentRow], out: &mut Vec<u8>) {
             r.overruns,
             r.late,
             r.failed,
+            r.stale,
             r.exec_min,
             r.exec_p50,
             r.exec_p99,
@@ -138,12 +141,13 @@ pub fn decode(bytes: &[u8]) -> Result<(GridRow, Vec<ComponentRow>), String> {
                 overruns: num(&r[5])?,
                 late: num(&r[6])?,
                 failed: num(&r[7])?,
-                exec_min: num(&r[8])?,
-                exec_p50: num(&r[9])?,
-                exec_p99: num(&r[10])?,
-                exec_max: num(&r[11])?,
-                latency_p50: num(&r[12])?,
-                latency_p99: num(&r[13])?,
+                stale: num(&r[8])?,
+                exec_min: num(&r[9])?,
+                exec_p50: num(&r[10])?,
+                exec_p99: num(&r[11])?,
+                exec_max: num(&r[12])?,
+                latency_p50: num(&r[13])?,
+                latency_p99: num(&r[14])?,
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
@@ -169,13 +173,14 @@ pub fn render(grid: &GridRow, rows: &[ComponentRow]) -> String {
         us(grid.tick_err_max),
     );
     out.push_str(&format!(
-        "{:<16} {:<10} {:>6} {:<6} {:>9} {:>8} {:>10} {:>10} {:>10} {:>11}\n",
+        "{:<16} {:<10} {:>6} {:<6} {:>9} {:>8} {:>6} {:>10} {:>10} {:>10} {:>11}\n",
         "COMPONENT",
         "HOST",
         "PERIOD",
         "POLICY",
         "RELEASES",
         "OVERRUN",
+        "STALE",
         "EXEC p50",
         "EXEC p99",
         "EXEC max",
@@ -183,13 +188,14 @@ pub fn render(grid: &GridRow, rows: &[ComponentRow]) -> String {
     ));
     for r in rows {
         out.push_str(&format!(
-            "{:<16} {:<10} {:>6} {:<6} {:>9} {:>8} {:>10} {:>10} {:>10} {:>11}\n",
+            "{:<16} {:<10} {:>6} {:<6} {:>9} {:>8} {:>6} {:>10} {:>10} {:>10} {:>11}\n",
             r.name,
             r.host,
             r.period,
             r.policy,
             r.releases,
             r.overruns,
+            r.stale,
             us(r.exec_p50),
             us(r.exec_p99),
             us(r.exec_max),

@@ -29,6 +29,8 @@
 //!
 //! Across processes:
 //! - [`wire`]: the grid's iceoryx2 services (outputs, release and done notices, wake-ups).
+//! - [`versions`]: the versions of a component's outputs a reader keeps (hosts, recorder).
+//! - [`wait`]: sleeping on a wake-up with a deadline to the microsecond.
 //! - [`tick`]: where the base tick comes from (an absolute timerfd; a free-running source).
 //! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
 //! - [`host`]: a component host: steps its components on release, publishes their outputs.
@@ -51,6 +53,8 @@ pub mod spec;
 pub mod switch;
 pub mod tick;
 pub mod trace;
+pub mod versions;
+pub mod wait;
 pub mod wire;
 
 pub use component::{
@@ -58,5 +62,7 @@ pub use component::{
     PortValue, Registry,
 };
 pub use reference::{reference_run, reference_trace, reference_trace_with, Overruns};
-pub use spec::{ComponentSpec, Connection, GridSpec, OverrunPolicy, PortRef};
+pub use spec::{
+    ComponentSpec, Connection, GridClock, GridSpec, GridTiming, OverrunPolicy, PortRef,
+};
 pub use trace::TraceWriter;

@@ -38,8 +38,13 @@ pub fn host_program(host: &str) -> &'static str {
 pub struct GridRun {
     /// Stop after this many base ticks (then the coordinator stops the system).
     pub ticks: Option<u64>,
-    /// Write every output at every tick here.
+    /// Write every output at every tick here (with assemblies: of the system's own
+    /// components).
     pub trace: Option<std::path::PathBuf>,
+    /// Run the grid in lockstep (see [`super::GridClock::Lockstep`]).
+    pub lockstep: bool,
+    /// Assembly switches at given ticks: (tick, assembly).
+    pub switches: Vec<(u64, String)>,
 }
 
 /// Adds the grid's processes to `spec`'s modules, if it has a grid. `file` and `vars` are
@@ -52,9 +57,9 @@ pub fn add_processes(
     run: &GridRun,
 ) -> Result<(), String> {
     let Some(grid) = spec.grid.clone() else {
-        if run.ticks.is_some() || run.trace.is_some() {
+        if run.ticks.is_some() || run.trace.is_some() || run.lockstep || !run.switches.is_empty() {
             return Err(format!(
-                "{}: --ticks and --trace need a grid, and the description has none",
+                "{}: --ticks, --trace, --lockstep and --switch need a grid, and the description has none",
                 file.display()
             ));
         }
@@ -65,6 +70,15 @@ pub fn add_processes(
     for (k, v) in vars {
         common.push("--var".into());
         common.push(format!("{k}={v}"));
+    }
+    if run.lockstep {
+        common.push("--lockstep".into());
+    }
+    if !run.switches.is_empty() && grid.assembly.is_none() {
+        return Err(format!(
+            "{}: --switch needs a grid with assemblies (grid {{ assemblies = ..., assembly = ... }})",
+            file.display()
+        ));
     }
     let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
     let mut next_addr = || {
@@ -139,12 +153,6 @@ pub fn add_processes(
         // The hosts of assemblies swapped in later: the supervisor adds the host, the
         // assembly and its generation.
         spec.host_template = Some(template);
-        if run.trace.is_some() {
-            return Err(format!(
-                "{}: --trace records a fixed set of components; it is not available with assemblies",
-                file.display()
-            ));
-        }
     }
     let mut args = common;
     if let Some(n) = run.ticks {
@@ -153,6 +161,9 @@ pub fn add_processes(
     if let Some(t) = &run.trace {
         let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
         args.extend(["--trace".to_owned(), t.display().to_string()]);
+    }
+    for (tick, name) in &run.switches {
+        args.extend(["--switch".to_owned(), format!("{tick}:{name}")]);
     }
     added.push(ModuleSpec {
         name: COORDINATOR.into(),

@@ -40,39 +40,48 @@ pub fn reference_run(
 }
 
 /// Overruns to replay: what the hold policy did in a real run, as its trace records them
-/// (`# overrun tick=T component=C release=M`).
+/// (`# overrun tick=T component=C release=M`, `# stale tick=M component=C`).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Overruns {
     /// (component, release tick) of releases that finished late: the component stepped (its
     /// state moved on) but its outputs never became valid.
     pub late: std::collections::BTreeSet<(usize, u64)>,
-    /// (component, tick) of due ticks at which it was not released (still running).
+    /// (component, tick) of due ticks at which it was not released (still running) or its
+    /// release was not executed (stale).
     pub skipped: std::collections::BTreeSet<(usize, u64)>,
 }
 
 impl Overruns {
-    /// Reads the overrun lines of a trace of `spec`.
+    /// Reads the overrun and stale lines of a trace of `spec`: `# overrun tick=T
+    /// component=C release=M` (release M finished late, and C was not released at T) and
+    /// `# stale tick=M component=C` (release M was not executed: an input's version was gone).
     pub fn from_trace(spec: &GridSpec, trace: &str) -> Result<Overruns, String> {
         let mut out = Overruns::default();
-        for line in trace.lines().filter(|l| l.starts_with("# overrun ")) {
+        for line in trace.lines() {
+            let overrun = line.starts_with("# overrun ");
+            if !overrun && !line.starts_with("# stale ") {
+                continue;
+            }
             let field = |key: &str| {
                 line.split_whitespace()
                     .find_map(|w| w.strip_prefix(key))
                     .ok_or_else(|| format!("'{line}' has no {key}"))
             };
-            let tick: u64 = field("tick=")?
-                .parse()
-                .map_err(|_| format!("bad tick in '{line}'"))?;
-            let release: u64 = field("release=")?
-                .parse()
-                .map_err(|_| format!("bad release in '{line}'"))?;
+            let number = |key: &str| -> Result<u64, String> {
+                field(key)?
+                    .parse()
+                    .map_err(|_| format!("bad {key} in '{line}'"))
+            };
             let name = field("component=")?;
             let c = spec
                 .components
                 .iter()
                 .position(|x| x.name == name)
                 .ok_or_else(|| format!("unknown component in '{line}'"))?;
-            out.late.insert((c, release));
+            let tick = number("tick=")?;
+            if overrun {
+                out.late.insert((c, number("release=")?));
+            }
             out.skipped.insert((c, tick));
         }
         Ok(out)
@@ -268,6 +277,24 @@ connect "A.y -> B.u"
 connect "B.y -> C.u"
 "#;
         grid(source)
+    }
+
+    #[test]
+    fn overrun_and_stale_lines_of_a_trace_become_the_releases_to_replay() {
+        let spec = chain();
+        let trace = "# modbot trace v1\n# overrun tick=4 component=B release=2\n# stale tick=6 component=C\n";
+        let got = Overruns::from_trace(&spec, trace).unwrap();
+        let (b, c) = (
+            spec.components.iter().position(|x| x.name == "B").unwrap(),
+            spec.components.iter().position(|x| x.name == "C").unwrap(),
+        );
+        assert_eq!(got.late.iter().copied().collect::<Vec<_>>(), vec![(b, 2)]);
+        assert_eq!(
+            got.skipped.iter().copied().collect::<Vec<_>>(),
+            vec![(b, 4), (c, 6)]
+        );
+        assert!(Overruns::from_trace(&spec, "# stale tick=x component=C").is_err());
+        assert!(Overruns::from_trace(&spec, "# stale tick=1 component=Z").is_err());
     }
 
     #[test]

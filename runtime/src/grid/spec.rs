@@ -66,8 +66,65 @@ pub struct GridSpec {
     pub connections: Vec<Connection>,
     /// The line of the `grid` declaration.
     pub line: u32,
+    /// Where the ticks come from, and how the coordinator waits for its hosts.
+    pub timing: GridTiming,
     /// When the grid runs assemblies: which one this spec holds, and how to load others.
     pub assembly: Option<Assembly>,
+}
+
+/// Where the base tick comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GridClock {
+    /// The coordinator's timerfd: tick n at start + n·T, whatever happens (the default).
+    #[default]
+    RealTime,
+    /// The coordinator advances to tick n + 1 only when every release due at n + 1 can be
+    /// made, as fast as the machine goes: no overruns by construction, byte-identical traces
+    /// whatever the load. A simulation mode: no drive would follow it in real time.
+    Lockstep,
+}
+
+impl GridClock {
+    pub fn name(self) -> &'static str {
+        match self {
+            GridClock::RealTime => "realtime",
+            GridClock::Lockstep => "lockstep",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<GridClock> {
+        match name {
+            "realtime" => Some(GridClock::RealTime),
+            "lockstep" => Some(GridClock::Lockstep),
+            _ => None,
+        }
+    }
+}
+
+/// How the grid keeps time: `grid { clock = ..., track_ticks = ..., spin_us = ... }`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GridTiming {
+    pub clock: GridClock,
+    /// An incoming assembly runs alongside (tracking) for at least this many ticks before it
+    /// takes over; its overruns in that time are counted but do not fail the switch (a fresh
+    /// process is slow at first: cold caches, first page touches).
+    pub track_ticks: u64,
+    /// How long the coordinator may spin at a tick for a due component's done notice before it
+    /// sleeps on the done wake-up (0: never spin; only worth it on a core of its own).
+    pub spin_us: u64,
+}
+
+/// Ticks an incoming assembly tracks by default before it takes over.
+pub const DEFAULT_TRACK_TICKS: u64 = 50;
+
+impl Default for GridTiming {
+    fn default() -> Self {
+        GridTiming {
+            clock: GridClock::RealTime,
+            track_ticks: DEFAULT_TRACK_TICKS,
+            spin_us: 0,
+        }
+    }
 }
 
 /// The assembly a [`GridSpec`] holds: its components follow the system's own (the bus), which
@@ -147,6 +204,7 @@ pub struct GridDecl {
     pub priority: Option<u8>,
     pub mlock: bool,
     pub line: u32,
+    pub timing: GridTiming,
     /// The grid runs swappable assemblies, starting with this one.
     pub assemblies: Option<AssembliesDecl>,
 }
@@ -452,6 +510,7 @@ impl GridSpec {
             components: specs,
             connections: checked,
             line: grid.line,
+            timing: grid.timing,
             assembly: None,
         })
     }

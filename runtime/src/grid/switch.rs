@@ -170,6 +170,18 @@ pub fn switch<S>(
     }
 }
 
+/// `TICK:NAME`, a switch to assembly NAME at tick TICK (`modbot up --switch`).
+pub fn parse_scripted(text: &str) -> Result<(u64, String), String> {
+    let (tick, name) = text
+        .split_once(':')
+        .ok_or_else(|| format!("'{text}' is not TICK:NAME"))?;
+    let tick = tick
+        .parse()
+        .map_err(|_| format!("'{tick}' in '{text}' is not a tick number"))?;
+    crate::system::assembly::check_assembly_name(name)?;
+    Ok((tick, name.to_owned()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -27,7 +27,17 @@ use super::spec::GridSpec;
 
 /// The header line of `spec`'s trace, without the newline.
 pub fn header(spec: &GridSpec) -> String {
-    let names: Vec<&str> = spec.components.iter().map(|c| c.name.as_str()).collect();
+    header_of_first(spec, spec.components.len())
+}
+
+/// The header line of a trace of the first `count` components of `spec`.
+fn header_of_first(spec: &GridSpec, count: usize) -> String {
+    let names: Vec<&str> = spec
+        .components
+        .iter()
+        .take(count)
+        .map(|c| c.name.as_str())
+        .collect();
     format!(
         "# modbot trace v1 base_period_ns={} components={}",
         spec.base_period.as_nanos(),
@@ -64,9 +74,16 @@ pub struct TraceWriter<W: Write> {
 impl<W: Write> TraceWriter<W> {
     /// A writer of `spec`'s trace to `out`.
     pub fn new(out: W, spec: &GridSpec) -> TraceWriter<W> {
+        TraceWriter::of_first(out, spec, spec.components.len())
+    }
+
+    /// A writer of the trace of the first `count` components of `spec` (with assemblies: the
+    /// system's own).
+    pub fn of_first(out: W, spec: &GridSpec, count: usize) -> TraceWriter<W> {
         let keys: Vec<Vec<String>> = spec
             .components
             .iter()
+            .take(count)
             .map(|c| {
                 c.info
                     .outputs
@@ -78,7 +95,7 @@ impl<W: Write> TraceWriter<W> {
         let count = keys.len();
         TraceWriter {
             out,
-            header: Some(header(spec)),
+            header: Some(header_of_first(spec, count)),
             keys,
             slots: vec![String::new(); count],
             given: vec![false; count],

@@ -9,6 +9,9 @@
 //!   keeps the newest 64 samples: LET only ever reads one of the newest two.
 //! - `grid.release.<host>`: release notices from the coordinator to one host;
 //! - `grid.done`: done notices from every host to the coordinator;
+//! - `grid.done.wake`: an event each host notifies once per batch of done notices, so the
+//!   coordinator can sleep while it waits for a late one (a notification the coordinator has
+//!   not taken yet makes the next one free: iceoryx2 sends nothing then);
 //! - `grid.wake.<host>`: an event, so a blocking host sleeps until it is released;
 //! - `grid.assembly`: the assembly being prepared ([`modbot_ipc_schema::grid::Prepare`]), from
 //!   the coordinator to the hosts of the system's own components, with history 1.
@@ -173,12 +176,31 @@ pub fn done_subscriber<S: Service>(node: &Node<S>) -> Result<Sub<S>, TransportEr
 fn wake<S: Service>(
     node: &Node<S>,
     service: &str,
+    notifiers: usize,
 ) -> Result<iceoryx2::service::port_factory::event::PortFactory<S>, TransportError> {
     node.service_builder(&name(service)?)
         .event()
         .max_nodes(MAX_NODES)
+        .max_notifiers(notifiers)
+        .max_listeners(4)
         .open_or_create()
         .map_err(|e| err("open grid wake-up")(&e))
+}
+
+/// A host's side of the done wake-up.
+pub fn done_wake_notifier<S: Service>(node: &Node<S>) -> Result<Notifier<S>, TransportError> {
+    wake(node, "grid.done.wake", MAX_NODES)?
+        .notifier_builder()
+        .create()
+        .map_err(|e| err("grid wake notifier")(&e))
+}
+
+/// The coordinator's side of the done wake-up.
+pub fn done_wake_listener<S: Service>(node: &Node<S>) -> Result<Listener<S>, TransportError> {
+    wake(node, "grid.done.wake", MAX_NODES)?
+        .listener_builder()
+        .create()
+        .map_err(|e| err("grid wake listener")(&e))
 }
 
 /// The coordinator's side of a host's wake-up ([`super::GridSpec::wake_service`]).
@@ -186,7 +208,7 @@ pub fn wake_notifier<S: Service>(
     node: &Node<S>,
     service: &str,
 ) -> Result<Notifier<S>, TransportError> {
-    wake(node, service)?
+    wake(node, service, 2)?
         .notifier_builder()
         .create()
         .map_err(|e| err("grid wake notifier")(&e))
@@ -197,7 +219,7 @@ pub fn wake_listener<S: Service>(
     node: &Node<S>,
     service: &str,
 ) -> Result<Listener<S>, TransportError> {
-    wake(node, service)?
+    wake(node, service, 2)?
         .listener_builder()
         .create()
         .map_err(|e| err("grid wake listener")(&e))

@@ -152,6 +152,8 @@ pub fn load_assembly(
             c.line -= LINE_OFFSET;
         }
     }
+    // How the grid keeps time is the running system's (`modbot up --lockstep` included).
+    spec.timing = system.timing;
     spec.assembly = Some(Assembly {
         name: name.to_owned(),
         generation,

@@ -2,6 +2,7 @@
 //!
 //! ```lua
 //! grid { base_period = 0.001, cpus = { 0 }, priority = 80, mlock = true }   -- at most once
+//! grid { clock = "lockstep", track_ticks = 50, spin_us = 0 }                -- timing, optional
 //! component "A" { type = "counter", host = "h1", period = 1, params = { start = 0 } }
 //! component "B" { type = "gain", host = "h2", period_s = 0.002, params = { k = 0.5 }, policy = "fault" }
 //! connect "A.y -> B.u"                                                         -- or connect("A.y", "B.u")
@@ -18,10 +19,11 @@ use mlua::{Lua, MultiValue, Table, Value};
 
 use super::decl::{self, realtime};
 use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
-use super::read::{list, show, string, text, Fields};
+use super::read::{integer_in, list, show, string, text, Fields};
 use crate::grid::component::{ParamValue, Params};
 use crate::grid::spec::{
-    AssembliesDecl, ComponentDecl, ConnectDecl, GridDecl, OverrunPolicy, Period, MAX_COMPONENTS,
+    AssembliesDecl, ComponentDecl, ConnectDecl, GridClock, GridDecl, GridTiming, OverrunPolicy,
+    Period, MAX_COMPONENTS,
 };
 
 const GRID_FIELDS: &[&str] = &[
@@ -31,6 +33,9 @@ const GRID_FIELDS: &[&str] = &[
     "mlock",
     "assemblies",
     "assembly",
+    "clock",
+    "track_ticks",
+    "spin_us",
 ];
 const COMPONENT_FIELDS: &[&str] = &["type", "host", "period", "period_s", "params", "policy"];
 /// The base period when `grid {}` does not say.
@@ -124,8 +129,22 @@ fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
             )
         }
     };
+    let mut timing = GridTiming::default();
+    if let Some(v) = fields.take("clock") {
+        let name = string(what, "clock", &v)?;
+        timing.clock = GridClock::from_name(&name).ok_or_else(|| {
+            format!("grid: field 'clock' must be \"realtime\" or \"lockstep\", not \"{name}\"")
+        })?;
+    }
+    if let Some(v) = fields.take("track_ticks") {
+        timing.track_ticks = integer_in(what, "track_ticks", &v, 0, 1_000_000)? as u64;
+    }
+    if let Some(v) = fields.take("spin_us") {
+        timing.spin_us = integer_in(what, "spin_us", &v, 0, 1_000_000)? as u64;
+    }
     Ok(GridDecl {
         assemblies,
+        timing,
         base_period,
         cpus,
         // The range was checked above.

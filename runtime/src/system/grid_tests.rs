@@ -45,6 +45,31 @@ fn with_grid(body: &str) -> String {
 // ---- the language ----
 
 #[test]
+fn the_grid_keeps_real_time_by_default_and_lockstep_when_asked() {
+    let g = grid_of(&with_grid(
+        "component \"A\" { type = \"counter\", host = \"h\" }",
+    ));
+    assert_eq!(g.timing, crate::grid::GridTiming::default());
+    assert_eq!(g.timing.clock, crate::grid::GridClock::RealTime);
+    let g = grid_of(
+        "domain \"t\"\ngrid { clock = \"lockstep\", track_ticks = 80, spin_us = 20 }\n\
+         component \"A\" { type = \"counter\", host = \"h\" }",
+    );
+    assert_eq!(g.timing.clock, crate::grid::GridClock::Lockstep);
+    assert_eq!((g.timing.track_ticks, g.timing.spin_us), (80, 20));
+    assert_error(
+        "domain \"t\"\ngrid { clock = \"fast\" }",
+        Some(2),
+        "field 'clock' must be \"realtime\" or \"lockstep\", not \"fast\"",
+    );
+    assert_error(
+        "domain \"t\"\ngrid { track_ticks = -1 }",
+        Some(2),
+        "field 'track_ticks' must be an integer from 0 to 1000000",
+    );
+}
+
+#[test]
 fn grid_alone_is_a_system_and_every_field_is_read() {
     let source = r#"domain "t"
 grid { base_period = 0.0005, cpus = { 2, 0 }, priority = 80, mlock = true }
@@ -430,7 +455,7 @@ fn bad_grid_fields_are_refused() {
         ("mlock = 1", "field 'mlock' must be true or false"),
         (
             "rate = 1",
-            "grid: unknown field 'rate' (expected base_period, cpus, priority, mlock, assemblies, assembly)",
+            "grid: unknown field 'rate' (expected base_period, cpus, priority, mlock, assemblies, assembly, clock, track_ticks, spin_us)",
         ),
     ] {
         assert_error(

@@ -191,6 +191,7 @@ fn with_assemblies(
         components: Vec::new(),
         connections: Vec::new(),
         line,
+        timing: grid.timing,
         assembly: Some(Assembly {
             name: String::new(),
             generation: 0,

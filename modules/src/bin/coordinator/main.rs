@@ -44,6 +44,10 @@ struct Cli {
     /// Write every output at every tick to this file.
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// Switch to assembly NAME at tick TICK (`TICK:NAME`; repeatable). In lockstep the grid
+    /// waits at that tick while the assembly is prepared, so the run is reproducible.
+    #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_runtime::grid::switch::parse_scripted)]
+    switches: Vec<(u64, String)>,
 }
 
 /// The ledger as last encoded, for the `ledger` method, and the assembly switches.
@@ -69,7 +73,14 @@ fn switch_method(
     args: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    let name = args.text(0)?;
+    let generation = request_switch(s, args.text(0)?)?;
+    reply.push(Value::I64(i64::from(generation)));
+    Ok(())
+}
+
+/// Asks for a switch to assembly `name` (the `switch` method, or a scripted `--switch`);
+/// returns the generation it gets.
+fn request_switch(s: &mut Shared, name: &str) -> Result<u16, MethodError> {
     if !s.assemblies {
         return Err(MethodError::Failed(
             "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }".into(),
@@ -87,8 +98,7 @@ fn switch_method(
     })?;
     s.requested = Some((name.to_owned(), generation));
     s.busy = true;
-    reply.push(Value::I64(i64::from(generation)));
-    Ok(())
+    Ok(generation)
 }
 
 fn assembly_method(
@@ -157,10 +167,14 @@ fn main() -> anyhow::Result<()> {
     let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies)?;
     // The tick thread puts itself under SCHED_FIFO (the grid's priority); this thread keeps
     // normal scheduling, so its work never delays a tick.
-    let max_ticks = cli.ticks;
+    let run = ticker::Run {
+        period_ns,
+        max_ticks: cli.ticks,
+        script: cli.switches.clone(),
+    };
     let ticker = std::thread::Builder::new()
         .name("tick".into())
-        .spawn(move || ticker::run(coord, period_ns, max_ticks, commands, tell))?;
+        .spawn(move || ticker::run(coord, run, commands, tell))?;
 
     let mut host_pids = HashMap::new();
     let mut host_modules: Vec<(String, String)> = Vec::new();
@@ -205,6 +219,12 @@ fn main() -> anyhow::Result<()> {
                     switching.current(&mut module, name, generation)
                 }
                 FromTick::Ended(reached) => ended = Some(reached),
+                FromTick::Script(name) => {
+                    if let Err(e) = request_switch(module.state_mut(), &name) {
+                        tracing::error!("the scripted switch to {name} cannot be made: {e}");
+                        let _ = to_tick.send(ToTick::ScriptRefused);
+                    }
+                }
                 FromTick::Failed(why) => {
                     result = Err(anyhow::anyhow!("{why}"));
                     ended = Some(false);

@@ -94,6 +94,12 @@ impl Switching {
     }
 
     pub fn state(&mut self, state: SwitchState, failure: Option<String>) {
+        // A late release of the incoming assembly near its switch postpones it.
+        if let (SwitchState::Announced { at, .. }, Phase::Announced(announced)) =
+            (&state, &mut self.phase)
+        {
+            *announced = *at;
+        }
         self.state = state;
         self.failure = failure;
     }

@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::coordinator::{Coordinator, HostLink, SwitchState};
 use modbot_runtime::grid::ledger;
-use modbot_runtime::grid::tick::TimerTicks;
-use modbot_runtime::grid::GridSpec;
+use modbot_runtime::grid::tick::{FreeTicks, TickSource, TimerTicks};
+use modbot_runtime::grid::{GridClock, GridSpec};
 use modbot_runtime::signals;
 
 pub type Coord = Coordinator<std::io::BufWriter<std::fs::File>>;
@@ -34,6 +34,8 @@ pub enum ToTick {
     Abort,
     /// The host's process was restarted.
     HostRestarted(String),
+    /// The scripted switch due now could not be asked for: go on.
+    ScriptRefused,
 }
 
 /// What the tick thread tells the service thread.
@@ -62,18 +64,23 @@ pub enum FromTick {
     Ended(bool),
     /// The tick thread failed.
     Failed(String),
+    /// A scripted switch to this assembly is due (`--switch TICK:NAME`).
+    Script(String),
+}
+
+/// How the tick thread runs.
+pub struct Run {
+    pub period_ns: u64,
+    /// Stop after this many ticks.
+    pub max_ticks: Option<u64>,
+    /// Switches to ask for at ticks: (tick, assembly).
+    pub script: Vec<(u64, String)>,
 }
 
 /// Runs the grid until a termination signal or `max_ticks`; tells `out` what happens.
-pub fn run(
-    mut coord: Coord,
-    period_ns: u64,
-    max_ticks: Option<u64>,
-    commands: Receiver<ToTick>,
-    out: SyncSender<FromTick>,
-) {
+pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSender<FromTick>) {
     modbot_runtime::supervisor::rt::real_time_thread(coord.spec().priority, "tick thread");
-    if let Err(e) = tick(&mut coord, period_ns, max_ticks, &commands, &out) {
+    if let Err(e) = tick(&mut coord, run, &commands, &out) {
         let _ = out.send(FromTick::Failed(e.to_string()));
         return;
     }
@@ -98,37 +105,91 @@ pub fn run(
     let _ = out.send(FromTick::Ended(reached));
 }
 
+/// Where a scripted switch stands on the tick thread.
+#[derive(Default)]
+struct Script {
+    /// (tick, assembly), the next first.
+    due: std::collections::VecDeque<(u64, String)>,
+    /// A scripted switch was asked for and has not begun: in lockstep the grid waits.
+    awaiting: bool,
+}
+
 fn tick(
     coord: &mut Coord,
-    period_ns: u64,
-    max_ticks: Option<u64>,
+    run: Run,
     commands: &Receiver<ToTick>,
     out: &SyncSender<FromTick>,
 ) -> anyhow::Result<()> {
+    let Run {
+        period_ns,
+        max_ticks,
+        mut script,
+    } = run;
+    script.sort_by_key(|s| s.0);
+    let mut script = Script {
+        due: script.into(),
+        awaiting: false,
+    };
+    let lockstep = coord.spec().timing.clock == GridClock::Lockstep;
     let silent = coord.warm_up(20, Duration::from_secs(10))?;
     anyhow::ensure!(
         silent == 0,
         "{silent} host(s) did not answer the warm-up releases"
     );
-    tracing::info!(
-        "{} host(s) ready: ticking every {} us",
-        coord.spec().hosts().len(),
-        period_ns / 1000
-    );
+    if lockstep {
+        tracing::info!(
+            "{} host(s) ready: ticking in lockstep (base period {} us, as fast as they go)",
+            coord.spec().hosts().len(),
+            period_ns / 1000
+        );
+    } else {
+        tracing::info!(
+            "{} host(s) ready: ticking every {} us",
+            coord.spec().hosts().len(),
+            period_ns / 1000
+        );
+    }
     tell(out, hosts_of(coord));
     tell(out, current_of(coord));
-    let mut ticks = TimerTicks::new(period_ns)?;
+    let mut ticks: Box<dyn TickSource> = if lockstep {
+        Box::new(FreeTicks)
+    } else {
+        Box::new(TimerTicks::new(period_ns)?)
+    };
     let mut reported = Reported::default();
     let mut last_ticks = Instant::now();
     let mut last_ledger = Instant::now();
     while !signals::termination_requested() && max_ticks.is_none_or(|n| coord.ticks() < n) {
-        match coord.step(&mut ticks) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => break,
-            Err(e) => return Err(e.into()),
+        if script.due.front().is_some_and(|s| s.0 <= coord.ticks()) && !script.awaiting {
+            if let Some((_, name)) = script.due.pop_front() {
+                script.awaiting = true;
+                tell(out, FromTick::Script(name));
+            }
+        }
+        if script.awaiting && coord.switch_state() != SwitchState::Idle {
+            script.awaiting = false;
+        }
+        // In lockstep the grid waits while an assembly is prepared: the tick of the switch
+        // then depends on the tick it was asked for alone.
+        let hold = lockstep
+            && (script.awaiting || matches!(coord.switch_state(), SwitchState::Preparing { .. }));
+        if hold {
+            coord.between_ticks();
+            std::thread::sleep(Duration::from_micros(200));
+        } else {
+            match coord.step(ticks.as_mut()) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => break,
+                Err(e) => return Err(e.into()),
+            }
         }
         for _ in 0..COMMANDS_PER_TICK {
             match commands.try_recv() {
+                Ok(ToTick::ScriptRefused) => script.awaiting = false,
+                Ok(ToTick::Abort) => {
+                    script.awaiting = false;
+                    obey(coord, ToTick::Abort, out);
+                }
                 Ok(command) => obey(coord, command, out),
                 Err(TryRecvError::Empty) => break,
                 // The service thread is gone: the process is ending.
@@ -171,6 +232,7 @@ fn obey(coord: &mut Coord, command: ToTick, out: &SyncSender<FromTick>) {
         ToTick::HostRestarted(host) => {
             coord.host_restarted(&host);
         }
+        ToTick::ScriptRefused => {}
     }
 }
 

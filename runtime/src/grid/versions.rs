@@ -1,0 +1,98 @@
+//! The versions of one component's outputs a reader keeps: what arrived on its output
+//! service, by the tick each version is valid from. A host reads its inputs from these, the
+//! recorder its trace; both ask for exactly the version LET names and get it, or nothing.
+//!
+//! How many to keep: a reader released at n asks for the version valid at n; by the time it
+//! serves that release its source may have published newer ones, one per source period. In
+//! lockstep a reader is at most its own period behind, so twice the longest period of the two
+//! plus a margin covers it; a reader held up for longer (SIGSTOP, a starved process) finds
+//! the version gone and says so ([`Versions::get`] is `None`) instead of reading another.
+
+use modbot_ipc_schema::grid::{read_record, OutHeader, PortValue};
+use zerocopy::FromBytes;
+
+use super::wire::Sub;
+
+/// Versions kept beyond twice the longest period involved.
+const MARGIN: usize = 8;
+
+/// How many versions a reader of a source keeps, for periods (in base ticks) of the reader and
+/// the source.
+pub fn depth(reader_period: u64, source_period: u64) -> usize {
+    let longest = reader_period
+        .max(source_period)
+        .min(super::wire::OUT_DEPTH as u64) as usize;
+    (2 * longest + MARGIN).min(super::wire::OUT_DEPTH)
+}
+
+/// The newest versions of one source's outputs.
+pub struct Versions<S: iceoryx2::service::Service> {
+    sub: Sub<S>,
+    /// (valid_from, outputs), the newest overwriting the oldest; `u64::MAX`: empty.
+    ring: Vec<(u64, Vec<PortValue>)>,
+    next: usize,
+    zeros: Vec<PortValue>,
+}
+
+impl<S: iceoryx2::service::Service> Versions<S> {
+    /// Keeps `depth` versions of what `sub` receives; `zeros` are the outputs before the first
+    /// version (and give every version its types).
+    pub fn new(sub: Sub<S>, zeros: Vec<PortValue>, depth: usize) -> Versions<S> {
+        Versions {
+            sub,
+            ring: (0..depth.max(1))
+                .map(|_| (u64::MAX, zeros.clone()))
+                .collect(),
+            next: 0,
+            zeros,
+        }
+    }
+
+    /// Takes every sample that arrived into the ring. No allocation: the ring's values have
+    /// their types and lengths already.
+    pub fn take_arrived(&mut self) {
+        while let Ok(Some(sample)) = self.sub.receive() {
+            let Ok((header, record)) = OutHeader::ref_from_prefix(sample.payload()) else {
+                continue;
+            };
+            let slot = &mut self.ring[self.next];
+            if read_record(record, &mut slot.1).is_ok() {
+                slot.0 = header.valid_from.get();
+                self.next = (self.next + 1) % self.ring.len();
+            } else {
+                slot.0 = u64::MAX;
+            }
+        }
+    }
+
+    /// Takes what arrived, then lends version `want` (0: the initial zeros); `None` if it is
+    /// not here (never arrived, or overwritten by newer ones).
+    pub fn get(&mut self, want: u64) -> Option<&[PortValue]> {
+        self.take_arrived();
+        if want == 0 {
+            return Some(&self.zeros);
+        }
+        self.ring
+            .iter()
+            .find(|(from, _)| *from == want)
+            .map(|(_, v)| v.as_slice())
+    }
+
+    /// Makes the connection to the source's publisher here (it maps the publisher's memory), so
+    /// that the first receive on a real-time thread does not.
+    pub fn connect(&self) {
+        let _ = self.sub.has_samples();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_reader_keeps_twice_the_longest_period_plus_a_margin_up_to_what_the_service_buffers() {
+        assert_eq!(depth(1, 1), 10);
+        assert_eq!(depth(10, 1), 28);
+        assert_eq!(depth(1, 1000), super::super::wire::OUT_DEPTH);
+    }
+}
