@@ -129,10 +129,15 @@ fn down(sut: &mut TestDomain, up: u32) -> String {
     output
 }
 
-/// 100 swaps between `ptp` and `ptp_smooth` while the robot moves, in lockstep: each switch
-/// is at its announced tick (as the bus saw it), and no switch changes the commanded position
-/// by more than one tick's motion at the speed limit. (Missed bus cycles around switches on the
-/// real-time clock are measured by `modbot-benches swaps`.)
+/// 100 swaps among `ptp_smooth`, `ptp` and `hold` while the robot moves, in lockstep: each
+/// switch is at its announced tick (as the bus saw it), and no switch changes the commanded
+/// position by more than one tick's motion at the speed limit, nor its velocity by more than
+/// five ticks' worth of the acceleration limit: the incoming trajectory brakes from the
+/// velocity it takes over, predicted from demands up to three ticks old by the take-over (LET
+/// delays both sides by a tick), so only a change of the running trajectory's acceleration in
+/// those ticks shows — at most 2·a_max (accelerating to braking) over 2.5 ticks; one tick's
+/// worth when there is none (`modbot-benches swaps` has the distribution). (Missed bus cycles around switches on the real-time clock are
+/// measured by `modbot-benches swaps`.)
 #[test]
 fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_the_command_continuous(
 ) {
@@ -143,7 +148,7 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
     std::thread::sleep(Duration::from_millis(300));
     let mut announced = Vec::new();
     for i in 0..100 {
-        let name = if i % 2 == 0 { "ptp_smooth" } else { "ptp" };
+        let name = ["ptp_smooth", "ptp", "hold", "ptp"][i % 4];
         let out = sut.modbot_ok(&["assembly", "switch", name, "--timeout", "60"]);
         let (generation, tick, at) = switched(out.lines().last().unwrap_or_default());
         assert_eq!(
@@ -161,13 +166,15 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
         .replace("\\n", "\n");
     // The bus's own record: the tick of each generation's first cycle and the step.
     let one_tick = 1.0 * 0.001 * 1.000_001; // v_max (rad/s) × base period, rounding allowed
+    let five_ticks_of_a = 5.0 * 4.0 * 0.001 * 1.000_001; // a_max (rad/s²) × 5 base periods
     let mut seen = 0;
     for line in switches.lines() {
         let words: Vec<&str> = line.split_whitespace().collect();
-        let (Some(g), Some(t), Some(step)) = (
+        let (Some(g), Some(t), Some(step), Some(velocity_step)) = (
             words.first().and_then(|w| w.parse::<u16>().ok()),
             words.get(1).and_then(|w| w.parse::<u64>().ok()),
             words.get(2).and_then(|w| w.parse::<f64>().ok()),
+            words.get(4).and_then(|w| w.parse::<f64>().ok()),
         ) else {
             continue;
         };
@@ -180,6 +187,11 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
             assert!(
                 step <= one_tick,
                 "generation {g}: the command jumped {step} rad at the switch (one tick: {one_tick})"
+            );
+            assert!(
+                velocity_step <= five_ticks_of_a,
+                "generation {g}: the commanded velocity jumped {velocity_step} rad/s at the switch \
+                 (five ticks of a_max: {five_ticks_of_a})"
             );
         }
     }

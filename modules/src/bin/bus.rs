@@ -18,9 +18,10 @@ use modbot_runtime::{signals, Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
 /// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`);
-/// `switches()` → one line per assembly switch: `GENERATION TICK STEP MISSED` (the largest
-/// change of commanded position at that cycle, rad, and the cycles missed within five ticks of
-/// it); `block(axis, on)` blocks or frees an axis's link in
+/// `switches()` → a line `max_step S max_velocity_step V` (the largest changes within an
+/// assembly), then one line per assembly switch: `GENERATION TICK STEP MISSED VSTEP` (the
+/// largest change of commanded position at that cycle, rad, the cycles missed within five
+/// ticks of it, and the largest change of commanded velocity, rad/s); `block(axis, on)` blocks or frees an axis's link in
 /// the simulation.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-bus", version)]
@@ -54,11 +55,14 @@ fn switches_method(
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
     let b = bridge::lock(&l.0);
-    let mut text = format!("max_step {:e}\n", b.max_step);
+    let mut text = format!(
+        "max_step {:e} max_velocity_step {:e}\n",
+        b.max_step, b.max_velocity_step
+    );
     for s in &b.switches {
         text.push_str(&format!(
-            "{} {} {:e} {}\n",
-            s.generation, s.tick, s.step, s.missed_near
+            "{} {} {:e} {} {:e}\n",
+            s.generation, s.tick, s.step, s.missed_near, s.velocity_step
         ));
     }
     reply.push(Value::Text(&text));

@@ -42,6 +42,9 @@ pub struct Switch {
     pub tick: u64,
     /// The largest change of commanded position on any axis from the cycle before, rad.
     pub step: f64,
+    /// The largest change of commanded velocity (the position's change per cycle over the
+    /// base period) on any axis from the cycle before, rad/s.
+    pub velocity_step: f64,
     /// Cycles missed within [`NEAR_SWITCH`] ticks of it, before or after.
     pub missed_near: u64,
 }
@@ -74,10 +77,15 @@ pub struct Bridge {
     /// The largest change of commanded position between two cycles of one assembly, rad, on
     /// an axis in operation enabled: one tick's motion, to compare a switch's with.
     pub max_step: f64,
-    /// The position commanded at the last cycle, per axis.
+    /// The same for the commanded velocity, rad/s: one tick's worth of acceleration.
+    pub max_velocity_step: f64,
+    /// The position commanded at the last cycle and at the one before, per axis.
     last_target: Vec<f64>,
+    before_target: Vec<f64>,
     /// The tick of the last release after which cycles were missed, and how many.
     last_miss: (u64, u64),
+    /// Cycles since the last switch (a velocity step needs two cycles of one assembly).
+    cycles_in_assembly: u64,
     /// Silence after which the coordinator counts as lost, ns.
     lost_after_ns: u64,
     /// The grid runs in lockstep: releases come as fast as the grid goes, so gaps between
@@ -101,8 +109,11 @@ impl Bridge {
             generation: 0,
             switches: Vec::new(),
             max_step: 0.0,
+            max_velocity_step: 0.0,
             last_target: vec![0.0; n],
+            before_target: vec![0.0; n],
             last_miss: (0, 0),
+            cycles_in_assembly: 0,
             lost_after_ns: LOST_AFTER * period_ns.max(1),
             lockstep: false,
         }
@@ -180,15 +191,21 @@ impl Bridge {
             for (i, c) in self.commands.iter_mut().enumerate() {
                 *c = commands(i);
             }
-            let mut step = 0.0f64;
-            for ((c, last), a) in self
+            let (mut step, mut velocity_step) = (0.0f64, 0.0f64);
+            let dt = self.period_ns as f64 * 1e-9;
+            for (((c, last), before), a) in self
                 .commands
                 .iter()
                 .zip(&self.last_target)
+                .zip(&self.before_target)
                 .zip(&self.actuals)
             {
                 if a.state == DriveState::OperationEnabled && c.target_position.is_finite() {
                     step = step.max((c.target_position - last).abs());
+                    let change = (c.target_position - 2.0 * last + before) / dt;
+                    if change.is_finite() {
+                        velocity_step = velocity_step.max(change.abs());
+                    }
                 }
             }
             if switched {
@@ -205,14 +222,32 @@ impl Bridge {
                     generation: served.generation,
                     tick: served.tick,
                     step,
+                    velocity_step,
                     missed_near,
                 });
+            } else if self.cycles_in_assembly == 1 {
+                // The velocity into the cycle after a switch is the new assembly's first.
+                if let Some(last) = self.switches.last_mut() {
+                    last.velocity_step = last.velocity_step.max(velocity_step);
+                }
             } else {
                 self.max_step = self.max_step.max(step);
+                self.max_velocity_step = self.max_velocity_step.max(velocity_step);
             }
         }
+        self.cycles_in_assembly = if switched {
+            1
+        } else {
+            self.cycles_in_assembly.saturating_add(1)
+        };
         self.generation = served.generation;
-        for (last, c) in self.last_target.iter_mut().zip(&self.commands) {
+        for ((before, last), c) in self
+            .before_target
+            .iter_mut()
+            .zip(self.last_target.iter_mut())
+            .zip(&self.commands)
+        {
+            *before = *last;
             *last = c.target_position;
         }
         self.cycle(now_ns);
@@ -319,12 +354,14 @@ impl Bridge {
         );
         if let Some(last) = self.switches.last() {
             out.push_str(&format!(
-                "assembly generation {}  switches {}  last at tick {}  largest step: at a switch {:.6} rad, within an assembly {:.6} rad\n",
+                "assembly generation {}  switches {}  last at tick {}  largest step: at a switch {:.6} rad, within an assembly {:.6} rad; velocity step: at a switch {:.4} rad/s, within an assembly {:.4} rad/s\n",
                 self.generation,
                 self.switches.len(),
                 last.tick,
                 self.switches.iter().fold(0.0f64, |m, s| m.max(s.step)),
-                self.max_step
+                self.max_step,
+                self.switches.iter().fold(0.0f64, |m, s| m.max(s.velocity_step)),
+                self.max_velocity_step
             ));
         }
         out.push_str("AXIS  STATE                    MODE  STATUSWORD  POSITION     VELOCITY\n");

@@ -202,6 +202,14 @@ mod harness {
             &self.outputs
         }
 
+        /// A tracking release at `tick` (an assembly being prepared) with `inputs`.
+        pub fn track(&mut self, tick: u64, inputs: &[&[f64]]) -> &[PortValue] {
+            let inputs: Vec<PortValue> =
+                inputs.iter().map(|x| PortValue::F64s(x.to_vec())).collect();
+            self.sut.track(tick, &inputs, &mut self.outputs);
+            &self.outputs
+        }
+
         /// Output `port` as f64s.
         pub fn out(&self, port: usize) -> &[f64] {
             array(&self.outputs[port])

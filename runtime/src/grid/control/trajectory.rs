@@ -31,19 +31,23 @@
 //! and `a_max` by at most the filter's step overshoot (0.43 %, see [`super::bessel`]), in
 //! practice far less (a 2 rad move at 5 Hz passes the goal by 3e-5 rad).
 //!
-//! While its assembly is being prepared (released to *track*), `ptp` rests at `start` and takes
-//! no goal, so that when it takes over it starts from where the robot is; connect `start` to
-//! the bus's `demand_position` (the position the drives were last commanded) for a swap
-//! without a jump.
+//! While its assembly is being prepared (released to *track*), `ptp` follows `start` carried
+//! ahead to where the running assembly will command the robot when it takes over, and takes
+//! no goal; connect `start` to the bus's `demand_position` (the position the drives were last
+//! commanded) for a swap without a jump. Taking over a robot in motion, it first brakes from the
+//! velocity it predicted at `a_max` (per axis), so neither the commanded position nor its
+//! velocity jumps, then takes the goal from where it came to rest.
 //!
 //! # `hold_position`
 //! Input `start`; outputs `q` (= `start` as latched at the first release, 0 on an axis where it
 //! was not finite), `qd` and `qdd` (zeros): the generator of an assembly that holds the robot.
-//! Tracking, it latches `start` at every release, so it holds what it saw at the last one.
+//! Tracking, it follows `start` as `ptp` does; taking over a robot in motion it brakes at its
+//! param `a_max` (default 4 rad/s², per axis) and holds where it comes to rest.
 
 use super::bessel::Bessel2;
 use super::{
-    array, array_mut, array_ports, at, axes, axes_decl, per_axis, per_axis_decl, positive, rest,
+    array, array_mut, array_ports, at, axes, axes_decl, per_axis, per_axis_decl, per_axis_default,
+    positive, rest,
 };
 use crate::grid::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
@@ -135,49 +139,165 @@ struct Ptp {
     settled: bool,
     /// While tracking: where the running assembly commands the robot to be when this one takes over.
     ahead: Lead,
+    /// Taken over in motion: braking to rest before the next goal.
+    brake: Brake,
+    /// Scratch: where braking ends.
+    stops: Vec<f64>,
+    /// At rest where braking brought it: the next motion starts from there, not from the
+    /// demand it reads (one tick old).
+    braked: bool,
 }
 
 /// Where the running assembly will have commanded the robot when a tracking component takes
 /// over: the demand it reads is one tick old, and its own command applies one tick later, so
 /// the newest demand is carried [`Lead::TICKS`] ticks ahead at its last rate. Taking over
-/// there, the command moves by one tick's motion at the switch, not by three.
+/// there at that rate (see [`Brake`]), the command moves by one tick's motion at the switch,
+/// not by three, and its velocity does not jump.
 #[derive(Default)]
 struct Lead {
     last: Vec<f64>,
+    /// The demand's change over the tick before the last one.
+    last_rate: Vec<f64>,
     ahead: Vec<f64>,
-    seen: bool,
+    /// The demand's velocity at the last release (its change over one base tick, per second).
+    velocity: Vec<f64>,
+    /// The base tick, s.
+    dt: f64,
+    /// Demands taken since tracking began (counted up to 2).
+    samples: u8,
+    /// Tracked since the last live release: the next live release takes over.
+    tracking: bool,
 }
 
 impl Lead {
     const TICKS: f64 = 2.0;
 
-    fn new(n: usize) -> Lead {
+    fn new(n: usize, dt: f64) -> Lead {
         Lead {
             last: vec![0.0; n],
+            last_rate: vec![0.0; n],
             ahead: vec![0.0; n],
-            seen: false,
+            velocity: vec![0.0; n],
+            dt,
+            samples: 0,
+            tracking: false,
         }
     }
 
-    /// Takes the newest demand; returns where it will be [`Lead::TICKS`] ticks on.
+    /// Takes the newest demand; returns where it will be [`Lead::TICKS`] ticks on, carried at
+    /// its last rate and acceleration (a trajectory's acceleration is piecewise constant).
     fn track(&mut self, demand: &[f64]) -> &[f64] {
+        let k = Self::TICKS;
         for i in 0..self.last.len() {
             let x = at(demand, i);
-            let rate = if self.seen && x.is_finite() && self.last[i].is_finite() {
-                x - self.last[i]
+            let known = self.samples >= 1 && x.is_finite() && self.last[i].is_finite();
+            let rate = if known { x - self.last[i] } else { 0.0 };
+            let acc = if known && self.samples >= 2 {
+                rate - self.last_rate[i]
             } else {
                 0.0
             };
-            self.ahead[i] = x + Self::TICKS * rate;
+            self.ahead[i] = x + k * rate + 0.5 * k * (k + 1.0) * acc;
+            // The change into the tick after the one ahead: the velocity taken over.
+            let next = rate + (k + 1.0) * acc;
+            self.velocity[i] = if self.dt > 0.0 { next / self.dt } else { 0.0 };
+            self.last_rate[i] = rate;
             self.last[i] = x;
         }
-        self.seen = true;
+        self.samples = self.samples.saturating_add(1).min(2);
+        self.tracking = true;
         &self.ahead
     }
 
-    /// Not tracking any more.
-    fn forget(&mut self) {
-        self.seen = false;
+    /// At a live release: the velocity of the demand it takes over from, at its first one
+    /// after tracking (`None` afterwards, and when it never tracked).
+    fn take_over(&mut self) -> Option<&[f64]> {
+        self.samples = 0;
+        if std::mem::take(&mut self.tracking) {
+            Some(&self.velocity)
+        } else {
+            None
+        }
+    }
+}
+
+/// Brings a command taken over in motion to rest: each axis decelerates from the velocity it
+/// was taken over with at its acceleration limit, so the commanded velocity changes by at most
+/// one tick's worth of that limit at the switch, and the position follows on.
+#[derive(Default)]
+struct Brake {
+    from: Vec<f64>,
+    v0: Vec<f64>,
+    a: Vec<f64>,
+    began: u64,
+    /// The longest axis's braking time, s (0: at rest).
+    duration: f64,
+}
+
+impl Brake {
+    fn new(n: usize) -> Brake {
+        Brake {
+            from: vec![0.0; n],
+            v0: vec![0.0; n],
+            a: vec![0.0; n],
+            began: 0,
+            duration: 0.0,
+        }
+    }
+
+    /// Begins braking at `tick` with decelerations `a`, from `from` carried on at velocities
+    /// `v0` for `lead` seconds (where the running assembly's command will be when the first
+    /// braking command applies); an axis whose values are not finite or whose limit is not
+    /// positive rests where it is.
+    fn begin(&mut self, tick: u64, from: &[f64], v0: &[f64], a: &[f64], lead: f64) {
+        self.began = tick;
+        self.duration = 0.0;
+        for i in 0..self.from.len() {
+            let (x, v, acc) = (at(from, i), at(v0, i), at(a, i));
+            let ok = x.is_finite() && v.is_finite() && acc.is_finite() && acc > 0.0;
+            self.from[i] = if ok { x + v * lead } else { x };
+            self.v0[i] = if ok { v } else { 0.0 };
+            self.a[i] = if ok { acc } else { 1.0 };
+            self.duration = self.duration.max(self.v0[i].abs() / self.a[i]);
+        }
+    }
+
+    /// Whether it is braking `t` seconds after it began.
+    fn active(&self, t: f64) -> bool {
+        t < self.duration
+    }
+
+    /// Position, velocity and acceleration of `axis` `t` seconds into the braking.
+    fn at(&self, axis: usize, t: f64) -> [f64; 3] {
+        let (v0, a) = (self.v0[axis], self.a[axis]);
+        let sign = v0.signum();
+        let stop = v0.abs() / a;
+        let t = t.min(stop);
+        let qdd = if t < stop { -sign * a } else { 0.0 };
+        [
+            self.from[axis] + v0 * t - 0.5 * sign * a * t * t,
+            v0 - sign * a * t,
+            qdd,
+        ]
+    }
+
+    /// Where every axis comes to rest.
+    fn stops(&self, out: &mut [f64]) {
+        for (i, x) in out.iter_mut().enumerate() {
+            *x = self.at(i, f64::INFINITY)[0];
+        }
+    }
+
+    /// Writes every axis's position, velocity and acceleration `t` seconds in to `outputs`
+    /// (ports q, qd, qdd).
+    fn write(&self, t: f64, outputs: &mut [PortValue]) {
+        for i in 0..self.from.len() {
+            for (port, y) in outputs.iter_mut().zip(self.at(i, t)) {
+                if let Some(slot) = array_mut(port).get_mut(i) {
+                    *slot = y;
+                }
+            }
+        }
     }
 }
 
@@ -204,8 +324,11 @@ impl Ptp {
             began: 0,
             moving: false,
             latched: false,
-            ahead: Lead::new(n),
+            ahead: Lead::new(n, p.f64(BASE_PERIOD_S)?),
             settled: true,
+            brake: Brake::new(n),
+            stops: vec![0.0; n],
+            braked: false,
         })
     }
 
@@ -239,7 +362,9 @@ impl Ptp {
             return;
         }
         self.taken.copy_from_slice(&goal[..n]);
-        self.latch(start);
+        if !std::mem::take(&mut self.braked) {
+            self.latch(start);
+        }
         let too_far = (0..n).any(|i| !(at(goal, i) - self.target[i]).is_finite());
         if too_far {
             return;
@@ -285,13 +410,33 @@ impl Ptp {
 impl Component for Ptp {
     fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let (goal, start) = (array(&inputs[0]), array(&inputs[1]));
-        self.ahead.forget();
+        if let Some(v0) = self.ahead.take_over() {
+            // Taken over from the running assembly's motion: brake from its velocity first,
+            // from one tick on from where it rests (its outputs apply one tick later).
+            self.brake
+                .begin(tick, &self.target, v0, &self.a_max, self.dt);
+        }
         if !self.latched {
             self.latch(start);
             self.latched = true;
         }
         let dt = self.dt;
         let elapsed = |began: u64| tick.saturating_sub(began) as f64 * dt;
+        if self.brake.duration > 0.0 {
+            let t = elapsed(self.brake.began);
+            if self.brake.active(t) {
+                self.brake.write(t, outputs);
+                outputs[3] = PortValue::Bool(false);
+                return;
+            }
+            // At rest where braking brought it; the goal is taken from there.
+            let mut stops = std::mem::take(&mut self.stops);
+            self.brake.stops(&mut stops);
+            self.latch(&stops);
+            self.stops = stops;
+            self.brake.duration = 0.0;
+            self.braked = true;
+        }
         if self.moving && elapsed(self.began) >= self.duration {
             self.moving = false;
         }
@@ -343,23 +488,40 @@ impl Component for Ptp {
     }
 }
 
+/// The deceleration `hold_position` brakes with when it takes over a moving robot, rad/s².
+const HOLD_A_MAX: f64 = 4.0;
+
 pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
     let n = axes(p)?;
     Ok(ComponentInfo {
         type_name: "hold_position",
-        doc: "holds start as latched at the first release: q = start, qd = qdd = 0",
+        doc: "holds start as latched at the first release: q = start, qd = qdd = 0; taking \
+              over a moving robot, brakes at a_max first and holds where it comes to rest",
         inputs: array_ports(&["start"], n),
         outputs: array_ports(&["q", "qd", "qdd"], n),
-        params: vec![axes_decl()],
+        params: vec![axes_decl(), per_axis_default("a_max", HOLD_A_MAX)],
     })
 }
 
 pub(super) fn make_hold(p: &Params) -> Result<Box<dyn Component>, String> {
     let n = axes(p)?;
+    let a_max = if p.get("a_max").is_some() {
+        per_axis(p, "a_max", n, "positive", positive)?
+    } else {
+        vec![HOLD_A_MAX; n]
+    };
+    let dt = if p.get(BASE_PERIOD_S).is_some() {
+        p.f64(BASE_PERIOD_S)?
+    } else {
+        0.0
+    };
     Ok(Box::new(Hold {
         q: vec![0.0; n],
         latched: false,
-        ahead: Lead::new(n),
+        ahead: Lead::new(n, dt),
+        a_max,
+        dt,
+        brake: Brake::new(n),
     }))
 }
 
@@ -369,10 +531,25 @@ struct Hold {
     latched: bool,
     /// While tracking: where the running assembly commands the robot to be when this one takes over.
     ahead: Lead,
+    a_max: Vec<f64>,
+    /// The base tick, s.
+    dt: f64,
+    /// Taken over in motion: braking to rest, then holding there.
+    brake: Brake,
 }
 
 impl Component for Hold {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        if let Some(v0) = self.ahead.take_over() {
+            // As ptp: brake from the velocity taken over, from one tick on.
+            self.brake.begin(tick, &self.q, v0, &self.a_max, self.dt);
+            self.brake.stops(&mut self.q);
+        }
+        let t = tick.saturating_sub(self.brake.began) as f64 * self.dt;
+        if self.brake.active(t) {
+            self.brake.write(t, outputs);
+            return;
+        }
         if !self.latched {
             let start = array(&inputs[0]);
             for (i, q) in self.q.iter_mut().enumerate() {
@@ -561,6 +738,85 @@ mod tests {
             sut.starts_with("param 'bessel_hz': the cutoff must be"),
             "{sut}"
         );
+    }
+
+    /// The commands the bus gets around a take-over, as LET runs it: the running assembly
+    /// commands `old(n)` up to tick `at - 1`; `sut` tracks from tick 10 (reading the demand
+    /// one tick old), is released live from `at - 1` on (its output valid one tick later), and
+    /// reads its own last command as the demand from then on. Returns the commands from tick
+    /// `at - 3` on, `after` of them past the switch.
+    fn take_over(
+        sut: &mut Harness,
+        old: impl Fn(u64) -> f64,
+        at: u64,
+        after: u64,
+        live: impl Fn(&mut Harness, u64, &[f64]),
+    ) -> Vec<f64> {
+        for m in 10..at - 1 {
+            sut.track(m, &[&[old(m - 1)], &[old(m - 1)]]);
+        }
+        let mut commands: Vec<f64> = (at - 3..at).map(&old).collect();
+        for m in at - 1..at - 1 + after {
+            let demand = [*commands.last().unwrap()];
+            live(sut, m, &demand);
+            commands.push(sut.out(0)[0]);
+        }
+        commands
+    }
+
+    /// The largest change of velocity between two ticks of `commands`, rad/s.
+    fn largest_velocity_step(commands: &[f64]) -> f64 {
+        commands
+            .windows(3)
+            .map(|w| ((w[2] - 2.0 * w[1] + w[0]) / 0.001).abs())
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_ptp_taking_over_a_moving_robot_brakes_from_its_velocity_without_a_velocity_step() {
+        let a_max = 4.0;
+        let one_tick = a_max * 0.001 * 1.000_001;
+        // At cruise velocity, and while accelerating (3 rad/s² from 0.2 rad/s).
+        let cruise = |n: u64| 0.3 + 0.8 * n as f64 * 0.001;
+        let accelerating = |n: u64| {
+            let t = n as f64 * 0.001;
+            0.2 * t + 1.5 * t * t
+        };
+        for (name, old) in [
+            ("cruise", &cruise as &dyn Fn(u64) -> f64),
+            ("accelerating", &accelerating),
+        ] {
+            let mut sut = ptp(&[1.0], &[a_max], 0.0);
+            let goal = [2.0];
+            let commands = take_over(&mut sut, old, 100, 3000, |sut, m, demand| {
+                sut.step(m, &[&goal, demand]);
+            });
+            let step = largest_velocity_step(&commands);
+            assert!(
+                step <= one_tick,
+                "{name}: the velocity jumped {step} rad/s (one tick of a_max: {one_tick})"
+            );
+            assert_eq!(
+                *commands.last().unwrap(),
+                2.0,
+                "{name}: then it went to the goal"
+            );
+        }
+    }
+
+    #[test]
+    fn hold_position_taking_over_a_moving_robot_brakes_and_holds_where_it_stops() {
+        let params = Params::new().with("axes", ParamValue::I64(1));
+        let mut sut = Harness::new("hold_position", params, 1);
+        let cruise = |n: u64| 0.8 * n as f64 * 0.001;
+        let commands = take_over(&mut sut, cruise, 100, 400, |sut, m, demand| {
+            sut.step(m, &[demand]);
+        });
+        assert!(largest_velocity_step(&commands) <= 4.0 * 0.001 * 1.000_001);
+        let end = *commands.last().unwrap();
+        // From 0.8 rad/s at 4 rad/s², it stops 0.08 rad on.
+        assert!((end - (cruise(99) + 0.08)).abs() < 2e-3, "held at {end}");
+        assert_eq!(sut.out(1), [0.0], "at rest");
     }
 
     #[test]
