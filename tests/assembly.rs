@@ -131,7 +131,8 @@ fn down(sut: &mut TestDomain, up: u32) -> String {
 
 /// 100 swaps among `ptp_smooth`, `ptp` and `hold` while the robot moves, in lockstep: each
 /// switch is at its announced tick (as the bus saw it), and no switch changes the commanded
-/// position by more than one tick's motion at the speed limit, nor its velocity by more than
+/// position by more than one tick's motion at the speed limit (plus what the prediction below
+/// may miss), nor its velocity by more than
 /// five ticks' worth of the acceleration limit: the incoming trajectory brakes from the
 /// velocity it takes over, predicted from demands up to three ticks old by the take-over (LET
 /// delays both sides by a tick), so only a change of the running trajectory's acceleration in
@@ -165,7 +166,9 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
         .trim_matches('"')
         .replace("\\n", "\n");
     // The bus's own record: the tick of each generation's first cycle and the step.
-    let one_tick = 1.0 * 0.001 * 1.000_001; // v_max (rad/s) × base period, rounding allowed
+    // v_max (rad/s) × base period, plus what an unseen change of the running trajectory's
+    // acceleration (2 a_max) moves in the three ticks the incoming one predicts over.
+    let one_tick = 1.0 * 0.001 + 0.5 * 2.0 * 4.0 * 0.003 * 0.003;
     let five_ticks_of_a = 5.0 * 4.0 * 0.001 * 1.000_001; // a_max (rad/s²) × 5 base periods
     let mut seen = 0;
     for line in switches.lines() {

@@ -8,7 +8,7 @@ use clap::Parser;
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
 use modbot_modules::service_thread::serve_module;
-use modbot_runtime::bus::bridge::{self, Bridge};
+use modbot_runtime::bus::bridge::{self, Bridge, BusView};
 use modbot_runtime::bus::{PlantParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
@@ -35,7 +35,19 @@ struct Cli {
     host: String,
 }
 
-struct Ledger(Arc<Mutex<Bridge>>);
+/// The module's side of the bridge: a view the real-time thread refreshes, and the way to
+/// ask it to block an axis. Nothing here is locked by the real-time thread but with `try_lock`.
+struct Ledger {
+    view: Arc<Mutex<BusView>>,
+    block: std::sync::mpsc::Sender<(usize, bool)>,
+    axes: usize,
+}
+
+impl Ledger {
+    fn view(&self) -> std::sync::MutexGuard<'_, BusView> {
+        self.view.lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
 
 fn bus_method(
     l: &mut Ledger,
@@ -43,7 +55,7 @@ fn bus_method(
     _: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    let text = bridge::lock(&l.0).ledger();
+    let text = l.view().ledger();
     reply.push(Value::Text(&text));
     Ok(())
 }
@@ -54,17 +66,7 @@ fn switches_method(
     _: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    let b = bridge::lock(&l.0);
-    let mut text = format!(
-        "max_step {:e} max_velocity_step {:e}\n",
-        b.max_step, b.max_velocity_step
-    );
-    for s in &b.switches {
-        text.push_str(&format!(
-            "{} {} {:e} {} {:e}\n",
-            s.generation, s.tick, s.step, s.missed_near, s.velocity_step
-        ));
-    }
+    let text = l.view().switches_text();
     reply.push(Value::Text(&text));
     Ok(())
 }
@@ -78,10 +80,18 @@ fn block_method(
     let axis = args.i64(0)?;
     let on = if args.len() > 1 { args.bool(1)? } else { true };
     let axis = usize::try_from(axis)
-        .map_err(|_| MethodError::Failed(format!("axis {axis} does not exist")))?;
-    bridge::lock(&l.0)
-        .block_axis(axis, on)
-        .map_err(MethodError::Failed)
+        .ok()
+        .filter(|a| *a < l.axes)
+        .ok_or_else(|| {
+            MethodError::Failed(format!(
+                "axis {axis} does not exist: the bus has {} axes (0 to {})",
+                l.axes,
+                l.axes - 1
+            ))
+        })?;
+    l.block
+        .send((axis, on))
+        .map_err(|_| MethodError::Failed("the bus bridge's cycle has ended".into()))
 }
 
 fn main() -> anyhow::Result<()> {
@@ -126,7 +136,13 @@ fn main() -> anyhow::Result<()> {
         .clone()
         .unwrap_or_else(|| host_module(&cli.host));
     let (addr, mode) = (cli.module.addr.unwrap_or(199), cli.module.receive_mode());
-    let ledger = Ledger(shared.clone());
+    let view = Arc::new(Mutex::new(BusView::default()));
+    let (block, blocks) = std::sync::mpsc::channel();
+    let ledger = Ledger {
+        view: view.clone(),
+        block,
+        axes,
+    };
     let service = serve_module(move || {
         Ok(ModuleBuilder::new(&name, addr)
             .mode(mode)
@@ -146,6 +162,12 @@ fn main() -> anyhow::Result<()> {
             let next = {
                 let mut b = bridge::lock(&shared);
                 b.watch(now());
+                while let Ok((axis, on)) = blocks.try_recv() {
+                    if let Err(e) = b.block_axis(axis, on) {
+                        tracing::warn!("{e}");
+                    }
+                }
+                b.publish_due(now(), &view);
                 b.next_look_ns(now())
             };
             // Idle: a bounded piece of an assembly's preparation, then sleep.

@@ -55,6 +55,9 @@ pub const NEAR_SWITCH: u64 = 5;
 /// Switches the bridge remembers.
 const SWITCHES_KEPT: usize = 1024;
 
+/// How often the bridge's methods' view is refreshed, ns.
+pub const PUBLISH_EVERY_NS: u64 = 20_000_000;
+
 /// The drives and their bookkeeping.
 pub struct Bridge {
     backend: Box<dyn Backend>,
@@ -86,6 +89,8 @@ pub struct Bridge {
     last_miss: (u64, u64),
     /// Cycles since the last switch (a velocity step needs two cycles of one assembly).
     cycles_in_assembly: u64,
+    /// When the view was last published, and the switches and safe stop it had then.
+    published: (u64, usize, bool),
     /// Silence after which the coordinator counts as lost, ns.
     lost_after_ns: u64,
     /// The grid runs in lockstep: releases come as fast as the grid goes, so gaps between
@@ -114,6 +119,7 @@ impl Bridge {
             before_target: vec![0.0; n],
             last_miss: (0, 0),
             cycles_in_assembly: 0,
+            published: (0, 0, false),
             lost_after_ns: LOST_AFTER * period_ns.max(1),
             lockstep: false,
         }
@@ -330,10 +336,101 @@ impl Bridge {
 
     /// The bus ledger, as `modbot bus` prints it.
     pub fn ledger(&self) -> String {
+        let mut view = BusView::default();
+        view.copy_from(self);
+        view.ledger()
+    }
+
+    /// Copies what the bridge's methods show into `view`, unless a reader holds it (then
+    /// nothing happens: the real-time thread never waits for a thread of normal priority).
+    /// No allocation once the view has held as many switches and as long a reason.
+    pub fn publish(&self, view: &Mutex<BusView>) {
+        if let Ok(mut v) = view.try_lock() {
+            v.copy_from(self);
+        }
+    }
+
+    /// [`Bridge::publish`] every [`PUBLISH_EVERY_NS`] at `now_ns`, and at once after a switch or
+    /// a safe stop.
+    pub fn publish_due(&mut self, now_ns: u64, view: &Mutex<BusView>) {
+        let changed =
+            self.published.1 != self.switches.len() || self.published.2 != self.safe_stop.is_some();
+        if changed || now_ns.saturating_sub(self.published.0) >= PUBLISH_EVERY_NS {
+            if let Ok(mut v) = view.try_lock() {
+                v.copy_from(self);
+                self.published = (now_ns, self.switches.len(), self.safe_stop.is_some());
+            }
+        }
+    }
+
+    /// What the drives reported at the last cycle.
+    pub fn actuals(&self) -> &[AxisActual] {
+        &self.actuals
+    }
+
+    /// Where `axis` was last commanded to be: the target position while it is in operation
+    /// enabled in CSP (CiA 402's position demand value), else its actual position.
+    pub fn demand_position(&self, axis: usize) -> f64 {
+        let (Some(a), Some(c)) = (self.actuals.get(axis), self.commands.get(axis)) else {
+            return 0.0;
+        };
+        if a.state == DriveState::OperationEnabled && a.mode == 8 && c.target_position.is_finite() {
+            c.target_position
+        } else {
+            a.motor_position
+        }
+    }
+
+    /// Every drive's state.
+    pub fn states(&self) -> Vec<DriveState> {
+        self.actuals.iter().map(|a| a.state).collect()
+    }
+}
+
+/// What the bus bridge's methods show (`modbot bus`, `host_bus.switches`): a copy the
+/// real-time thread refreshes with [`Bridge::publish`], so a method call never holds a lock the
+/// real-time thread needs.
+#[derive(Debug, Clone, Default)]
+pub struct BusView {
+    backend: &'static str,
+    period_ns: u64,
+    pub cycles: u64,
+    pub missed: u64,
+    pub safe_stop: Option<SafeStop>,
+    pub generation: u16,
+    pub switches: Vec<Switch>,
+    pub max_step: f64,
+    pub max_velocity_step: f64,
+    pub actuals: Vec<AxisActual>,
+}
+
+impl BusView {
+    fn copy_from(&mut self, b: &Bridge) {
+        self.backend = b.backend.name();
+        self.period_ns = b.period_ns;
+        self.cycles = b.cycles;
+        self.missed = b.missed;
+        match (&mut self.safe_stop, &b.safe_stop) {
+            (Some(mine), Some(theirs)) => {
+                mine.reason.clone_from(&theirs.reason);
+                mine.at_cycle = theirs.at_cycle;
+                mine.all_stopped = theirs.all_stopped;
+            }
+            (mine, theirs) => mine.clone_from(theirs),
+        }
+        self.generation = b.generation;
+        self.switches.clone_from(&b.switches);
+        self.max_step = b.max_step;
+        self.max_velocity_step = b.max_velocity_step;
+        self.actuals.clone_from(&b.actuals);
+    }
+
+    /// The bus ledger, as `modbot bus` prints it.
+    pub fn ledger(&self) -> String {
         let mut out = format!(
             "bus {}  axes {}  cycles {}  missed {}  {}\n",
-            self.backend.name(),
-            self.axes(),
+            self.backend,
+            self.actuals.len(),
             self.cycles,
             self.missed,
             match &self.safe_stop {
@@ -379,27 +476,20 @@ impl Bridge {
         out
     }
 
-    /// What the drives reported at the last cycle.
-    pub fn actuals(&self) -> &[AxisActual] {
-        &self.actuals
-    }
-
-    /// Where `axis` was last commanded to be: the target position while it is in operation
-    /// enabled in CSP (CiA 402's position demand value), else its actual position.
-    pub fn demand_position(&self, axis: usize) -> f64 {
-        let (Some(a), Some(c)) = (self.actuals.get(axis), self.commands.get(axis)) else {
-            return 0.0;
-        };
-        if a.state == DriveState::OperationEnabled && a.mode == 8 && c.target_position.is_finite() {
-            c.target_position
-        } else {
-            a.motor_position
+    /// `host_bus.switches`: a line `max_step S max_velocity_step V`, then per switch
+    /// `GENERATION TICK STEP MISSED VSTEP`.
+    pub fn switches_text(&self) -> String {
+        let mut text = format!(
+            "max_step {:e} max_velocity_step {:e}\n",
+            self.max_step, self.max_velocity_step
+        );
+        for s in &self.switches {
+            text.push_str(&format!(
+                "{} {} {:e} {} {:e}\n",
+                s.generation, s.tick, s.step, s.missed_near, s.velocity_step
+            ));
         }
-    }
-
-    /// Every drive's state.
-    pub fn states(&self) -> Vec<DriveState> {
-        self.actuals.iter().map(|a| a.state).collect()
+        text
     }
 }
 

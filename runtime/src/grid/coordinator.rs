@@ -201,6 +201,8 @@ pub struct Coordinator<W: Write> {
     retired: Vec<String>,
     /// Links to hosts no longer released, to be dropped off the tick thread.
     retired_links: Vec<HostLink>,
+    /// Scratch: the ledger's state text.
+    state_text: String,
 }
 
 /// An assembly being prepared while the current one runs.
@@ -279,6 +281,7 @@ impl<W: Write> Coordinator<W> {
             switches: Vec::new(),
             retired: Vec::new(),
             retired_links: Vec::new(),
+            state_text: String::with_capacity(128),
         })
     }
 
@@ -934,6 +937,60 @@ impl<W: Write> Coordinator<W> {
                 return pending;
             }
             std::thread::sleep(core::time::Duration::from_micros(200));
+        }
+    }
+
+    /// Encodes the ledger as it stands into `out` (cleared first), as [`ledger::encode`] does
+    /// with [`Coordinator::ledger`]'s rows, without allocating once `out` and the state text
+    /// have the room: the tick thread does this every few hundred milliseconds.
+    pub fn encode_ledger(&mut self, done: bool, out: &mut Vec<u8>) {
+        out.clear();
+        let state = match (&self.fault, done) {
+            (Some(_), _) => "faulted",
+            (None, true) => "done",
+            (None, false) => "running",
+        };
+        self.state_text.clear();
+        self.state_text.push_str(state);
+        if let Some(a) = &self.spec.assembly {
+            use std::fmt::Write as _;
+            let _ = write!(
+                self.state_text,
+                " (assembly {}, generation {})",
+                a.name, a.generation
+            );
+        }
+        let (p50, p99, max) = ledger::p50_p99_max(&self.tick_error);
+        ledger::encode_grid(
+            out,
+            &self.state_text,
+            self.fault.as_deref().unwrap_or_default(),
+            [self.tick, self.missed],
+            self.rate.2,
+            [p50, p99, max],
+        );
+        for (c, s) in self.comps.iter().zip(&self.spec.components) {
+            let (e50, e99, emax) = ledger::p50_p99_max(&c.exec);
+            let (l50, l99, _) = ledger::p50_p99_max(&c.latency);
+            ledger::encode_component(
+                out,
+                [&s.name, &s.host],
+                c.period,
+                if c.fault_policy { "fault" } else { "hold" },
+                [
+                    c.releases,
+                    c.overruns,
+                    c.late,
+                    c.failed,
+                    c.stale,
+                    if c.exec.count() == 0 { 0 } else { c.exec_min },
+                    e50,
+                    e99,
+                    emax,
+                    l50,
+                    l99,
+                ],
+            );
         }
     }
 

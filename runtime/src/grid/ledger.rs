@@ -68,35 +68,74 @@ fn push(out: &mut Vec<u8>, v: Value<'_>) {
 
 /// Encodes the ledger.
 pub fn encode(grid: &GridRow, rows: &[ComponentRow], out: &mut Vec<u8>) {
-    push(out, Value::Text(&grid.state));
-    push(out, Value::Text(&grid.fault));
-    for n in [grid.ticks, grid.missed] {
-        push(out, Value::I64(n as i64));
-    }
-    push(out, Value::F64(grid.rate_hz));
-    for n in [grid.tick_err_p50, grid.tick_err_p99, grid.tick_err_max] {
-        push(out, Value::I64(n as i64));
-    }
+    encode_grid(
+        out,
+        &grid.state,
+        &grid.fault,
+        [grid.ticks, grid.missed],
+        grid.rate_hz,
+        [grid.tick_err_p50, grid.tick_err_p99, grid.tick_err_max],
+    );
     for r in rows {
-        push(out, Value::Text(&r.name));
-        push(out, Value::Text(&r.host));
-        push(out, Value::I64(r.period as i64));
-        push(out, Value::Text(&r.policy));
-        for n in [
-            r.releases,
-            r.overruns,
-            r.late,
-            r.failed,
-            r.stale,
-            r.exec_min,
-            r.exec_p50,
-            r.exec_p99,
-            r.exec_max,
-            r.latency_p50,
-            r.latency_p99,
-        ] {
-            push(out, Value::I64(n as i64));
-        }
+        encode_component(
+            out,
+            [&r.name, &r.host],
+            r.period,
+            &r.policy,
+            [
+                r.releases,
+                r.overruns,
+                r.late,
+                r.failed,
+                r.stale,
+                r.exec_min,
+                r.exec_p50,
+                r.exec_p99,
+                r.exec_max,
+                r.latency_p50,
+                r.latency_p99,
+            ],
+        );
+    }
+}
+
+/// Appends the grid's row: state, fault, [ticks, missed], rate, [tick error p50, p99, max].
+/// No allocation once `out` has the room.
+pub fn encode_grid(
+    out: &mut Vec<u8>,
+    state: &str,
+    fault: &str,
+    counts: [u64; 2],
+    rate_hz: f64,
+    tick_error: [u64; 3],
+) {
+    push(out, Value::Text(state));
+    push(out, Value::Text(fault));
+    for n in counts {
+        push(out, Value::I64(n as i64));
+    }
+    push(out, Value::F64(rate_hz));
+    for n in tick_error {
+        push(out, Value::I64(n as i64));
+    }
+}
+
+/// Appends a component's row: [name, host], period, policy, then releases, overruns, late,
+/// failed, stale, exec min, p50, p99, max, latency p50, p99. No allocation once `out` has the
+/// room.
+pub fn encode_component(
+    out: &mut Vec<u8>,
+    names: [&str; 2],
+    period: u64,
+    policy: &str,
+    numbers: [u64; FIELDS - 4],
+) {
+    push(out, Value::Text(names[0]));
+    push(out, Value::Text(names[1]));
+    push(out, Value::I64(period as i64));
+    push(out, Value::Text(policy));
+    for n in numbers {
+        push(out, Value::I64(n as i64));
     }
 }
 

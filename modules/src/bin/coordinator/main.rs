@@ -167,7 +167,10 @@ fn main() -> anyhow::Result<()> {
     let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies)?;
     // The tick thread puts itself under SCHED_FIFO (the grid's priority); this thread keeps
     // normal scheduling, so its work never delays a tick.
+    // Ledger buffers go back to the tick thread, so it does not allocate a new one each time.
+    let (give_back, spare) = std::sync::mpsc::sync_channel(2);
     let run = ticker::Run {
+        spare,
         period_ns,
         max_ticks: cli.ticks,
         script: cli.switches.clone(),
@@ -205,7 +208,10 @@ fn main() -> anyhow::Result<()> {
             busy = true;
             match message {
                 FromTick::Ticks(n) => switching.ticks(n),
-                FromTick::Ledger(bytes) => module.state_mut().ledger = bytes,
+                FromTick::Ledger(bytes) => {
+                    let old = std::mem::replace(&mut module.state_mut().ledger, bytes);
+                    let _ = give_back.try_send(old);
+                }
                 FromTick::State(state, failure) => switching.state(state, failure),
                 FromTick::Began(r) => switching.began(&mut module, r),
                 FromTick::Announced(at) => switching.announced(&mut module, at),

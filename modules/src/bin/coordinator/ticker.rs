@@ -70,6 +70,8 @@ pub enum FromTick {
 
 /// How the tick thread runs.
 pub struct Run {
+    /// Ledger buffers the service thread is done with, to be filled again.
+    pub spare: Receiver<Vec<u8>>,
     pub period_ns: u64,
     /// Stop after this many ticks.
     pub max_ticks: Option<u64>,
@@ -85,7 +87,7 @@ pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSend
         return;
     }
     let pending = coord.drain(&|| MonotonicClock.now_ns(), 200_000_000);
-    let _ = out.send(FromTick::Ledger(encoded_ledger(&coord, true)));
+    let _ = out.send(FromTick::Ledger(encoded_ledger(&mut coord, true)));
     let (g, rows) = coord.ledger(true);
     println!("{}", ledger::render(&g, &rows));
     if pending > 0 {
@@ -121,6 +123,7 @@ fn tick(
     out: &SyncSender<FromTick>,
 ) -> anyhow::Result<()> {
     let Run {
+        spare,
         period_ns,
         max_ticks,
         mut script,
@@ -203,7 +206,7 @@ fn tick(
         }
         if last_ledger.elapsed() >= Duration::from_millis(200) {
             last_ledger = Instant::now();
-            tell(out, FromTick::Ledger(encoded_ledger(coord, false)));
+            tell(out, FromTick::Ledger(recycled_ledger(coord, &spare)));
         }
     }
     Ok(())
@@ -292,10 +295,17 @@ fn current_of(coord: &Coord) -> FromTick {
     }
 }
 
-fn encoded_ledger(coord: &Coord, done: bool) -> Vec<u8> {
-    let (g, rows) = coord.ledger(done);
+fn encoded_ledger(coord: &mut Coord, done: bool) -> Vec<u8> {
     let mut bytes = Vec::new();
-    ledger::encode(&g, &rows, &mut bytes);
+    coord.encode_ledger(done, &mut bytes);
+    bytes
+}
+
+/// Encodes the ledger into a buffer the service thread gave back (allocating only while it
+/// has given none back yet, or when the ledger outgrew it).
+fn recycled_ledger(coord: &mut Coord, spare: &Receiver<Vec<u8>>) -> Vec<u8> {
+    let mut bytes = spare.try_recv().unwrap_or_default();
+    coord.encode_ledger(false, &mut bytes);
     bytes
 }
 
