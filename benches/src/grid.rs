@@ -37,6 +37,7 @@ use modbot_runtime::grid::tick::{TickSource, TimerTicks};
 use modbot_runtime::grid::wire;
 use modbot_runtime::{CallOptions, Domain, IpcTransport};
 
+use crate::hogs::Hogs;
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};
 use crate::report::{Report, Row};
@@ -57,7 +58,16 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         span: Duration::from_secs(if opts.quick { 2 } else { 30 }),
     };
     let mut done_any = false;
-    for fifo in [false, true] {
+    // Normal scheduling, SCHED_FIFO, and SCHED_FIFO beside two CPU hogs of normal priority
+    // (one per core): baseline and grid each measured under the same conditions.
+    for (fifo, hogs) in [(false, 0), (true, 0), (true, 2)] {
+        let _hogs = match Hogs::start(opts, hogs) {
+            Ok(h) => h,
+            Err(e) => {
+                report.note(format!("grid: {hogs} CPU hogs could not be started: {e:#}"));
+                continue;
+            }
+        };
         let base = match measure_baseline(opts, fifo, &plan) {
             Ok(b) => b,
             Err(e) => {
@@ -74,8 +84,11 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
                 continue;
             }
         };
-        push_rows(report, fifo, &base, &grid)?;
+        push_rows(report, fifo, hogs, &base, &grid)?;
         done_any = true;
+    }
+    if let Err(e) = crate::lockstep::run(opts, report) {
+        report.note(format!("grid: the lockstep runs failed: {e:#}"));
     }
     if !done_any {
         bail!("no grid measurement succeeded (see the notes)");
@@ -122,6 +135,10 @@ struct Measured {
     cpu_per_tick: Histogram<u64>,
     ticks: u64,
     missed: u64,
+    /// From the coordinator's ledger (the grid only): releases, overruns, stale releases.
+    releases: u64,
+    overruns: u64,
+    stale: u64,
     /// What else to say about the run (the coordinator's ledger, warnings).
     remarks: Vec<String>,
 }
@@ -129,14 +146,28 @@ struct Measured {
 fn push_rows(
     report: &mut Report,
     fifo: bool,
+    hogs: usize,
     base: &Measured,
     grid: &Measured,
 ) -> anyhow::Result<()> {
     if base.cpu_per_tick.is_empty() || grid.cpu_per_tick.is_empty() {
         bail!("no CPU samples (fifo={fifo})");
     }
-    let f = [("fifo", serde_json::Value::Bool(fifo))];
-    let row = |name: &str, h: &Histogram<u64>| Row::from_histogram(name, h).param("fifo", fifo);
+    let f = [
+        ("fifo", serde_json::Value::Bool(fifo)),
+        ("hogs", serde_json::Value::from(hogs)),
+    ];
+    let row = |name: &str, h: &Histogram<u64>| {
+        Row::from_histogram(name, h)
+            .param("fifo", fifo)
+            .param("hogs", hogs)
+    };
+    let count = |name: &str, n: u64| {
+        Row::single(name, n)
+            .param("fifo", fifo)
+            .param("hogs", hogs)
+            .unit("count")
+    };
     report.push(row("grid.timerfd_baseline", &base.tick_error).is_baseline());
     report.push(row("grid.tick_error", &grid.tick_error).against("grid.timerfd_baseline", &f));
     report.push(row("grid.wakeup_baseline", &base.release_to_done).is_baseline());
@@ -145,18 +176,35 @@ fn push_rows(
     );
     report.push(row("grid.timerfd_cpu", &base.cpu_per_tick).is_baseline());
     report.push(row("grid.coordinator_cpu", &grid.cpu_per_tick).against("grid.timerfd_cpu", &f));
-    let tag = if fifo { "fifo" } else { "nofifo" };
+    // Ticks seen and missed over the recorded span, the grid's and the bare loop's.
+    report.push(count("grid.timerfd_ticks", base.ticks + base.missed).is_baseline());
+    report.push(count("grid.timerfd_missed", base.missed).is_baseline());
+    report.push(count("grid.ticks", grid.ticks + grid.missed).against("grid.timerfd_ticks", &f));
+    report.push(count("grid.missed_ticks", grid.missed).against("grid.timerfd_missed", &f));
+    // Releases, overruns and stale releases over the whole run (the coordinator's ledger).
+    report.push(count("grid.releases", grid.releases).is_baseline());
+    report.push(count("grid.overruns", grid.overruns).against("grid.releases", &f));
+    report.push(count("grid.stale", grid.stale).against("grid.releases", &f));
+    let tag = match (fifo, hogs) {
+        (false, _) => "nofifo".to_owned(),
+        (true, 0) => "fifo".to_owned(),
+        (true, n) => format!("fifo_{n}hogs"),
+    };
     report
         .histograms
         .insert(format!("grid.tick_error.{tag}"), grid.buckets.clone());
     let us = |ns: u64| ns as f64 / 1e3;
     let mut text = format!(
-        "grid (fifo={fifo}): {} ticks observed, {} missed (baseline: {} ticks, {} missed); \
-         tick error p99 {:.1} µs vs {:.1} µs bare; coordinator CPU p50 {:.2} µs/tick vs {:.2} µs bare",
+        "grid (fifo={fifo}, {hogs} CPU hogs): {} ticks observed, {} missed (baseline: {} ticks, \
+         {} missed); {} overruns and {} stale of {} releases; tick error p99 {:.1} µs vs {:.1} µs \
+         bare; coordinator CPU p50 {:.2} µs/tick vs {:.2} µs bare",
         grid.ticks,
         grid.missed,
         base.ticks,
         base.missed,
+        grid.overruns,
+        grid.stale,
+        grid.releases,
         us(grid.tick_error.value_at_quantile(0.99)),
         us(base.tick_error.value_at_quantile(0.99)),
         us(grid.cpu_per_tick.value_at_quantile(0.5)),
@@ -257,6 +305,9 @@ fn measure_grid(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Measured
         .map_err(|e| anyhow::anyhow!("the coordinator's ledger(): {e}"))?;
     let (errors, missed) = calibrated_errors(&seen.releases, g.tick_err_p50);
     let mut measured = seen.measured(&errors, missed)?;
+    measured.releases = rows.iter().map(|r| r.releases).sum();
+    measured.overruns = rows.iter().map(|r| r.overruns).sum();
+    measured.stale = rows.iter().map(|r| r.stale).sum();
     measured.remarks.push(format!(
         "the coordinator's own ledger (whole run, exact start): {} ticks, {} missed, tick error \
          p50 {:.1} µs p99 {:.1} µs max {:.1} µs, {} overrun(s)",
@@ -375,6 +426,17 @@ fn prio_arg(fifo: bool, prio: u8) -> String {
     } else {
         "-".to_owned()
     }
+}
+
+/// The bare timerfd loop of [`measure_baseline`] observed for `span` (after a short warm-up):
+/// the ticks it ran and missed.
+pub(crate) fn bare_loop(opts: &Opts, fifo: bool, span: Duration) -> anyhow::Result<(u64, u64)> {
+    let plan = Plan {
+        warm: Duration::from_millis(400),
+        span,
+    };
+    let m = measure_baseline(opts, fifo, &plan)?;
+    Ok((m.ticks, m.missed))
 }
 
 fn measure_baseline(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Measured> {
@@ -541,6 +603,9 @@ impl Seen {
             cpu_per_tick: hist(&self.cpu),
             ticks: self.releases.len() as u64,
             missed,
+            releases: 0,
+            overruns: 0,
+            stale: 0,
             remarks: Vec::new(),
         })
     }

@@ -1,14 +1,14 @@
-//! modbot's benchmarks: latency, zero copy, grid jitter, scale, faults and swaps, each measured
+//! modbot's benchmarks: latency, zero copy, grid jitter, scale, faults, swaps and the arm, each measured
 //! between separate processes and compared with a baseline measured in the same run.
 //!
 //! # Commands
 //! - `modbot-benches all [--quick] [--pin] [--fifo] [--out DIR]`: every benchmark in order
-//!   (calls, snapshots, grid, scale, faults, swaps). A benchmark that fails leaves a note in
+//!   (calls, snapshots, grid, scale, faults, swaps, arm). A benchmark that fails leaves a note in
 //!   the report and the run goes on. Writes `report.md`, `report.json` and the SVG plots into
 //!   `target/bench-report/` (next to the `release` directory this executable is in) or `DIR`,
 //!   and prints `report.md`. `--quick` finishes in under 3 minutes.
 //!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
-//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps [options]`: one benchmark, with
+//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm [options]`: one benchmark, with
 //!   the same report.
 //! - `modbot-benches child ROLE ARGS...` (hidden): one side of a benchmark, started by the
 //!   benchmark itself.
@@ -28,14 +28,19 @@
 //!   start.
 //! - [`sample`]: warm-up, sample counts, histograms, the cross-process clock.
 //! - [`raw`], [`uds`]: the baselines, raw iceoryx2 and Unix-domain sockets.
+//! - [`hogs`]: CPU hogs of normal priority, for measurements on a busy machine.
 //! - Benchmarks, one file each, each with `run` and its child roles in `child`: [`calls`] (1,
 //!   method-call round trip), [`snapshots`] (2, blackboard snapshots), [`grid`] (3, tick error
 //!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
-//!   restart), [`swaps`] (6, assembly swaps).
+//!   restart), [`swaps`] (6, assembly swaps), [`arm`] (7, the arm holding; the grid's
+//!   [`lockstep`] runs belong to 3).
 
+mod arm;
 mod calls;
 mod faults;
 mod grid;
+mod hogs;
+mod lockstep;
 mod machine;
 mod opts;
 mod plots;
@@ -100,8 +105,10 @@ enum Cmd {
     Scale(RunArgs),
     /// 5: fault detection, restart and quick stop.
     Faults(RunArgs),
-    /// 6: assembly swaps: preparation, switch tick error, missed bus cycles.
+    /// 6: assembly swaps: preparation, switch tick error, missed bus cycles, command steps.
     Swaps(RunArgs),
+    /// 7: the arm holding: bus cycles missed against a bare real-time loop.
+    Arm(RunArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -121,7 +128,7 @@ struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-const BENCHES: [Bench; 6] = [
+const BENCHES: [Bench; 7] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -152,13 +159,20 @@ const BENCHES: [Bench; 6] = [
         run: swaps::run,
         needs_binaries: true,
     },
+    Bench {
+        name: "arm",
+        run: arm::run,
+        needs_binaries: true,
+    },
 ];
 
 /// Runs `role` with `args` if it is one of a benchmark's child roles.
 type ChildFn = fn(&str, &[String]) -> Option<anyhow::Result<()>>;
 
 /// The child roles of every benchmark; `None` from one means "not mine".
-const CHILDREN: [ChildFn; 8] = [
+const CHILDREN: [ChildFn; 10] = [
+    arm::child,
+    hogs::child,
     calls::child,
     snapshots::child,
     raw::child,
@@ -314,6 +328,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Scale(args) => run_benches(&args, &[bench("scale")]),
         Cmd::Faults(args) => run_benches(&args, &[bench("faults")]),
         Cmd::Swaps(args) => run_benches(&args, &[bench("swaps")]),
+        Cmd::Arm(args) => run_benches(&args, &[bench("arm")]),
         Cmd::Child { role, args } => {
             procs::child_setup();
             for child in CHILDREN {

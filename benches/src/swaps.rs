@@ -1,7 +1,7 @@
 //! Benchmark 6, swaps: assemblies swapped while the robot moves, on `examples/arm.lua` (six
 //! simulated CiA 402 drives behind the bus bridge) with `dwell=0` (the trajectory never rests).
 //!
-//! After one switch to `ptp`, N swaps alternate `ptp_smooth` and `ptp`, each through the
+//! After one switch to `ptp`, N swaps alternate `hold` and `ptp`, each through the
 //! runtime's `grid::switch::switch` from a tool endpoint in this process (what
 //! `modbot assembly switch` does):
 //! - `swaps.prepare`: from the request to the coordinator's report that the new assembly took
@@ -46,7 +46,7 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let mut switched = Vec::new();
     let mut failures = Vec::new();
     for i in 0..n {
-        let name = if i % 2 == 0 { "ptp_smooth" } else { "ptp" };
+        let name = if i % 2 == 0 { "hold" } else { "ptp" };
         let before = missed_cycles(&mut sys, &mut stops)?;
         let t = Instant::now();
         match switch::switch(sys.tool()?, name, timeout) {
@@ -74,15 +74,19 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let bus_record = sys.call_text("host_bus", "switches")?;
     let ledger = sys.call_text("host_bus", "bus")?;
     let mut tick_error = crate::sample::histogram();
+    let mut position_step = crate::sample::histogram();
+    let mut velocity_step = crate::sample::histogram();
     let mut not_seen = Vec::new();
     let mut early = 0;
     for s in &switched {
-        match bus_tick(&bus_record, s.generation) {
-            Some(t) => {
+        match bus_switch(&bus_record, s.generation) {
+            Some((t, step, vstep)) => {
                 if t < s.announced {
                     early += 1;
                 }
                 tick_error.saturating_record(t.abs_diff(s.announced));
+                position_step.saturating_record((step * 1e6).round() as u64);
+                velocity_step.saturating_record((vstep * 1e6).round() as u64);
             }
             None => not_seen.push(s.generation),
         }
@@ -116,15 +120,51 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
             .unit("count")
             .against("swaps.missed_cycles_idle", &[]),
     );
+    report.push(
+        Row::single("swaps.swaps", n as u64)
+            .unit("count")
+            .is_baseline(),
+    );
+    report.push(
+        Row::single("swaps.failed", failures.len() as u64)
+            .unit("count")
+            .against("swaps.swaps", &[]),
+    );
+    // The command's continuity at each switch, as the bus saw it, against one tick's worth of
+    // the trajectories' limits (v_max 1 rad/s, a_max 4 rad/s², base period 1 ms).
+    report.push(
+        Row::single("swaps.one_tick_motion", 1000)
+            .unit("µrad")
+            .is_baseline(),
+    );
+    report.push(
+        Row::single("swaps.one_tick_acceleration", 4000)
+            .unit("µrad/s")
+            .is_baseline(),
+    );
+    if !position_step.is_empty() {
+        report.push(
+            Row::from_histogram("swaps.position_step", &position_step)
+                .unit("µrad")
+                .against("swaps.one_tick_motion", &[]),
+        );
+        report.push(
+            Row::from_histogram("swaps.velocity_step", &velocity_step)
+                .unit("µrad/s")
+                .against("swaps.one_tick_acceleration", &[]),
+        );
+    }
     let mut note = format!(
-        "swaps: {} of {n} swaps between ptp_smooth and ptp while the arm moves (examples/arm.lua, \
+        "swaps: {} of {n} swaps between hold and ptp while the arm moves (examples/arm.lua, \
          dwell=0), each switched at tick T announced for tick A by the coordinator; the bus saw \
          {} of them at the announced tick. Missed bus cycles: {} over the swaps, {} over idle \
-         windows of the same lengths. Bus ledger after: {}.",
+         windows of the same lengths. Position and velocity steps are the largest change of \
+         the commanded position (and of its change per tick over the base period) on any axis \
+         at the switch, from the bus's own record. Bus ledger after: {}.",
         switched.len(),
         switched
             .iter()
-            .filter(|s| bus_tick(&bus_record, s.generation) == Some(s.announced))
+            .filter(|s| bus_switch(&bus_record, s.generation).map(|b| b.0) == Some(s.announced))
             .count(),
         sum(&missed),
         sum(&idle),
@@ -220,14 +260,17 @@ fn ledger_number(ledger: &str, label: &str) -> anyhow::Result<u64> {
         .ok_or_else(|| anyhow::anyhow!("no '{label}' number in the bus ledger: {first}"))
 }
 
-/// The tick at which the bus first served `generation` (`host_bus.switches`: lines
-/// `GENERATION TICK STEP` after a `max_step` line).
-fn bus_tick(record: &str, generation: u16) -> Option<u64> {
+/// The tick at which the bus first served `generation`, and the position and velocity steps
+/// there (`host_bus.switches`: lines `GENERATION TICK STEP MISSED VSTEP` after a `max_step`
+/// line).
+fn bus_switch(record: &str, generation: u16) -> Option<(u64, f64, f64)> {
     record.lines().find_map(|l| {
         let mut w = l.split_whitespace();
         let g: u16 = w.next()?.parse().ok()?;
         let t: u64 = w.next()?.parse().ok()?;
-        (g == generation).then_some(t)
+        let step: f64 = w.next()?.parse().ok()?;
+        let vstep: f64 = w.nth(1)?.parse().ok()?;
+        (g == generation).then_some((t, step, vstep))
     })
 }
 
@@ -237,9 +280,10 @@ mod tests {
 
     #[test]
     fn the_bus_records_read_back() {
-        let record = "max_step 1e-3\n2 5114 3e-4\n3 5300 1e-4\n";
-        assert_eq!(bus_tick(record, 3), Some(5300));
-        assert_eq!(bus_tick(record, 4), None);
+        let record =
+            "max_step 1e-3 max_velocity_step 4e-3\n2 5114 3e-4 0 2e-3\n3 5300 1e-4 1 3e-3\n";
+        assert_eq!(bus_switch(record, 3), Some((5300, 1e-4, 3e-3)));
+        assert_eq!(bus_switch(record, 4), None);
         let ledger = "bus sim  axes 6  cycles 9000  missed 2  running\nAXIS ...";
         assert_eq!(ledger_number(ledger, "missed").unwrap(), 2);
         assert_eq!(ledger_number(ledger, "cycles").unwrap(), 9000);

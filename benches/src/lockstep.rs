@@ -1,0 +1,107 @@
+//! The lockstep clock (part of benchmark 3): `examples/grid_demo.lua` under `modbot up
+//! --lockstep --ticks N --trace OUT`, twice, with and without two CPU hogs. Its traces must be
+//! byte-identical and equal to the in-process reference run (LET computed in one thread); what
+//! is measured is how fast it goes.
+//!
+//! `grid.lockstep_rate` (ticks per second) is the N ticks over the wall time of a run of N
+//! ticks minus that of a run of 100 (start-up and shutdown cancel out); its baseline,
+//! `grid.realtime_rate`, is the real-time clock's 1000 ticks per second, so the ratio is the
+//! speed-up over real time.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use modbot_runtime::grid::{reference_trace, Registry};
+use modbot_runtime::system::{self, DefaultResolver};
+
+use crate::hogs::Hogs;
+use crate::opts::Opts;
+use crate::procs::{self, Scratch};
+use crate::report::{Report, Row};
+
+/// The demo grid of the examples.
+fn demo() -> PathBuf {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../examples/grid_demo.lua"
+    ))
+}
+
+/// Runs the demo for `ticks` in lockstep in `scratch`'s domain; returns its trace and how long
+/// `modbot up` took.
+fn run_once(opts: &Opts, scratch: &mut Scratch, ticks: u64) -> anyhow::Result<(String, Duration)> {
+    let trace = scratch.path("lockstep.trace");
+    let started = Instant::now();
+    let out = std::process::Command::new(procs::binary(opts, "modbot")?)
+        .args(["up", &demo().display().to_string(), "--lockstep"])
+        .args(["--var", &format!("domain={}", scratch.domain.name())])
+        .args(["--ticks", &ticks.to_string()])
+        .args(["--trace", &trace.display().to_string()])
+        .output()
+        .context("cannot run modbot up")?;
+    let took = started.elapsed();
+    if !out.status.success() {
+        bail!(
+            "modbot up --lockstep exited {}: {}",
+            out.status,
+            String::from_utf8_lossy(&out.stdout)
+                .lines()
+                .chain(String::from_utf8_lossy(&out.stderr).lines())
+                .rev()
+                .take(8)
+                .collect::<Vec<_>>()
+                .join(" | ")
+        );
+    }
+    let text = std::fs::read_to_string(&trace)
+        .with_context(|| format!("the trace {} was not written", trace.display()))?;
+    let _ = std::fs::remove_file(&trace);
+    Ok((text, took))
+}
+
+/// What LET predicts for the demo in `domain`.
+fn reference(file: &Path, domain: &str, ticks: u64) -> anyhow::Result<String> {
+    let vars = vec![("domain".to_owned(), domain.to_owned())];
+    let spec = system::load_with_vars(file, &DefaultResolver::for_file(file), &vars)?;
+    let grid = spec.grid.context("grid_demo.lua has no grid")?;
+    Ok(reference_trace(&grid, &Registry::builtin(), ticks))
+}
+
+/// Measures the lockstep runs and adds their rows and a note.
+pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
+    let ticks = if opts.quick { 5_000 } else { 20_000 };
+    report.push(
+        Row::single("grid.realtime_rate", 1000)
+            .unit("ticks/s")
+            .is_baseline(),
+    );
+    for hogs in [0usize, 2] {
+        let _hogs = Hogs::start(opts, hogs)?;
+        let mut scratch = Scratch::new(&format!("lockstep{hogs}"), None)?;
+        let (_, short) = run_once(opts, &mut scratch, 100)?;
+        let (first, long) = run_once(opts, &mut scratch, ticks)?;
+        let (second, _) = run_once(opts, &mut scratch, ticks)?;
+        let want = reference(&demo(), scratch.domain.name(), ticks)?;
+        let identical = first == second;
+        let equal = first == want;
+        let seconds = long.saturating_sub(short).as_secs_f64().max(1e-6);
+        let rate = ((ticks - 100) as f64 / seconds).round() as u64;
+        report.push(
+            Row::single("grid.lockstep_rate", rate)
+                .param("hogs", hogs)
+                .unit("ticks/s")
+                .against("grid.realtime_rate", &[]),
+        );
+        report.note(format!(
+            "grid lockstep ({hogs} CPU hogs): examples/grid_demo.lua, {ticks} ticks twice: traces \
+             byte-identical: {identical}; equal to the in-process reference: {equal}; \
+             {rate} ticks/s ({:.1}× real time at 1 kHz)",
+            rate as f64 / 1000.0
+        ));
+        if !identical || !equal {
+            bail!("the lockstep traces ({hogs} hogs) are not identical or differ from LET");
+        }
+    }
+    Ok(())
+}
