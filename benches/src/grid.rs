@@ -274,7 +274,7 @@ fn measure_grid(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Measured
         let done = wire::done_subscriber(&node)?;
         let poll = |seen: &mut Seen| -> anyhow::Result<()> {
             while let Some(s) = releases.receive().map_err(ix("receive a release"))? {
-                if let Ok(r) = Release::parse(s.payload()) {
+                for r in Release::batch(s.payload()).into_iter().flatten() {
                     let t = r.tick.get();
                     if r.component.get() != PING && seen.releases.last().is_none_or(|l| l.0 != t) {
                         seen.releases.push((t, r.released_ns.get()));
@@ -282,7 +282,7 @@ fn measure_grid(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Measured
                 }
             }
             while let Some(s) = done.receive().map_err(ix("receive a done notice"))? {
-                if let Ok(d) = Done::parse(s.payload()) {
+                for d in Done::batch(s.payload()).into_iter().flatten() {
                     let c = d.component.get();
                     if c != PING && c != READY && d.status.get() == Done::OK {
                         seen.release_to_done

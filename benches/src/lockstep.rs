@@ -71,12 +71,13 @@ fn reference(file: &Path, domain: &str, ticks: u64) -> anyhow::Result<String> {
 /// Measures the lockstep runs and adds their rows and a note.
 pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let ticks = if opts.quick { 5_000 } else { 20_000 };
-    report.push(
-        Row::single("grid.realtime_rate", 1000)
-            .unit("ticks/s")
-            .is_baseline(),
-    );
     for hogs in [0usize, 2] {
+        report.push(
+            Row::single("grid.realtime_rate", 1000)
+                .param("hogs", hogs)
+                .unit("ticks/s")
+                .is_baseline(),
+        );
         let _hogs = Hogs::start(opts, hogs)?;
         let mut scratch = Scratch::new(&format!("lockstep{hogs}"), None)?;
         let (_, short) = run_once(opts, &mut scratch, 100)?;

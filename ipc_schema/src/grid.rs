@@ -14,6 +14,14 @@
 //! 16     …    the outputs, packed in port order
 //! ```
 //!
+//! # Batches
+//! A release sample holds the release notices of one host for one tick back to back (152
+//! bytes each; the warm-up releases come one per sample), and a done sample the done notices of
+//! the releases a host served on one wake-up (32 bytes each): one wake-up and one sample per
+//! host and tick each way, however many components it steps. [`Release::batch`] and
+//! [`Done::batch`] read them in place; a sample whose length is not a whole number of notices
+//! is malformed.
+//!
 //! # Release notice (coordinator → host, `grid.release.<host>`), 152 bytes
 //! ```text
 //!  0     8    tick: the release tick n
@@ -316,6 +324,24 @@ impl Release {
         Ok(r)
     }
 
+    /// Reads a batch of notices in place (see the module doc): each notice, or why the batch
+    /// is malformed.
+    pub fn batch(bytes: &[u8]) -> Result<impl Iterator<Item = &Release>, GridWireError> {
+        let each = core::mem::size_of::<Release>();
+        if bytes.is_empty() || !bytes.len().is_multiple_of(each) {
+            return Err(GridWireError::Length {
+                expected: each,
+                got: bytes.len(),
+            });
+        }
+        for chunk in bytes.chunks_exact(each) {
+            Release::parse(chunk)?;
+        }
+        Ok(bytes
+            .chunks_exact(each)
+            .filter_map(|c| Release::parse(c).ok()))
+    }
+
     /// The version to read of each source.
     pub fn versions(&self) -> impl Iterator<Item = u64> + '_ {
         self.versions[..usize::from(self.sources.get()).min(MAX_SOURCES)]
@@ -413,6 +439,18 @@ impl Done {
             got: bytes.len(),
         })
     }
+
+    /// Reads a batch of notices in place (see the module doc).
+    pub fn batch(bytes: &[u8]) -> Result<impl Iterator<Item = &Done>, GridWireError> {
+        let each = core::mem::size_of::<Done>();
+        if bytes.is_empty() || !bytes.len().is_multiple_of(each) {
+            return Err(GridWireError::Length {
+                expected: each,
+                got: bytes.len(),
+            });
+        }
+        Ok(bytes.chunks_exact(each).filter_map(|c| Done::parse(c).ok()))
+    }
 }
 
 #[cfg(test)]
@@ -501,6 +539,34 @@ mod tests {
         assert_eq!(Prepare::parse(&bad).unwrap().name(), None);
         assert!(Prepare::parse(&bad[..63]).is_err());
         assert!(Prepare::new(1, &"x".repeat(61)).is_err());
+    }
+
+    #[test]
+    fn a_batch_is_notices_back_to_back_and_a_partial_one_is_refused() {
+        let (a, b) = (
+            Release::new(7, 99, 3, &[5]).unwrap(),
+            Release::new(7, 99, 4, &[]).unwrap(),
+        );
+        let mut bytes = a.as_bytes().to_vec();
+        bytes.extend_from_slice(b.as_bytes());
+        let got: Vec<u16> = Release::batch(&bytes)
+            .unwrap()
+            .map(|r| r.component.get())
+            .collect();
+        assert_eq!(got, vec![3, 4]);
+        assert!(Release::batch(&bytes[..200]).is_err());
+        assert!(Release::batch(&[]).is_err());
+        let mut bad = bytes.clone();
+        bad[152 + 18] = 17; // 17 sources in the second notice
+        assert!(Release::batch(&bad).is_err());
+        let mut dones = Done::new(7, 3, Done::OK, 1, 2).as_bytes().to_vec();
+        dones.extend_from_slice(Done::new(7, 4, Done::STALE, 0, 0).as_bytes());
+        let got: Vec<(u16, u16)> = Done::batch(&dones)
+            .unwrap()
+            .map(|d| (d.component.get(), d.status.get()))
+            .collect();
+        assert_eq!(got, vec![(3, Done::OK), (4, Done::STALE)]);
+        assert!(Done::batch(&dones[..33]).is_err());
     }
 
     #[test]

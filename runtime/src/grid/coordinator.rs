@@ -85,8 +85,9 @@ pub struct HostLink {
     generation: u16,
     release: Pub<Threadsafe>,
     wake: Notifier<Threadsafe>,
-    /// Released something this tick: wake it.
-    woken: bool,
+    /// The releases of this tick, sent as one sample with one wake-up when the tick's releases
+    /// are made.
+    batch: Vec<u8>,
 }
 
 impl Comp {
@@ -115,12 +116,14 @@ pub fn link(
     spec: &GridSpec,
     host: &str,
 ) -> Result<HostLink, TransportError> {
+    // A tick's batch holds a release of each of its components, and a warm-up release.
+    let most = spec.components_of(host).len() + 1;
     Ok(HostLink {
         name: host.to_owned(),
         generation: spec.host_generation(host),
-        release: wire::release_publisher(node, &spec.release_service(host))?,
+        release: wire::release_publisher(node, &spec.release_service(host), most)?,
         wake: wire::wake_notifier(node, &spec.wake_service(host))?,
-        woken: false,
+        batch: Vec::with_capacity(most * core::mem::size_of::<Release>()),
     })
 }
 
@@ -150,20 +153,19 @@ fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
         .collect()
 }
 
-/// Sends `notice` on `link` and marks the host to be woken; false if it could not be sent.
+/// Adds `notice` to the batch `link` sends (and wakes) at the end of the tick; false if the
+/// batch is full (it holds a release of each of the host's components and a warm-up).
 fn send_release(link: &mut HostLink, notice: &Release) -> bool {
-    match wire::send(&link.release, notice.as_bytes().len(), |buf| {
-        buf.copy_from_slice(notice.as_bytes())
-    }) {
-        Ok(()) => {
-            link.woken = true;
-            true
-        }
-        Err(e) => {
-            tracing::warn!("release not sent to host {}: {e}", link.name);
-            false
-        }
+    let bytes = notice.as_bytes();
+    if link.batch.len() + bytes.len() > link.batch.capacity() {
+        tracing::warn!(
+            "release batch of host {} is full: a release is not sent",
+            link.name
+        );
+        return false;
     }
+    link.batch.extend_from_slice(bytes);
+    true
 }
 
 /// The grid's clock and bookkeeping.
@@ -318,10 +320,10 @@ impl<W: Write> Coordinator<W> {
             while answered < self.hosts.len() && std::time::Instant::now() < until {
                 match self.done.receive() {
                     Ok(Some(sample)) => {
-                        if Done::parse(sample.payload())
-                            .is_ok_and(|d| d.component.get() == PING && d.tick.get() == round)
-                        {
-                            answered += 1;
+                        if let Ok(batch) = Done::batch(sample.payload()) {
+                            answered += batch
+                                .filter(|d| d.component.get() == PING && d.tick.get() == round)
+                                .count();
                         }
                     }
                     _ => std::thread::sleep(core::time::Duration::from_micros(100)),
@@ -425,14 +427,24 @@ impl<W: Write> Coordinator<W> {
         self.wake_hosts();
     }
 
-    /// Wakes every host that was sent a release since it was last woken.
+    /// Sends every host the batch of releases it was given since, and wakes it: one sample
+    /// and one wake-up per host and tick.
     fn wake_hosts(&mut self) {
         let incoming = self.incoming.as_mut().map(|i| i.hosts.iter_mut());
         for h in self.hosts.iter_mut().chain(incoming.into_iter().flatten()) {
-            if std::mem::take(&mut h.woken) {
-                if let Err(e) = h.wake.notify() {
-                    tracing::debug!("wake-up not sent: {e:?}");
-                }
+            if h.batch.is_empty() {
+                continue;
+            }
+            let sent = wire::send(&h.release, h.batch.len(), |buf| {
+                buf.copy_from_slice(&h.batch)
+            });
+            h.batch.clear();
+            if let Err(e) = sent {
+                tracing::warn!("releases not sent to host {}: {e}", h.name);
+                continue;
+            }
+            if let Err(e) = h.wake.notify() {
+                tracing::debug!("wake-up not sent: {e:?}");
             }
         }
     }
@@ -441,9 +453,18 @@ impl<W: Write> Coordinator<W> {
         let base = self.base();
         let current = self.spec.generation();
         while let Ok(Some(sample)) = self.done.receive() {
-            let Ok(done) = Done::parse(sample.payload()) else {
+            let Ok(batch) = Done::batch(sample.payload()) else {
                 continue;
             };
+            for done in batch {
+                self.take_one_done(n, base, current, done);
+            }
+        }
+    }
+
+    /// Takes one done notice at tick `n`.
+    fn take_one_done(&mut self, n: u64, base: usize, current: u16, done: &Done) {
+        {
             let (c, g) = (done.component.get(), done.generation.get());
             let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
             if c == PING || c == READY {
@@ -459,25 +480,25 @@ impl<W: Write> Coordinator<W> {
                         *a = true;
                     }
                 }
-                continue;
+                return;
             }
             let c = usize::from(c);
             let (comp, spec, incoming) = if c < base || g == current {
                 match self.comps.get_mut(c) {
                     Some(comp) => (comp, &self.spec, false),
-                    None => continue,
+                    None => return,
                 }
             } else if let Some(inc) = inc {
                 match inc.comps.get_mut(c) {
                     Some(comp) => (comp, &inc.spec, true),
-                    None => continue,
+                    None => return,
                 }
             } else {
-                continue; // a replaced assembly's
+                return; // a replaced assembly's
             };
             let m = done.tick.get();
             if comp.pending != Some(m) {
-                continue;
+                return;
             }
             comp.pending = None;
             comp.exec.record(done.exec_ns.get());

@@ -83,6 +83,10 @@ pub struct Host {
     done: Pub<Threadsafe>,
     /// Notified once per batch of done notices (the coordinator may sleep on it).
     done_wake: Notifier<Threadsafe>,
+    /// The done notices of the releases being served, sent as one sample.
+    done_batch: Vec<u8>,
+    /// Scratch: the releases of one sample.
+    batch: Vec<Release>,
     wake: Listener<Threadsafe>,
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
     prepare: Option<Sub<Threadsafe>>,
@@ -219,6 +223,8 @@ impl Host {
             releases: wire::release_subscriber(node, &spec.release_service(host))?,
             done: wire::done_publisher(node)?,
             done_wake: wire::done_wake_notifier(node)?,
+            done_batch: Vec::with_capacity(wire::DONE_BATCH * core::mem::size_of::<Done>()),
+            batch: Vec::with_capacity(spec.components_of(host).len() + 1),
             wake: wire::wake_listener(node, &spec.wake_service(host))?,
             prepare,
             loading: None,
@@ -259,20 +265,48 @@ impl Host {
             op: "receive release",
             detail: format!("{e:?}"),
         })? {
-            let Ok(release) = Release::parse(sample.payload()) else {
-                continue;
-            };
-            let release = *release;
+            // Copied out of the sample (no allocation while the batch fits what a tick's
+            // batch holds), so the sample goes back before the steps.
+            let mut batch = std::mem::take(&mut self.batch);
+            batch.clear();
+            match Release::batch(sample.payload()) {
+                Ok(releases) => batch.extend(releases.copied()),
+                Err(e) => tracing::warn!("a malformed release batch is ignored: {e}"),
+            }
             drop(sample);
-            self.step(&release, now)?;
-            served += 1;
+            for release in &batch {
+                self.step(release, now)?;
+                served += 1;
+            }
+            self.batch = batch;
         }
         if served > 0 {
+            self.send_done()?;
             if let Err(e) = self.done_wake.notify() {
                 tracing::debug!("done wake-up not sent: {e:?}");
             }
         }
         Ok(served)
+    }
+
+    /// Adds a done notice to the batch sent when the releases waiting are served.
+    fn push_done(&mut self, done: &Done) -> Result<(), TransportError> {
+        if self.done_batch.len() + done.as_bytes().len() > self.done_batch.capacity() {
+            self.send_done()?;
+        }
+        self.done_batch.extend_from_slice(done.as_bytes());
+        Ok(())
+    }
+
+    /// Sends the done notices gathered, as one sample.
+    fn send_done(&mut self) -> Result<(), TransportError> {
+        if self.done_batch.is_empty() {
+            return Ok(());
+        }
+        let batch = &self.done_batch;
+        let sent = wire::send(&self.done, batch.len(), |buf| buf.copy_from_slice(batch));
+        self.done_batch.clear();
+        sent
     }
 
     /// Between releases, for a host of the system's own components in a grid with
@@ -406,9 +440,7 @@ impl Host {
         let generation = release.generation.get();
         if release.component.get() == PING {
             let done = Done::new(n, PING, Done::OK, 0, 0).of_generation(self.generation);
-            return wire::send(&self.done, done.as_bytes().len(), |buf| {
-                buf.copy_from_slice(done.as_bytes())
-            });
+            return self.push_done(&done);
         }
         let c = usize::from(release.component.get());
         let Some(h) = self.hosted.iter_mut().find(|h| h.index == c) else {
@@ -463,9 +495,7 @@ impl Host {
                 h.name
             );
             let done = Done::new(n, c as u16, Done::STALE, 0, 0).of_generation(generation);
-            return wire::send(&self.done, done.as_bytes().len(), |buf| {
-                buf.copy_from_slice(done.as_bytes())
-            });
+            return self.push_done(&done);
         }
         SERVING.with(|s| s.set((generation, release.flags.get())));
         let start = now();
@@ -499,9 +529,7 @@ impl Host {
             start.saturating_sub(release.released_ns.get()),
         )
         .of_generation(generation);
-        wire::send(&self.done, done.as_bytes().len(), |buf| {
-            buf.copy_from_slice(done.as_bytes())
-        })
+        self.push_done(&done)
     }
 }
 

@@ -7,8 +7,8 @@
 //!   [`modbot_ipc_schema::grid::OutHeader`] and the packed outputs), one publisher (its host),
 //!   subscribers where they are read (consumer hosts, the coordinator's recorder). A subscriber
 //!   keeps the newest 64 samples: LET only ever reads one of the newest two.
-//! - `grid.release.<host>`: release notices from the coordinator to one host;
-//! - `grid.done`: done notices from every host to the coordinator;
+//! - `grid.release.<host>`: release notices from the coordinator to one host, a batch per tick;
+//! - `grid.done`: done notices from every host to the coordinator, a batch per wake-up;
 //! - `grid.done.wake`: an event each host notifies once per batch of done notices, so the
 //!   coordinator can sleep while it waits for a late one (a notification the coordinator has
 //!   not taken yet makes the next one free: iceoryx2 sends nothing then);
@@ -116,12 +116,14 @@ pub fn out_publishers<S: Service>(node: &Node<S>, service: &str) -> Result<usize
         .number_of_publishers())
 }
 
-/// The coordinator's side of a host's release notices ([`super::GridSpec::release_service`]).
+/// The coordinator's side of a host's release notices ([`super::GridSpec::release_service`]),
+/// in batches of at most `most`.
 pub fn release_publisher<S: Service>(
     node: &Node<S>,
     service: &str,
+    most: usize,
 ) -> Result<Pub<S>, TransportError> {
-    let len = core::mem::size_of::<modbot_ipc_schema::grid::Release>();
+    let len = core::mem::size_of::<modbot_ipc_schema::grid::Release>() * most.max(1);
     publisher(&pubsub(node, service, 256, 2, 2)?, len)
 }
 
@@ -162,9 +164,12 @@ fn prepare_service<S: Service>(node: &Node<S>) -> Result<PubSubFactory<S>, Trans
         .map_err(|e| err("open grid service")(&e))
 }
 
-/// A host's side of the done notices.
+/// Done notices a host sends in one sample at most.
+pub const DONE_BATCH: usize = 64;
+
+/// A host's side of the done notices, in batches of at most [`DONE_BATCH`].
 pub fn done_publisher<S: Service>(node: &Node<S>) -> Result<Pub<S>, TransportError> {
-    let len = core::mem::size_of::<modbot_ipc_schema::grid::Done>();
+    let len = core::mem::size_of::<modbot_ipc_schema::grid::Done>() * DONE_BATCH;
     publisher(&pubsub(node, "grid.done", 256, MAX_NODES, 2)?, len)
 }
 
