@@ -15,6 +15,7 @@ use crate::faults::start_arm;
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};
 use crate::report::{Report, Row};
+use crate::swaps::ledger_number;
 
 /// Runs the arm benchmark.
 pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
@@ -28,18 +29,8 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     sys.sleep(span)?;
     let after = sys.call_text("host_bus", "bus")?;
     let left = sys.stop()?;
-    let number = |ledger: &str, label: &str| -> anyhow::Result<u64> {
-        let first = ledger.lines().next().unwrap_or_default();
-        let words: Vec<&str> = first.split_whitespace().collect();
-        words
-            .iter()
-            .position(|w| *w == label)
-            .and_then(|i| words.get(i + 1))
-            .and_then(|w| w.parse().ok())
-            .ok_or_else(|| anyhow::anyhow!("no '{label}' in the bus ledger: {first}"))
-    };
-    let cycles = number(&after, "cycles")? - number(&before, "cycles")?;
-    let missed = number(&after, "missed")? - number(&before, "missed")?;
+    let cycles = ledger_number(&after, "cycles")? - ledger_number(&before, "cycles")?;
+    let missed = ledger_number(&after, "missed")? - ledger_number(&before, "missed")?;
     if cycles == 0 {
         bail!("the bus ran no cycle in {} s", span.as_secs());
     }

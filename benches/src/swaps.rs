@@ -249,7 +249,8 @@ fn missed_cycles(sys: &mut Supervised, stops: &mut Vec<String>) -> anyhow::Resul
     ledger_number(&ledger, "missed")
 }
 
-fn ledger_number(ledger: &str, label: &str) -> anyhow::Result<u64> {
+/// The number after `label` in the bus ledger's first line ("cycles 9000", "missed 2").
+pub(crate) fn ledger_number(ledger: &str, label: &str) -> anyhow::Result<u64> {
     let first = ledger.lines().next().unwrap_or_default();
     let words: Vec<&str> = first.split_whitespace().collect();
     words

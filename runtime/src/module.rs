@@ -138,6 +138,12 @@ impl<S> Module<S> {
         self.ctx.directory.reap_dead()
     }
 
+    /// Sleeps until a frame arrives in the inbox or `timeout` passed (a loop that also waits
+    /// for other things calls this instead of sleeping, so calls are answered at once).
+    pub fn wait_for_frame(&mut self, timeout: Duration) -> Result<(), TransportError> {
+        self.rx.wait(timeout)
+    }
+
     /// Serves at most one waiting frame; returns whether there was one.
     pub fn poll_once(&mut self) -> Result<bool, TransportError> {
         self.poll_with(&mut None)

@@ -256,7 +256,8 @@ fn main() -> anyhow::Result<()> {
             }
         }
         if !busy {
-            std::thread::sleep(Duration::from_millis(1));
+            // Woken by a call at once; the tick thread's news waits up to 2 ms.
+            module.wait_for_frame(Duration::from_millis(2))?;
         }
     }
     drop(to_tick);
