@@ -260,7 +260,11 @@ module "steady" { addr = 11, program = "modbot-faulty" }
         let _ = sut.modbot(&["call", "flaky.exit", "0"]);
         false
     });
-    assert_eq!(restarts_of(&sut, "flaky"), 2, "restarted max_restarts times");
+    assert_eq!(
+        restarts_of(&sut, "flaky"),
+        2,
+        "restarted max_restarts times"
+    );
     assert!(
         sut.modbot(&["call", "steady.ping"]).status.success(),
         "the rest keeps running"

@@ -35,6 +35,7 @@
 //! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
 //! - [`host`]: a component host: steps its components on release, publishes their outputs.
 //! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
+//! - [`offload`]: a writer whose bytes a thread of normal priority writes out (the trace).
 //! - [`ledger`]: the overrun ledger as `modbot top` shows it.
 //! - [`processes`]: the coordinator and the hosts as modules the supervisor starts.
 //! - [`switch`]: swapping assemblies from a program (`modbot assembly switch`); the assembly
@@ -46,6 +47,7 @@ pub mod control;
 pub mod coordinator;
 pub mod host;
 pub mod ledger;
+pub mod offload;
 pub mod processes;
 pub mod recorder;
 pub mod reference;

@@ -18,6 +18,7 @@ use clap::Parser;
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
 use modbot_runtime::grid::coordinator::Coordinator;
+use modbot_runtime::grid::offload::Offload;
 use modbot_runtime::grid::GridSpec;
 use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply};
 
@@ -130,10 +131,11 @@ fn main() -> anyhow::Result<()> {
     let assemblies = grid.assembly.is_some();
     let transport = cli.module.transport()?;
     let node = Arc::new(transport.threadsafe_node("grid.coordinator")?);
+    // The trace is written by a thread of normal priority: the tick thread does no file I/O.
     let trace = match &cli.trace {
-        Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p).map_err(
-            |e| anyhow::anyhow!("cannot write the trace to {}: {e}", p.display()),
-        )?)),
+        Some(p) => Some(Offload::new(std::fs::File::create(p).map_err(|e| {
+            anyhow::anyhow!("cannot write the trace to {}: {e}", p.display())
+        })?)?),
         None => None,
     };
     // A due component's done notice may be on its way: wait up to a quarter of a tick for it

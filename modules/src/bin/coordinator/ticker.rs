@@ -13,7 +13,7 @@ use modbot_runtime::grid::tick::{FreeTicks, TickSource, TimerTicks};
 use modbot_runtime::grid::{GridClock, GridSpec};
 use modbot_runtime::signals;
 
-pub type Coord = Coordinator<std::io::BufWriter<std::fs::File>>;
+pub type Coord = Coordinator<modbot_runtime::grid::offload::Offload<std::fs::File>>;
 
 /// Ticks between the announcement and the earliest switch, beyond two longest periods.
 const SWITCH_LEAD: u64 = 5;
