@@ -16,7 +16,9 @@
 //!   time from the coordinator's wake-up to the end of the component's step. Every component
 //!   of every tick is a sample.
 //! - **coordinator CPU per tick**: the CPU time of every thread of the coordinator process
-//!   (`/proc/PID/task/*/schedstat`, ns) over 100 ms windows, divided by the ticks in each.
+//!   (`/proc/PID/task/*/schedstat`, ns) over 100 ms windows, divided by the ticks in each; and
+//!   of its tick thread alone (`grid.tick_thread_cpu`: the service thread's method calls and
+//!   phone-book refreshes left out).
 //!
 //! **Baselines** (same run, same scheduling): a bare loop in two processes of this executable.
 //! `grid-ticker` reads an absolute 1 ms timerfd (the runtime's `TimerTicks`, as the coordinator
@@ -133,6 +135,8 @@ struct Measured {
     buckets: Vec<(u64, u64)>,
     release_to_done: Histogram<u64>,
     cpu_per_tick: Histogram<u64>,
+    /// Of the ticking thread alone (the coordinator's `tick` thread; the bare loop's only one).
+    thread_cpu_per_tick: Histogram<u64>,
     ticks: u64,
     missed: u64,
     /// From the coordinator's ledger (the grid only): releases, overruns, stale releases.
@@ -176,6 +180,9 @@ fn push_rows(
     );
     report.push(row("grid.timerfd_cpu", &base.cpu_per_tick).is_baseline());
     report.push(row("grid.coordinator_cpu", &grid.cpu_per_tick).against("grid.timerfd_cpu", &f));
+    report.push(
+        row("grid.tick_thread_cpu", &grid.thread_cpu_per_tick).against("grid.timerfd_cpu", &f),
+    );
     // Ticks seen and missed over the recorded span, the grid's and the bare loop's.
     report.push(count("grid.timerfd_ticks", base.ticks + base.missed).is_baseline());
     report.push(count("grid.timerfd_missed", base.missed).is_baseline());
@@ -292,7 +299,9 @@ fn measure_grid(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Measured
             }
             Ok(())
         };
-        observe(plan, coordinator, poll, || sys.check_running())?
+        observe(plan, coordinator, Some("tick"), poll, || {
+            sys.check_running()
+        })?
     };
     let ledger_bytes = sys.tool()?.call_blocking(
         "coordinator",
@@ -481,7 +490,7 @@ fn measure_baseline(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Meas
         }
         Ok(())
     };
-    let seen = observe(plan, pid, poll, || {
+    let seen = observe(plan, pid, None, poll, || {
         ticker.check_running()?;
         waker.check_running()
     })?;
@@ -568,8 +577,9 @@ struct Seen {
     releases: Vec<(u64, u64)>,
     /// Release to done of every done notice.
     release_to_done: Vec<u64>,
-    /// CPU time per tick over 100 ms windows.
+    /// CPU time per tick over 100 ms windows: of the process, and of its ticking thread.
     cpu: Vec<u64>,
+    thread_cpu: Vec<u64>,
     /// Past the warm-up.
     recording: bool,
 }
@@ -601,6 +611,7 @@ impl Seen {
             buckets: buckets.into_iter().collect(),
             release_to_done: hist(&self.release_to_done),
             cpu_per_tick: hist(&self.cpu),
+            thread_cpu_per_tick: hist(&self.thread_cpu),
             ticks: self.releases.len() as u64,
             missed,
             releases: 0,
@@ -612,16 +623,18 @@ impl Seen {
 }
 
 /// Polls the tap every 2 ms for `plan.warm` (thrown away) and `plan.span`, and samples the
-/// CPU time of `cpu_pid` every 100 ms. `poll` appends what arrived.
+/// CPU time of `cpu_pid` (all its threads, and those named `thread`) every 100 ms. `poll`
+/// appends what arrived.
 fn observe(
     plan: &Plan,
     cpu_pid: u32,
+    thread: Option<&str>,
     mut poll: impl FnMut(&mut Seen) -> anyhow::Result<()>,
     mut alive: impl FnMut() -> anyhow::Result<()>,
 ) -> anyhow::Result<Seen> {
     let start = Instant::now();
     let mut seen = Seen::default();
-    let mut window: Option<(Instant, u64, u64)> = None;
+    let mut window: Option<(Instant, (u64, u64), u64)> = None;
     let mut last_tick = None;
     loop {
         poll(&mut seen)?;
@@ -637,10 +650,11 @@ fn observe(
         if seen.recording {
             let due = window.is_none_or(|(at, _, _)| now - at >= Duration::from_millis(100));
             if let (true, Some(tick)) = (due, last_tick) {
-                let ns = cpu_ns(cpu_pid).context("the CPU time of the ticking process")?;
+                let ns = cpu_ns(cpu_pid, thread).context("the CPU time of the ticking process")?;
                 if let Some((_, ns0, tick0)) = window {
                     if tick > tick0 {
-                        seen.cpu.push((ns - ns0) / (tick - tick0));
+                        seen.cpu.push((ns.0 - ns0.0) / (tick - tick0));
+                        seen.thread_cpu.push((ns.1 - ns0.1) / (tick - tick0));
                     }
                 }
                 window = Some((now, ns, tick));
@@ -717,19 +731,25 @@ fn densest(x: &[u64], w: u64) -> u64 {
     (at + w / 2) % p
 }
 
-/// CPU time of every thread of process `pid`, in ns (`/proc/PID/task/*/schedstat`).
-fn cpu_ns(pid: u32) -> Option<u64> {
+/// CPU time of every thread of process `pid`, and of its threads named `thread` (all of them
+/// when `None`), in ns (`/proc/PID/task/*/schedstat`, `comm`).
+fn cpu_ns(pid: u32, thread: Option<&str>) -> Option<(u64, u64)> {
     let tasks = std::fs::read_dir(format!("/proc/{pid}/task")).ok()?;
-    let mut total = 0;
+    let (mut total, mut named) = (0, 0);
     for t in tasks.flatten() {
         let text = std::fs::read_to_string(t.path().join("schedstat")).unwrap_or_default();
-        total += text
+        let ns = text
             .split_whitespace()
             .next()
             .and_then(|v| v.parse::<u64>().ok())
             .unwrap_or(0);
+        total += ns;
+        let comm = std::fs::read_to_string(t.path().join("comm")).unwrap_or_default();
+        if thread.is_none_or(|name| comm.trim() == name) {
+            named += ns;
+        }
     }
-    Some(total)
+    Some((total, named))
 }
 
 #[cfg(test)]
