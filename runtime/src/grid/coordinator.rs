@@ -3,7 +3,8 @@
 //!
 //! Tick n, in this order:
 //! 1. done notices that arrived are taken — for a component due now whose release still runs,
-//!    after a short grace (the notice may be on its way): a release m of a component with
+//!    after a short grace asleep on the hosts' done wake-up (the notice may be on its way); on
+//!    the lockstep clock, until it is done: a release m of a component with
 //!    period k that is done by now is *on time* if n ≤ m + k; its outputs become valid at
 //!    m + k. A late one is only counted (its overrun was counted at its deadline);
 //! 2. on-time outputs whose time has come (valid_from ≤ n) become the valid version;
@@ -464,69 +465,66 @@ impl<W: Write> Coordinator<W> {
 
     /// Takes one done notice at tick `n`.
     fn take_one_done(&mut self, n: u64, base: usize, current: u16, done: &Done) {
-        {
-            let (c, g) = (done.component.get(), done.generation.get());
-            let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
-            if c == PING || c == READY {
-                if let Some(inc) = inc {
-                    if c == READY && done.status.get() == Done::OK {
-                        inc.ready += 1;
-                    } else if c == READY {
-                        inc.fail(
-                            "a host of the system's components could not load it (see its log)"
-                                .into(),
-                        );
-                    } else if let Some(a) = inc.answered.get_mut(done.tick.get() as usize) {
-                        *a = true;
-                    }
+        let (c, g) = (done.component.get(), done.generation.get());
+        let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
+        if c == PING || c == READY {
+            if let Some(inc) = inc {
+                if c == READY && done.status.get() == Done::OK {
+                    inc.ready += 1;
+                } else if c == READY {
+                    inc.fail(
+                        "a host of the system's components could not load it (see its log)".into(),
+                    );
+                } else if let Some(a) = inc.answered.get_mut(done.tick.get() as usize) {
+                    *a = true;
                 }
-                return;
             }
-            let c = usize::from(c);
-            let (comp, spec, incoming) = if c < base || g == current {
-                match self.comps.get_mut(c) {
-                    Some(comp) => (comp, &self.spec, false),
-                    None => return,
-                }
-            } else if let Some(inc) = inc {
-                match inc.comps.get_mut(c) {
-                    Some(comp) => (comp, &inc.spec, true),
-                    None => return,
-                }
-            } else {
-                return; // a replaced assembly's
-            };
-            let m = done.tick.get();
-            if comp.pending != Some(m) {
-                return;
+            return;
+        }
+        let c = usize::from(c);
+        let (comp, spec, incoming) = if c < base || g == current {
+            match self.comps.get_mut(c) {
+                Some(comp) => (comp, &self.spec, false),
+                None => return,
             }
-            comp.pending = None;
-            comp.exec.record(done.exec_ns.get());
-            comp.exec_min = comp.exec_min.min(done.exec_ns.get());
-            comp.latency.record(done.latency_ns.get());
-            let status = done.status.get();
-            if status == Done::STALE {
-                comp.stale += 1;
-                if !incoming && c < recorder::recorded(spec) {
-                    self.overrun_log.push((m, c, m, Miss::Stale));
-                }
-            } else if status != Done::OK && status != Done::UNSAFE {
-                comp.failed += 1;
-            } else if n <= m + comp.period {
-                comp.ready = Some(m + comp.period);
-            } else {
-                comp.late += 1;
+        } else if let Some(inc) = inc {
+            match inc.comps.get_mut(c) {
+                Some(comp) => (comp, &inc.spec, true),
+                None => return,
             }
-            if status == Done::UNSAFE {
-                let name = &spec.components[c].name;
-                let why = format!("component {name} reports an unsafe state at tick {m}");
-                if incoming {
-                    if let Some(inc) = self.incoming.as_mut() {
-                        inc.fail(why);
-                    }
-                } else if self.fault.is_none() {
-                    self.set_fault(why);
+        } else {
+            return; // a replaced assembly's
+        };
+        let m = done.tick.get();
+        if comp.pending != Some(m) {
+            return;
+        }
+        comp.pending = None;
+        comp.exec.record(done.exec_ns.get());
+        comp.exec_min = comp.exec_min.min(done.exec_ns.get());
+        comp.latency.record(done.latency_ns.get());
+        let status = done.status.get();
+        if status == Done::STALE {
+            comp.stale += 1;
+            if !incoming && c < recorder::recorded(spec) {
+                self.overrun_log.push((m, c, m, Miss::Stale));
+            }
+        } else if status != Done::OK && status != Done::UNSAFE {
+            comp.failed += 1;
+        } else if n <= m + comp.period {
+            comp.ready = Some(m + comp.period);
+        } else {
+            comp.late += 1;
+        }
+        if status == Done::UNSAFE {
+            let name = &spec.components[c].name;
+            let why = format!("component {name} reports an unsafe state at tick {m}");
+            if incoming {
+                if let Some(inc) = self.incoming.as_mut() {
+                    inc.fail(why);
                 }
+            } else if self.fault.is_none() {
+                self.set_fault(why);
             }
         }
     }
