@@ -343,6 +343,17 @@ fn a_lockstep_arm_run_with_a_swap_gives_the_same_trace_twice() {
     );
 }
 
+/// Starts the arm (real time) with an assembly `name` of `hold.lua` and a sleeper with
+/// `params`, and switches to it; returns the copy of the arm (kept while the system runs) and
+/// `modbot up`'s pid.
+fn switched_to_sleeper(sut: &mut TestDomain, name: &str, params: &str) -> (ArmCopy, u32) {
+    let copy = ArmCopy::new(sut, &[(name, &hold_with_sleeper(params))]);
+    let up = up_with(sut, &copy.system(), Clock::RealTime, &[]);
+    let out = sut.modbot_ok(&["assembly", "switch", name, "--timeout", "60"]);
+    assert!(out.contains(&format!("switched to {name}")), "{out}");
+    (copy, up)
+}
+
 /// An incoming assembly whose host stalls (4 ms at each of its first 30 tracking releases of
 /// a 1 ms grid, with the `fault` policy) is still switched to: its first ticks are slow, and
 /// a late release near the switch postpones it instead of failing it.
@@ -350,16 +361,8 @@ fn a_lockstep_arm_run_with_a_swap_gives_the_same_trace_twice() {
 fn an_incoming_assembly_whose_host_stalls_for_its_first_ticks_is_still_switched_to() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("slowstart");
-    let copy = ArmCopy::new(
-        &sut,
-        &[(
-            "slowstart",
-            &hold_with_sleeper("sleep_ms = 4, sleep_tracking = 30"),
-        )],
-    );
-    let up = up_with(&mut sut, &copy.system(), Clock::RealTime, &[]);
-    let out = sut.modbot_ok(&["assembly", "switch", "slowstart", "--timeout", "60"]);
-    assert!(out.contains("switched to slowstart"), "{out}");
+    let (_copy, up) =
+        switched_to_sleeper(&mut sut, "slowstart", "sleep_ms = 4, sleep_tracking = 30");
     let top = sut.modbot_ok(&["top", "--once"]);
     assert!(!top.contains("faulted"), "{top}");
     down(&mut sut, up);
@@ -371,16 +374,8 @@ fn an_incoming_assembly_whose_host_stalls_for_its_first_ticks_is_still_switched_
 fn a_fault_component_that_stalls_after_the_switch_still_faults_the_assembly() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("stalllive");
-    let copy = ArmCopy::new(
-        &sut,
-        &[(
-            "stalllive",
-            &hold_with_sleeper("sleep_ms = 20, sleep_live = true"),
-        )],
-    );
-    let up = up_with(&mut sut, &copy.system(), Clock::RealTime, &[]);
-    let out = sut.modbot_ok(&["assembly", "switch", "stalllive", "--timeout", "60"]);
-    assert!(out.contains("switched to stalllive"), "{out}");
+    let (_copy, up) =
+        switched_to_sleeper(&mut sut, "stalllive", "sleep_ms = 20, sleep_live = true");
     sut.wait_for("every drive in quick stop", Duration::from_secs(20), || {
         all_axes(&bus_ledger(&sut), "quick stop active")
     });

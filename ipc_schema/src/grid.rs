@@ -257,6 +257,18 @@ pub struct OutHeader {
     pub release: U64,
 }
 
+/// The size of a notice of type `T`, if `bytes` are one or more whole notices of it.
+fn whole_notices<T>(bytes: &[u8]) -> Result<usize, GridWireError> {
+    let each = core::mem::size_of::<T>();
+    if bytes.is_empty() || !bytes.len().is_multiple_of(each) {
+        return Err(GridWireError::Length {
+            expected: each,
+            got: bytes.len(),
+        });
+    }
+    Ok(each)
+}
+
 /// A release notice.
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
@@ -327,13 +339,7 @@ impl Release {
     /// Reads a batch of notices in place (see the module doc): each notice, or why the batch
     /// is malformed.
     pub fn batch(bytes: &[u8]) -> Result<impl Iterator<Item = &Release>, GridWireError> {
-        let each = core::mem::size_of::<Release>();
-        if bytes.is_empty() || !bytes.len().is_multiple_of(each) {
-            return Err(GridWireError::Length {
-                expected: each,
-                got: bytes.len(),
-            });
-        }
+        let each = whole_notices::<Release>(bytes)?;
         for chunk in bytes.chunks_exact(each) {
             Release::parse(chunk)?;
         }
@@ -442,13 +448,7 @@ impl Done {
 
     /// Reads a batch of notices in place (see the module doc).
     pub fn batch(bytes: &[u8]) -> Result<impl Iterator<Item = &Done>, GridWireError> {
-        let each = core::mem::size_of::<Done>();
-        if bytes.is_empty() || !bytes.len().is_multiple_of(each) {
-            return Err(GridWireError::Length {
-                expected: each,
-                got: bytes.len(),
-            });
-        }
+        let each = whole_notices::<Done>(bytes)?;
         Ok(bytes.chunks_exact(each).filter_map(|c| Done::parse(c).ok()))
     }
 }
