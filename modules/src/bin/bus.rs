@@ -151,6 +151,8 @@ fn main() -> anyhow::Result<()> {
             .method("block", block_method)
             .open(transport, ledger)?)
     })?;
+    // `grid { mlock = true }`: locked before the clocked work begins.
+    modbot_runtime::supervisor::env::apply_mlockall();
     modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
     let now = || MonotonicClock.now_ns();
     // The bus sleeps on its wake-up until released, or until its watchdog must look (the

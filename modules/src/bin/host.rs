@@ -45,6 +45,8 @@ fn main() -> anyhow::Result<()> {
             .mode(mode)
             .open(transport, ())?)
     })?;
+    // `grid { mlock = true }`: locked before the clocked work begins.
+    modbot_runtime::supervisor::env::apply_mlockall();
     modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
     let now = || MonotonicClock.now_ns();
     while !signals::termination_requested() && !service.is_finished() {

@@ -177,6 +177,8 @@ fn main() -> anyhow::Result<()> {
         max_ticks: cli.ticks,
         script: cli.switches.clone(),
     };
+    // `grid { mlock = true }`: locked before the tick thread starts.
+    modbot_runtime::supervisor::env::apply_mlockall();
     let ticker = std::thread::Builder::new()
         .name("tick".into())
         .spawn(move || ticker::run(coord, run, commands, tell))?;
