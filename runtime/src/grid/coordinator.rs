@@ -971,6 +971,9 @@ impl<W: Write> Coordinator<W> {
         };
         self.state_text.clear();
         self.state_text.push_str(state);
+        if self.spec.timing.clock == GridClock::Lockstep {
+            self.state_text.push_str(" in lockstep");
+        }
         if let Some(a) = &self.spec.assembly {
             use std::fmt::Write as _;
             let _ = write!(
@@ -1013,54 +1016,12 @@ impl<W: Write> Coordinator<W> {
         }
     }
 
-    /// The ledger as it stands.
-    pub fn ledger(&self, done: bool) -> (GridRow, Vec<ComponentRow>) {
-        let (p50, p99, max) = ledger::p50_p99_max(&self.tick_error);
-        let grid = GridRow {
-            state: match (&self.fault, done) {
-                (Some(_), _) => "faulted",
-                (None, true) => "done",
-                (None, false) => "running",
-            }
-            .to_owned()
-                + &self.spec.assembly.as_ref().map_or(String::new(), |a| {
-                    format!(" (assembly {}, generation {})", a.name, a.generation)
-                }),
-            fault: self.fault.clone().unwrap_or_default(),
-            ticks: self.tick,
-            missed: self.missed,
-            rate_hz: self.rate.2,
-            tick_err_p50: p50,
-            tick_err_p99: p99,
-            tick_err_max: max,
-        };
-        let rows = self
-            .comps
-            .iter()
-            .zip(&self.spec.components)
-            .map(|(c, s)| {
-                let (e50, e99, emax) = ledger::p50_p99_max(&c.exec);
-                let (l50, l99, _) = ledger::p50_p99_max(&c.latency);
-                ComponentRow {
-                    name: s.name.clone(),
-                    host: s.host.clone(),
-                    period: c.period,
-                    policy: if c.fault_policy { "fault" } else { "hold" }.into(),
-                    releases: c.releases,
-                    overruns: c.overruns,
-                    late: c.late,
-                    failed: c.failed,
-                    stale: c.stale,
-                    exec_min: if c.exec.count() == 0 { 0 } else { c.exec_min },
-                    exec_p50: e50,
-                    exec_p99: e99,
-                    exec_max: emax,
-                    latency_p50: l50,
-                    latency_p99: l99,
-                }
-            })
-            .collect();
-        (grid, rows)
+    /// The ledger as it stands, as rows (what [`Coordinator::encode_ledger`] encodes).
+    pub fn ledger(&mut self, done: bool) -> (GridRow, Vec<ComponentRow>) {
+        let mut bytes = Vec::new();
+        self.encode_ledger(done, &mut bytes);
+        // The encoding above is the decoder's own format: it always reads back.
+        ledger::decode(&bytes).unwrap_or_default()
     }
 
     /// Ends the run: the recorder's trace is flushed, with a line per overrun at its end
