@@ -310,9 +310,7 @@ impl<W: Write> Coordinator<W> {
                 detail: e.to_string(),
             })?;
             for h in &mut self.hosts {
-                wire::send(&h.release, ping.as_bytes().len(), |b| {
-                    b.copy_from_slice(ping.as_bytes())
-                })?;
+                wire::send_bytes(&h.release, ping.as_bytes())?;
                 if let Err(e) = h.wake.notify() {
                     tracing::debug!("wake-up not sent: {e:?}");
                 }
@@ -436,9 +434,7 @@ impl<W: Write> Coordinator<W> {
             if h.batch.is_empty() {
                 continue;
             }
-            let sent = wire::send(&h.release, h.batch.len(), |buf| {
-                buf.copy_from_slice(&h.batch)
-            });
+            let sent = wire::send_bytes(&h.release, &h.batch);
             h.batch.clear();
             if let Err(e) = sent {
                 tracing::warn!("releases not sent to host {}: {e}", h.name);

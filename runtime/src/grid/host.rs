@@ -303,8 +303,7 @@ impl Host {
         if self.done_batch.is_empty() {
             return Ok(());
         }
-        let batch = &self.done_batch;
-        let sent = wire::send(&self.done, batch.len(), |buf| buf.copy_from_slice(batch));
+        let sent = wire::send_bytes(&self.done, &self.done_batch);
         self.done_batch.clear();
         sent
     }
@@ -430,9 +429,7 @@ impl Host {
 
     fn answer_ready(&mut self, generation: u16, status: u16) -> Result<(), TransportError> {
         let done = Done::new(0, READY, status, 0, 0).of_generation(generation);
-        wire::send(&self.done, done.as_bytes().len(), |buf| {
-            buf.copy_from_slice(done.as_bytes())
-        })
+        wire::send_bytes(&self.done, done.as_bytes())
     }
 
     fn step(&mut self, release: &Release, now: &dyn Fn() -> u64) -> Result<(), TransportError> {

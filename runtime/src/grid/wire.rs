@@ -230,6 +230,11 @@ pub fn wake_listener<S: Service>(
         .map_err(|e| err("grid wake listener")(&e))
 }
 
+/// Sends a copy of `bytes` (a notice or a batch of them) on `publisher`.
+pub fn send_bytes<S: Service>(publisher: &Pub<S>, bytes: &[u8]) -> Result<(), TransportError> {
+    send(publisher, bytes.len(), |buf| buf.copy_from_slice(bytes))
+}
+
 /// Sends `bytes` on `publisher`, written in place.
 pub fn send<S: Service>(
     publisher: &Pub<S>,

@@ -121,9 +121,7 @@ impl Switching {
             Err(e) => return self.fail(module, e.to_string()),
         };
         if let Some(prepare) = &self.prepare {
-            if let Err(e) = wire::send(prepare, notice.as_bytes().len(), |b| {
-                b.copy_from_slice(notice.as_bytes())
-            }) {
+            if let Err(e) = wire::send_bytes(prepare, notice.as_bytes()) {
                 return self.fail(module, format!("the assembly notice was not sent: {e}"));
             }
         }
