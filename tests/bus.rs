@@ -20,8 +20,18 @@ fn a_lost_coordinator_brings_every_drive_to_quick_stop_within_three_ticks() {
     let file = arm();
     let domain = format!("domain={}", sut.name());
     let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap(), "--var", &domain]);
-    sut.wait_for("every drive enabled", Duration::from_secs(30), || {
-        all_axes(&bus_ledger(&sut), "operation enabled")
+    sut.wait_until("every drive enabled", Duration::from_secs(30), || {
+        let out = sut.modbot(&["bus"]);
+        let ledger = String::from_utf8_lossy(&out.stdout);
+        if all_axes(&ledger, "operation enabled") {
+            Ok(())
+        } else {
+            Err(format!(
+                "modbot bus: {ledger}{}\nmodbot up:\n{}",
+                String::from_utf8_lossy(&out.stderr),
+                sut.output_of(up)
+            ))
+        }
     });
     let coordinator: u32 = sut
         .ls_field("coordinator", "PID")

@@ -10,7 +10,8 @@
 //!  6     1    state: 1 starting, 2 running, 3 stopping
 //!  7     1    reserved, 0
 //!  8     4    pid, u32 LE
-//! 12     4    reserved, 0
+//! 12     4    methods digest, u32 LE ([`crate::directory::methods_digest`] of its method
+//!             names; 0: not given)
 //! 16     8    beat number, u64 LE (starts at 1, +1 per beat)
 //! 24     8    frames this module could not deliver (dropped), u64 LE
 //! 32     8    malformed or misrouted frames it received and dropped (rejected), u64 LE
@@ -42,7 +43,7 @@ pub enum ModuleState {
 }
 
 impl ModuleState {
-    fn from_u8(b: u8) -> Option<ModuleState> {
+    pub(crate) fn from_u8(b: u8) -> Option<ModuleState> {
         Some(match b {
             1 => ModuleState::Starting,
             2 => ModuleState::Running,
@@ -62,7 +63,7 @@ pub struct Heartbeat {
     state: u8,
     reserved0: u8,
     pid: U32,
-    reserved1: U32,
+    methods_digest: U32,
     beat: U64,
     dropped: U64,
     rejected: U64,
@@ -106,7 +107,7 @@ impl Heartbeat {
             state: state as u8,
             reserved0: 0,
             pid: U32::new(pid),
-            reserved1: U32::new(0),
+            methods_digest: U32::new(0),
             beat: U64::new(beat),
             dropped: U64::new(counters.dropped),
             rejected: U64::new(counters.rejected),
@@ -137,6 +138,16 @@ impl Heartbeat {
 
     pub fn state(&self) -> ModuleState {
         ModuleState::from_u8(self.state).unwrap_or(ModuleState::Running)
+    }
+
+    /// The same heartbeat, carrying the digest of the module's method names.
+    pub fn with_methods_digest(mut self, digest: u32) -> Heartbeat {
+        self.methods_digest = U32::new(digest);
+        self
+    }
+
+    pub fn methods_digest(&self) -> u32 {
+        self.methods_digest.get()
     }
 
     pub fn beat(&self) -> u64 {

@@ -14,6 +14,8 @@
 //! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
 //!   readable in place.
 //! - [`grid`]: the time grid's port values, output records and release/done notices.
+//! - [`directory`]: the phone book a supervisor publishes for its domain, one image read in
+//!   place.
 //! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
 //! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set, stats,
 //!   activate/deactivate).
@@ -27,6 +29,7 @@ compile_error!("modbot's wire formats are little-endian and are read in place: b
 
 pub mod addr;
 pub mod args;
+pub mod directory;
 pub mod grid;
 pub mod heartbeat;
 pub mod hex;

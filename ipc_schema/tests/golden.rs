@@ -85,11 +85,33 @@ fn the_readme_golden_vectors_match_the_encoders() {
                     state,
                     n("beat"),
                     counters,
-                );
+                )
+                .with_methods_digest(n("digest") as u32);
                 let bytes = hb.as_bytes().to_vec();
                 let back = Heartbeat::parse(&bytes).unwrap();
                 assert_eq!((back.beat(), back.counters()), (n("beat"), counters));
                 bytes
+            }
+            "directory" => {
+                use modbot_ipc_schema::directory::{self, Listing, View, IMAGE_LEN};
+                use modbot_ipc_schema::heartbeat::ModuleState;
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let listing = Listing {
+                    addr: Addr(n("addr") as u8),
+                    mode: field(&desc, "mode").as_bytes()[0],
+                    state: ModuleState::Running,
+                    pid: n("pid") as u32,
+                    methods_digest: n("digest") as u32,
+                    name: field(&desc, "name").to_owned(),
+                };
+                let mut image = vec![0u8; IMAGE_LEN];
+                let len =
+                    directory::write(&mut image, n("generation"), std::slice::from_ref(&listing))
+                        .unwrap();
+                let view = View::parse(&image).unwrap();
+                assert_eq!(view.entries()[0].listing(), listing);
+                image.truncate(len);
+                image
             }
             "snapshot" => {
                 let layout = SnapshotLayout::new(vec![

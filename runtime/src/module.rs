@@ -99,9 +99,12 @@ pub struct Module<S> {
     next_beat_ns: u64,
     /// Heartbeats sent.
     beats: u64,
+    /// The digest of this module's method names, in its heartbeat.
+    methods_digest: u32,
 }
 
-/// How often the phone book re-reads the directory (liveness, new modules).
+/// How often the phone book re-reads a scanned directory (liveness, new modules); a published
+/// one is read when it changes.
 const REFRESH_NS: u64 = 200_000_000;
 
 impl<S> Module<S> {
@@ -123,6 +126,11 @@ impl<S> Module<S> {
 
     pub fn mode(&self) -> ReceiveMode {
         self.ctx.mode
+    }
+
+    /// The digest of this module's method names (in its heartbeats and the directory).
+    pub fn methods_digest(&self) -> u32 {
+        self.methods_digest
     }
 
     /// Every module of the domain as the directory sees it now.
@@ -207,7 +215,13 @@ impl<S> Module<S> {
                 }
             },
         );
-        if now >= self.next_refresh_ns {
+        // A published directory says when it changed; a scanned one is read on a timer.
+        let directory_due = if self.ctx.directory.published() {
+            self.ctx.directory.changed()
+        } else {
+            now >= self.next_refresh_ns
+        };
+        if directory_due {
             self.next_refresh_ns = now + REFRESH_NS;
             let changes = self.ctx.refresh_book();
             if !changes.died.is_empty() {
@@ -313,7 +327,8 @@ impl<S> Module<S> {
             state,
             self.beats,
             counters,
-        );
+        )
+        .with_methods_digest(self.methods_digest);
         if let Err(e) = self.ctx.tx.heartbeat(hb.as_bytes()) {
             tracing::debug!("heartbeat not sent: {e}");
         }
@@ -439,11 +454,17 @@ impl<S> Module<S> {
     /// Time until the next task is due (blocking mode sleeps at most this long).
     pub(crate) fn idle_budget(&self) -> Duration {
         let now = self.ctx.now_ns();
+        // A published directory is looked at on every wake-up, at least once a heartbeat.
+        let refresh = if self.ctx.directory.published() {
+            u64::MAX
+        } else {
+            self.next_refresh_ns
+        };
         let next = self
             .next_task_ns
             .iter()
             .copied()
-            .chain([self.next_refresh_ns, self.next_beat_ns])
+            .chain([refresh, self.next_beat_ns])
             .min()
             .unwrap_or(u64::MAX);
         Duration::from_nanos(next.saturating_sub(now).clamp(100_000, 50_000_000))

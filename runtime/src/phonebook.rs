@@ -22,6 +22,8 @@ pub struct Entry {
     pub methods: Option<Vec<String>>,
     /// Blackboard items (`name:kind[:rw]`), once learned.
     pub items: Option<String>,
+    /// The digest of its method names, if the directory carries it (0: not known).
+    pub methods_digest: u32,
 }
 
 /// Name → address resolution with liveness.
@@ -64,23 +66,40 @@ impl PhoneBook {
                     if e.alive && !p.alive {
                         changes.died.push(p.addr);
                     }
+                    if !e.alive && p.alive {
+                        changes.appeared.push(p.addr);
+                    }
                     e.alive = p.alive;
+                    e.methods_digest = p.methods_digest;
                 }
                 (Some(p), previous) => {
-                    if previous.is_some_and(|e| e.alive) {
+                    if previous.as_ref().is_some_and(|e| e.alive) {
                         changes.died.push(p.addr);
                     }
                     if p.alive {
                         changes.appeared.push(p.addr);
                     }
+                    // The same program back (same name, same method digest): its method
+                    // table is still right, and need not be asked for again.
+                    let (methods, items) = match previous {
+                        Some(e)
+                            if e.name == p.name
+                                && p.methods_digest != 0
+                                && e.methods_digest == p.methods_digest =>
+                        {
+                            (e.methods.take(), e.items.take())
+                        }
+                        _ => (None, None),
+                    };
                     *old = Some(Entry {
                         addr: p.addr,
                         name: p.name,
                         pid: p.pid,
                         mode: p.mode,
                         alive: p.alive,
-                        methods: None,
-                        items: None,
+                        methods,
+                        items,
+                        methods_digest: p.methods_digest,
                     });
                 }
                 (None, Some(e)) => {

@@ -22,7 +22,7 @@ use modbot_ipc_schema::{
 };
 use modbot_runtime::blackboard::Blackboard;
 use modbot_runtime::calls::RetryPolicy;
-use modbot_runtime::transport::{Dest, ReceiveMode, Transport, TransportError};
+use modbot_runtime::transport::{Dest, Joins, ReceiveMode, Transport, TransportError};
 use modbot_runtime::{
     CallError, CallOptions, Ctx, MethodError, Module, ModuleBuilder, ModuleError, Reply, Report,
     Stats,
@@ -1035,7 +1035,7 @@ fn malformed_frames_are_counted_as_rejected_and_the_module_keeps_serving<B: Back
     let before = rejected(&mut caller, "calc");
     let mut noise = fx
         .transport
-        .open(Addr(200), "noise", ReceiveMode::Blocking, &[])
+        .open(Addr(200), "noise", ReceiveMode::Blocking, &Joins::NONE)
         .expect("a raw endpoint opens");
     let (to, me) = (3u8, 200u8);
     let exec = |dst: u8, seq: u8, method: u8| FrameSpec {

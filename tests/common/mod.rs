@@ -221,6 +221,26 @@ impl TestDomain {
         }
     }
 
+    /// Waits until `f` says yes, or panics after `timeout` with what `f` saw last.
+    pub fn wait_until(
+        &self,
+        what: &str,
+        timeout: Duration,
+        mut f: impl FnMut() -> Result<(), String>,
+    ) {
+        let start = Instant::now();
+        loop {
+            match f() {
+                Ok(()) => return,
+                Err(last) => assert!(
+                    start.elapsed() < timeout,
+                    "timed out after {timeout:?} waiting for {what}; last seen:\n{last}"
+                ),
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
     /// Sends `signal` to the child with `pid`.
     pub fn signal(&self, pid: u32, signal: nix::sys::signal::Signal) {
         nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid as i32), signal).unwrap();

@@ -1,10 +1,10 @@
 //! Declaring a module: [`ModuleBuilder`] collects its name, address, methods, hooks, tasks
-//! and blackboard, then claims the address in the domain and announces the module.
+//! and blackboard, then claims the address in the domain.
 
 use core::time::Duration;
 use std::sync::Arc;
 
-use modbot_ipc_schema::{sysmethod, Addr, Value};
+use modbot_ipc_schema::{sysmethod, Addr};
 
 use super::{ActivationFn, Definition, DoneFn, MethodFn, Module, Reply, ReportFn, TaskFn};
 use crate::blackboard::Blackboard;
@@ -14,7 +14,7 @@ use crate::ctx::Ctx;
 use crate::error::ModuleError;
 use crate::phonebook::PhoneBook;
 use crate::stats::Stats;
-use crate::transport::{Dest, ReceiveMode, Transport};
+use crate::transport::{Joins, ReceiveMode, Transport};
 
 /// Declares a module.
 pub struct ModuleBuilder<S> {
@@ -135,7 +135,15 @@ impl<S> ModuleBuilder<S> {
         }
         self.check_methods()?;
         let endpoint = transport
-            .open(self.addr, &self.name, self.mode, &self.groups)
+            .open(
+                self.addr,
+                &self.name,
+                self.mode,
+                &Joins {
+                    broadcast: self.on_report.is_some(),
+                    groups: &self.groups,
+                },
+            )
             .map_err(|source| ModuleError::Open {
                 name: self.name.clone(),
                 addr: self.addr,
@@ -151,7 +159,11 @@ impl<S> ModuleBuilder<S> {
         state: S,
     ) -> Result<Module<S>, ModuleError> {
         self.check_methods()?;
-        let endpoint = transport.open_tool(&self.name, self.mode)?;
+        let joins = Joins {
+            broadcast: self.on_report.is_some(),
+            groups: &[],
+        };
+        let endpoint = transport.open_tool(&self.name, self.mode, &joins)?;
         Self::assemble(self, Box::new(transport), endpoint, state)
     }
 
@@ -214,7 +226,10 @@ impl<S> ModuleBuilder<S> {
             .map(|(p, _)| now + p.as_nanos() as u64)
             .collect();
         let beat_period_ns = crate::supervisor::env::heartbeat_period().as_nanos() as u64;
+        let methods_digest =
+            modbot_ipc_schema::directory::methods_digest(b.methods.iter().map(|(n, _)| n.as_str()));
         let mut module = Module {
+            methods_digest,
             beat_period_ns,
             next_beat_ns: now,
             beats: 0,
@@ -239,16 +254,9 @@ impl<S> ModuleBuilder<S> {
                 count: 0,
             },
         };
+        // Others learn of this module from the directory (its supervisor publishes it at the
+        // first heartbeat; without a supervisor, their next scan finds its node).
         module.ctx.refresh_book();
-        let pid = i64::from(std::process::id());
-        let name = module.ctx.name.clone();
-        if let Err(e) = module.ctx.report(
-            Dest::Broadcast,
-            sysmethod::ANNOUNCE_TOPIC,
-            &[Value::Text(&name), Value::I64(pid)],
-        ) {
-            tracing::debug!("announce not sent: {e}");
-        }
         module.look_up_peers();
         module.publish_snapshot(now);
         tracing::info!(addr = %module.ctx.addr, mode = module.ctx.mode.name(), "module {} is up", module.ctx.name);

@@ -6,6 +6,9 @@
 //!   announced itself with its first heartbeat.
 //! - Every module gets the same `MODBOT_EPOCH_NS`, the instant (CLOCK_MONOTONIC) the system
 //!   started, restarts included: the epoch of the system's simulated time ([`crate::sim`]).
+//! - It keeps the domain's directory (who runs where, with which pid) and publishes it to the
+//!   modules whenever a module comes, goes or restarts; it cleans up after dead processes, so
+//!   the modules never scan or clean the domain themselves.
 //! - It watches exits (`waitpid`) and heartbeats: a module whose heartbeat stops for the
 //!   configured time is hung; it is killed and handled like a crash.
 //! - Restart policies (`never`, `on-failure`, `always`, with a maximum per window and an
@@ -23,12 +26,14 @@
 //! - [`env`]: what a module process learns from its environment.
 //! - `child`: spawning one module process and forwarding its output.
 //! - [`policy`]: restart decisions and exit reasons.
+//! - `roster`: the domain's directory, published to every module when it changes.
 //! - [`rt`]: CPU affinity and SCHED_FIFO for a module process.
 //! - [`status`]: the status rows and table.
 
 mod child;
 pub mod env;
 pub mod policy;
+mod roster;
 pub mod rt;
 pub mod status;
 
@@ -38,6 +43,7 @@ use std::process::Child;
 use std::time::Instant;
 
 use crossbeam::channel::{unbounded, Receiver, Sender};
+use modbot_ipc_schema::directory::Listing;
 use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
 use modbot_ipc_schema::{Addr, Args, Value};
 use nix::sys::signal::{kill, Signal};
@@ -51,9 +57,10 @@ use crate::error::MethodError;
 use crate::module::{Module, ModuleBuilder, Reply};
 use crate::system::{GiveUp, SystemSpec};
 use crate::transport::ipc::{HeartbeatMonitor, IpcTransport};
-use crate::transport::{Directory, ReceiveMode, Transport, TransportError};
+use crate::transport::{Directory, ReceiveMode, TransportError};
 use child::LogLine;
 use policy::{Decision, ExitReason, RestartTracker};
+use roster::Roster;
 use status::{Row, RunState};
 
 /// Why the supervisor could not start or run a system.
@@ -138,6 +145,8 @@ struct Slot {
     last_beat_ns: u64,
     restart_at_ns: u64,
     counters: Counters,
+    /// The digest of its method names, from its heartbeats.
+    methods_digest: u32,
     /// Asked to stop for good (a replaced assembly's host): its end is not a failure.
     retiring: bool,
 }
@@ -156,6 +165,7 @@ impl Slot {
             last_beat_ns: 0,
             restart_at_ns: 0,
             counters: Counters::default(),
+            methods_digest: 0,
             retiring: false,
         }
     }
@@ -167,6 +177,7 @@ pub struct Supervisor {
     domain: Domain,
     slots: Vec<Slot>,
     endpoint: Module<Shared>,
+    roster: Roster,
     heartbeats: HeartbeatMonitor,
     logs_tx: Sender<LogLine>,
     logs: Receiver<LogLine>,
@@ -183,10 +194,11 @@ impl Supervisor {
     /// Sweeps the domain, starts every module and waits until all have announced themselves.
     pub fn start(spec: SystemSpec) -> Result<Supervisor, SupervisorError> {
         let domain = Domain::new(&spec.domain)?;
-        let transport = IpcTransport::new(&domain)?;
-        let directory = transport.directory()?;
+        let transport = IpcTransport::for_supervisor(&domain)?;
+        let directory = transport.scanned_directory();
         let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
         sweep(&domain, directory.as_ref(), &used)?;
+        let roster = Roster::new(&transport)?;
         let mut endpoint = open_endpoint(&transport, &used)?;
         endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
         let heartbeats = HeartbeatMonitor::new(&transport)?;
@@ -202,6 +214,7 @@ impl Supervisor {
             domain,
             slots,
             endpoint,
+            roster,
             heartbeats,
             logs_tx,
             logs,
@@ -508,6 +521,7 @@ impl Supervisor {
 
     /// Serves the supervisor's own calls (`status`, `down`) and keeps its phone book fresh.
     fn serve(&mut self) {
+        self.publish_directory();
         let rows = self.rows();
         self.endpoint.state_mut().rows = rows;
         for _ in 0..64 {
@@ -526,17 +540,36 @@ impl Supervisor {
     /// Heartbeats, exits, hangs and due restarts.
     fn watch(&mut self) {
         let now = self.now_ns();
-        let mut beats: Vec<(u8, u32, ModuleState, Counters)> = Vec::new();
+        let mut beats: Vec<(u8, u32, ModuleState, Counters, u32)> = Vec::new();
         let drained = self.heartbeats.drain(&mut |bytes| {
             if let Ok(hb) = Heartbeat::parse(bytes) {
-                beats.push((hb.addr().0, hb.pid(), hb.state(), hb.counters()));
+                beats.push((
+                    hb.addr().0,
+                    hb.pid(),
+                    hb.state(),
+                    hb.counters(),
+                    hb.methods_digest(),
+                ));
             }
         });
         if let Err(e) = drained {
             tracing::debug!("heartbeats: {e}");
         }
-        for (addr, pid, state, counters) in beats {
-            let Some(i) = self.spec.modules.iter().position(|m| m.addr == addr) else {
+        let own = self.endpoint.addr().0;
+        for (addr, pid, state, counters, digest) in beats {
+            let mine = self
+                .spec
+                .modules
+                .iter()
+                .zip(&self.slots)
+                .position(|(m, s)| {
+                    m.addr == addr && (s.child.is_some() || s.state != RunState::Retired)
+                });
+            let Some(i) = mine else {
+                if addr != own {
+                    self.roster
+                        .beat_of_other(Addr(addr), pid, state, digest, now);
+                }
                 continue;
             };
             let slot = &mut self.slots[i];
@@ -545,6 +578,7 @@ impl Supervisor {
             }
             slot.last_beat_ns = now;
             slot.counters = counters;
+            slot.methods_digest = digest;
             if slot.state == RunState::Starting && state == ModuleState::Running {
                 slot.state = RunState::Running;
                 self.status_dirty = true;
@@ -559,6 +593,10 @@ impl Supervisor {
                 self.say(&format!("{name} is up (pid {pid})"));
             }
         }
+        self.roster.check_others(
+            now,
+            self.spec.supervision.heartbeat_timeout.as_nanos() as u64,
+        );
         for i in 0..self.slots.len() {
             self.check_exit(i, now);
             self.check_hang(i, now);
@@ -587,9 +625,10 @@ impl Supervisor {
         };
         slot.child = None;
         let reason = slot.killed_for.take().unwrap_or_else(|| reason_of(status));
-        // The dead process's ports would keep "receiving" until cleaned: clean them now, so
-        // its peers see it gone at once.
-        self.endpoint.reap_dead();
+        // The dead process's ports would keep "receiving" until cleaned: clean them now, and
+        // tell its peers it is gone.
+        self.roster.reap();
+        self.publish_directory();
         if self.slots[i].retiring {
             self.slots[i].state = RunState::Retired;
             self.status_dirty = true;
@@ -755,9 +794,44 @@ impl Supervisor {
                 }
                 slot.last_exit = Some(ExitReason::Stopped(code));
             }
+            // The modules still running stop calling this one.
+            self.publish_directory();
         }
         self.forward_logs();
-        self.endpoint.reap_dead();
+        self.roster.reap();
+    }
+
+    /// Publishes the directory if anything in it changed: every module process that runs (it
+    /// is "running" from its first heartbeat), and the supervisor itself.
+    fn publish_directory(&mut self) {
+        let mut listings: Vec<Listing> = self
+            .spec
+            .modules
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, s)| s.child.is_some() && s.pid != 0)
+            .map(|(m, s)| Listing {
+                addr: Addr(m.addr),
+                mode: m.mode.code() as u8,
+                state: match s.state {
+                    RunState::Running if !s.retiring => ModuleState::Running,
+                    RunState::Starting => ModuleState::Starting,
+                    _ => ModuleState::Stopping,
+                },
+                pid: s.pid,
+                methods_digest: s.methods_digest,
+                name: m.name.clone(),
+            })
+            .collect();
+        listings.push(Listing {
+            addr: self.endpoint.addr(),
+            mode: self.endpoint.mode().code() as u8,
+            state: ModuleState::Running,
+            pid: std::process::id(),
+            methods_digest: self.endpoint.methods_digest(),
+            name: "supervisor".into(),
+        });
+        self.roster.publish(listings);
     }
 }
 

@@ -12,7 +12,7 @@ use crossbeam::channel::{bounded, Receiver, RecvTimeoutError, Sender, TrySendErr
 use modbot_ipc_schema::Addr;
 
 use super::{
-    check_name, Dest, Directory, Endpoint, PeerInfo, ReceiveMode, Rx, SendError, Snapshots,
+    check_name, Dest, Directory, Endpoint, Joins, PeerInfo, ReceiveMode, Rx, SendError, Snapshots,
     Transport, TransportError, Tx,
 };
 
@@ -26,6 +26,8 @@ struct Slot {
     alive: bool,
     inbox: Sender<Vec<u8>>,
     groups: Vec<String>,
+    /// Listens to broadcast.
+    broadcast: bool,
 }
 
 #[derive(Default)]
@@ -72,7 +74,7 @@ impl Transport for LocalTransport {
         addr: Addr,
         name: &str,
         mode: ReceiveMode,
-        groups: &[String],
+        joins: &Joins<'_>,
     ) -> Result<Endpoint, TransportError> {
         if !addr.is_module() {
             return Err(TransportError::BadAddress(addr));
@@ -104,7 +106,8 @@ impl Transport for LocalTransport {
                 mode,
                 alive: true,
                 inbox: tx,
-                groups: groups.to_vec(),
+                groups: joins.groups.to_vec(),
+                broadcast: joins.broadcast,
             },
         );
         drop(d);
@@ -164,6 +167,7 @@ impl Directory for LocalDirectory {
                 pid: std::process::id(),
                 mode: s.mode,
                 alive: s.alive,
+                methods_digest: 0,
             });
         }
         Ok(())
@@ -257,7 +261,7 @@ impl Tx for LocalTx {
                 for (addr, slot) in &d.slots {
                     let member = match to {
                         Dest::Group(g) => slot.groups.iter().any(|m| m == g),
-                        _ => true,
+                        _ => slot.broadcast,
                     };
                     if *addr != self.me.0
                         && slot.alive

@@ -11,12 +11,18 @@
 //! - `inbox.N`: publish-subscribe `[u8]`, module N's only subscriber; senders open a publisher
 //!   on first use. Full inboxes refuse new frames (no silent overwrite): the sender sees it;
 //! - `wake.N`: event, for modules in blocking mode;
-//! - `bcast` and `group.NAME`: publish-subscribe for broadcast and multicast;
+//! - `bcast` and `group.NAME`: publish-subscribe for broadcast and multicast, subscribed only
+//!   by the modules that listen (see [`Joins`]); a module opens its publisher on its first
+//!   broadcast;
 //! - `bb.N`: module N's blackboard snapshots, history 1;
 //! - `heartbeat`: publish-subscribe, every module publishes its 48-byte heartbeat there and the
 //!   supervisor subscribes (one publisher per module, few subscribers: it stays small).
 //!
-//! Liveness comes from iceoryx2 nodes: one per module, named `mNNN.MODE.NAME`.
+//! - `directory`: a blackboard the supervisor writes: who is in the domain (see
+//!   [`ipc::DirectoryWriter`]).
+//!
+//! Liveness comes from the supervisor's directory, or without a supervisor from iceoryx2 nodes:
+//! one per module, named `mNNN.MODE.NAME`.
 
 pub mod ipc;
 pub mod local;
@@ -67,6 +73,9 @@ pub struct PeerInfo {
     pub pid: u32,
     pub mode: ReceiveMode,
     pub alive: bool,
+    /// The digest of its method names ([`modbot_ipc_schema::directory::methods_digest`]); 0
+    /// if the directory does not know it.
+    pub methods_digest: u32,
 }
 
 /// Where a frame goes.
@@ -98,6 +107,24 @@ pub enum TransportError {
     FrameTooLarge { len: usize, max: usize },
     #[error("iceoryx2 {op} failed: {detail}")]
     Ipc { op: &'static str, detail: String },
+}
+
+/// What a module receives besides its inbox.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Joins<'a> {
+    /// Broadcast frames. Only modules that listen (they handle REPORTs) subscribe, so a
+    /// broadcast reaches the modules that want it and nobody pays for the others.
+    pub broadcast: bool,
+    /// Multicast groups.
+    pub groups: &'a [String],
+}
+
+impl Joins<'_> {
+    /// Nothing but the inbox (tools, raw endpoints).
+    pub const NONE: Joins<'static> = Joins {
+        broadcast: false,
+        groups: &[],
+    };
 }
 
 /// Why a frame was not delivered. Nothing is dropped silently: the sender always learns it.
@@ -185,8 +212,21 @@ pub trait Directory {
     /// Calls `f` for every module of the domain, alive or dead.
     fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError>;
 
-    /// Removes the resources dead modules left behind; returns how many were cleaned.
+    /// Removes the resources dead modules left behind; returns how many were cleaned. A
+    /// published directory leaves this to its supervisor (0).
     fn reap_dead(&self) -> usize;
+
+    /// Whether the directory may have changed since it was last listed. A scanned directory
+    /// cannot tell without scanning: it says yes, and its readers list it on a timer.
+    fn changed(&self) -> bool {
+        true
+    }
+
+    /// Whether a supervisor publishes this directory: listing it is cheap (no scan), and
+    /// [`Directory::changed`] is exact.
+    fn published(&self) -> bool {
+        false
+    }
 }
 
 /// A module's connection to its domain.
@@ -200,18 +240,24 @@ pub struct Endpoint {
 
 /// A backend: opens endpoints in one domain.
 pub trait Transport {
-    /// Claims `addr` and `name` and opens the module's endpoint, joined to `groups`.
+    /// Claims `addr` and `name` and opens the module's endpoint, subscribed to what `joins`
+    /// names.
     fn open(
         &self,
         addr: Addr,
         name: &str,
         mode: ReceiveMode,
-        groups: &[String],
+        joins: &Joins<'_>,
     ) -> Result<Endpoint, TransportError>;
 
     /// Opens an endpoint at a free address, for a tool (the CLI, a benchmark driver): the
     /// highest free one at or below [`TOOL_FIRST`], else above it.
-    fn open_tool(&self, name: &str, mode: ReceiveMode) -> Result<Endpoint, TransportError> {
+    fn open_tool(
+        &self,
+        name: &str,
+        mode: ReceiveMode,
+        joins: &Joins<'_>,
+    ) -> Result<Endpoint, TransportError> {
         let mut taken = [false; 256];
         self.directory()?.list(&mut |p| {
             if p.alive {
@@ -232,7 +278,7 @@ pub trait Transport {
                 Addr(a),
                 &format!("{name}-{}", std::process::id()),
                 mode,
-                &[],
+                joins,
             ) {
                 Err(TransportError::AddressTaken { .. }) => continue,
                 Ok(endpoint) => {

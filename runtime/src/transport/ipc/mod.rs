@@ -1,24 +1,31 @@
 //! The iceoryx2 backend: frames in shared memory between processes, without copies.
+//!
+//! - this file: endpoints (inbox, broadcast and groups, wake-ups, heartbeats, snapshots);
+//! - [`directory`]: who is in the domain (the supervisor's published directory, or a scan).
+
+mod directory;
+
+pub use directory::DirectoryWriter;
+use directory::{PublishedDirectory, ScannedDirectory};
 
 use core::time::Duration;
 use std::collections::HashMap;
 use std::os::fd::BorrowedFd;
 
 use iceoryx2::config::Config;
-use iceoryx2::identifiers::UniqueNodeId;
-use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
+use iceoryx2::service::builder::event::EventOpenError;
 use modbot_ipc_schema::Addr;
-use nix::poll::{PollFd, PollFlags, PollTimeout};
+use nix::poll::{PollFd, PollFlags};
 
 use super::{
-    check_name, Dest, Directory, Endpoint, PeerInfo, ReceiveMode, Rx, SendError, Snapshots,
-    Transport, TransportError, Tx,
+    check_name, Dest, Directory, Endpoint, Joins, ReceiveMode, Rx, SendError, Snapshots, Transport,
+    TransportError, Tx,
 };
 use crate::domain::Domain;
 
@@ -56,6 +63,9 @@ pub struct IpcTransport {
     config: Config,
     /// Opened for a tool (see [`Transport::opened_as_tool`]).
     tool: std::cell::Cell<bool>,
+    /// A supervisor publishes the domain's directory and cleans up after the dead: this
+    /// process neither scans nor cleans.
+    supervised: bool,
 }
 
 impl IpcTransport {
@@ -63,11 +73,58 @@ impl IpcTransport {
         set_log_level_from_env_or(LogLevel::Error);
         let mut config = Config::default();
         config.global.prefix = ipc!("prefix", FileName::new(domain.prefix().as_bytes()))?;
+        // A subscriber keeps room for this many connections of departed publishers that still
+        // hold samples; the default (128) costs ~0.45 MiB of heap per subscriber.
+        config
+            .defaults
+            .publish_subscribe
+            .subscriber_expired_connection_buffer = 4;
+        let supervised = directory::is_published(&config);
+        if supervised {
+            // Each of these scans every node of the domain; the supervisor cleans instead.
+            config.global.node.cleanup_dead_nodes_on_creation = false;
+            config.global.node.cleanup_dead_nodes_on_destruction = false;
+            config.global.service.cleanup_dead_nodes_on_open = false;
+        }
         Ok(IpcTransport {
             domain: domain.clone(),
             config,
             tool: std::cell::Cell::new(false),
+            supervised,
         })
+    }
+
+    /// The transport of the supervisor itself: it scans and cleans, whatever an earlier
+    /// supervisor of the domain left behind.
+    pub fn for_supervisor(domain: &Domain) -> Result<IpcTransport, TransportError> {
+        let mut t = IpcTransport::new(domain)?;
+        t.supervised = false;
+        t.config.global.node.cleanup_dead_nodes_on_creation = true;
+        t.config.global.node.cleanup_dead_nodes_on_destruction = true;
+        t.config.global.service.cleanup_dead_nodes_on_open = true;
+        Ok(t)
+    }
+
+    /// Whether a supervisor publishes this domain's directory (seen when this transport was
+    /// made).
+    pub fn supervised(&self) -> bool {
+        self.supervised
+    }
+
+    /// The directory as iceoryx2's node files tell it, and the cleaning of dead nodes: the
+    /// supervisor's (it publishes what it learns) and the fallback of unsupervised domains.
+    pub fn scanned_directory(&self) -> Box<dyn Directory> {
+        Box::new(ScannedDirectory {
+            config: self.config.clone(),
+        })
+    }
+
+    /// Creates the published directory of this domain (the supervisor does, once).
+    pub fn publish_directory(
+        &self,
+        node: &Node<ipc::Service>,
+    ) -> Result<DirectoryWriter, TransportError> {
+        DirectoryWriter::create(node)
     }
 
     pub fn domain(&self) -> &Domain {
@@ -112,7 +169,7 @@ impl IpcTransport {
         Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
         TransportError,
     > {
-        let dir = IpcDirectory {
+        let dir = ScannedDirectory {
             config: self.config.clone(),
         };
         let mut claims = Vec::new();
@@ -234,6 +291,26 @@ fn wake_service(
     )
 }
 
+/// The wake-up event `name` if it exists (its listener created it).
+fn open_wake_service(
+    node: &Node<ipc::Service>,
+    name: &str,
+) -> Result<Option<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>, TransportError>
+{
+    match node
+        .service_builder(&service_name(name)?)
+        .event()
+        .max_listeners(MAX_NODES)
+        .max_notifiers(MAX_NODES)
+        .max_nodes(MAX_NODES)
+        .open()
+    {
+        Ok(f) => Ok(Some(f)),
+        Err(EventOpenError::DoesNotExist) => Ok(None),
+        Err(e) => Err(ipc_err("open wake-up event")(&e)),
+    }
+}
+
 /// The service every module publishes its heartbeat on.
 fn heartbeat_service(
     node: &Node<ipc::Service>,
@@ -275,7 +352,7 @@ impl Transport for IpcTransport {
         addr: Addr,
         name: &str,
         mode: ReceiveMode,
-        groups: &[String],
+        joins: &Joins<'_>,
     ) -> Result<Endpoint, TransportError> {
         if !addr.is_module() {
             return Err(TransportError::BadAddress(addr));
@@ -283,27 +360,15 @@ impl Transport for IpcTransport {
         check_name(name)?;
         let node = self.node(&node_name(addr, mode, name))?;
         let claims = self.claim(&node, addr, name)?;
-        let inbox = ipc!(
-            "inbox subscriber",
-            inbox_service(&node, addr, self.domain.max_frame())?
-                .subscriber_builder()
-                .buffer_size(INBOX_DEPTH)
-                .create()
-        )?;
-        let mut subs = vec![inbox];
-        let mut listeners = Vec::new();
-        let bus_names: Vec<String> = std::iter::once("bcast".to_owned())
-            .chain(groups.iter().map(|g| format!("group.{g}")))
+        // The wake-up listeners first: a sender opens a notifier only if `wake.N` exists when it
+        // opens the inbox, so it must exist before the inbox does.
+        let bus_names: Vec<String> = joins
+            .broadcast
+            .then(|| "bcast".to_owned())
+            .into_iter()
+            .chain(joins.groups.iter().map(|g| format!("group.{g}")))
             .collect();
-        for bus in &bus_names {
-            subs.push(ipc!(
-                "bus subscriber",
-                shared_bus(&node, bus)?
-                    .subscriber_builder()
-                    .buffer_size(16)
-                    .create()
-            )?);
-        }
+        let mut listeners = Vec::new();
         if mode == ReceiveMode::Blocking {
             listeners.push(ipc!(
                 "wake listener",
@@ -319,6 +384,23 @@ impl Transport for IpcTransport {
                         .create()
                 )?);
             }
+        }
+        let inbox = ipc!(
+            "inbox subscriber",
+            inbox_service(&node, addr, self.domain.max_frame())?
+                .subscriber_builder()
+                .buffer_size(INBOX_DEPTH)
+                .create()
+        )?;
+        let mut subs = vec![inbox];
+        for bus in &bus_names {
+            subs.push(ipc!(
+                "bus subscriber",
+                shared_bus(&node, bus)?
+                    .subscriber_builder()
+                    .buffer_size(16)
+                    .create()
+            )?);
         }
         let heartbeat = ipc!(
             "heartbeat publisher",
@@ -337,7 +419,6 @@ impl Transport for IpcTransport {
         };
         let tx = IpcTx {
             node: node.clone(),
-            config: self.config.clone(),
             me: addr,
             max_frame: self.domain.max_frame(),
             peers: (0..256).map(|_| None).collect(),
@@ -356,21 +437,28 @@ impl Transport for IpcTransport {
             publisher: None,
             readers: HashMap::new(),
         };
+        let directory: Box<dyn Directory> =
+            match PublishedDirectory::open(&snapshots.node, &self.config)? {
+                Some(published) => Box::new(published),
+                None => self.scanned_directory(),
+            };
         Ok(Endpoint {
             addr,
             rx: Box::new(rx),
             tx: Box::new(tx),
             snapshots: Box::new(snapshots),
-            directory: Box::new(IpcDirectory {
-                config: self.config.clone(),
-            }),
+            directory,
         })
     }
 
     fn directory(&self) -> Result<Box<dyn Directory>, TransportError> {
-        Ok(Box::new(IpcDirectory {
-            config: self.config.clone(),
-        }))
+        if self.supervised {
+            let node = self.node(&format!("dir.{}", std::process::id()))?;
+            if let Some(published) = PublishedDirectory::open(&node, &self.config)? {
+                return Ok(Box::new(published.owning(node)));
+            }
+        }
+        Ok(self.scanned_directory())
     }
 
     fn opened_as_tool(&self) {
@@ -378,10 +466,14 @@ impl Transport for IpcTransport {
     }
 
     fn sweep_if_empty(&self) -> bool {
+        if self.supervised {
+            // The supervisor removes the domain's files when the system stops.
+            return false;
+        }
         // A system may be starting in this domain right now: only files older than this
         // check are removed, so what a process creates while we look is left alone.
         let before = std::time::SystemTime::now();
-        let dir = IpcDirectory {
+        let dir = ScannedDirectory {
             config: self.config.clone(),
         };
         dir.reap_dead();
@@ -412,72 +504,6 @@ impl Transport for IpcTransport {
         }
         self.domain.remove_files_older_than(before);
         true
-    }
-}
-
-/// Lists the nodes of the domain.
-#[derive(Debug)]
-struct IpcDirectory {
-    config: Config,
-}
-
-impl IpcDirectory {
-    /// Like [`Directory::list`], with each module's iceoryx2 node id.
-    fn list_with_ids(
-        &self,
-        f: &mut dyn FnMut(&UniqueNodeId, PeerInfo),
-    ) -> Result<(), TransportError> {
-        let mut visit = |view: &dyn NodeView, alive: bool| {
-            if let Some(details) = view.details() {
-                if let Some((addr, mode, name)) = parse_node_name(&details.name().to_string()) {
-                    let pid = view
-                        .id()
-                        .pid::<ipc::Service>()
-                        .map(|p| p.value() as u32)
-                        .unwrap_or(0);
-                    f(
-                        view.id(),
-                        PeerInfo {
-                            addr,
-                            name,
-                            pid,
-                            mode,
-                            alive,
-                        },
-                    );
-                }
-            }
-        };
-        ipc!(
-            "node list",
-            Node::<ipc::Service>::list(&self.config, |state| {
-                match &state {
-                    NodeState::Alive(v) => visit(v, true),
-                    NodeState::Dead(v) => visit(v, false),
-                    NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
-                }
-                CallbackProgression::Continue
-            })
-        )
-    }
-}
-
-impl Directory for IpcDirectory {
-    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
-        self.list_with_ids(&mut |_, p| f(p))
-    }
-
-    fn reap_dead(&self) -> usize {
-        let mut dead = Vec::new();
-        let _ = Node::<ipc::Service>::list(&self.config, |state| {
-            if let NodeState::Dead(v) = state {
-                dead.push(v);
-            }
-            CallbackProgression::Continue
-        });
-        dead.into_iter()
-            .filter(|v| v.clone().try_remove_stale_resources().is_ok())
-            .count()
     }
 }
 
@@ -523,9 +549,10 @@ impl Rx for IpcRx {
                 PollFd::new(fd, PollFlags::POLLIN)
             })
             .collect();
-        let ms = PollTimeout::try_from(timeout.as_millis().min(60_000) as i32)
-            .unwrap_or(PollTimeout::MAX);
-        match nix::poll::poll(&mut fds, ms) {
+        // A nanosecond timeout: `poll`'s milliseconds would turn a wait of less than one into
+        // a busy loop until the deadline.
+        let timeout = nix::sys::time::TimeSpec::from(timeout.min(Duration::from_secs(60)));
+        match nix::poll::ppoll(&mut fds, Some(timeout), None) {
             Ok(_) | Err(nix::errno::Errno::EINTR) => {}
             Err(e) => return Err(ipc_err("poll")(&e)),
         }
@@ -549,7 +576,6 @@ struct PeerLink {
 
 struct IpcTx {
     node: std::rc::Rc<Node<ipc::Service>>,
-    config: Config,
     me: Addr,
     max_frame: usize,
     /// Indexed by address: the publishers opened so far.
@@ -564,19 +590,6 @@ struct IpcTx {
 }
 
 impl IpcTx {
-    fn peer_mode(&self, addr: Addr) -> Option<ReceiveMode> {
-        let mut mode = None;
-        let _ = IpcDirectory {
-            config: self.config.clone(),
-        }
-        .list(&mut |p| {
-            if p.addr == addr && p.alive {
-                mode = Some(p.mode);
-            }
-        });
-        mode
-    }
-
     fn open_peer(&mut self, to: Addr) -> Result<(), SendError> {
         if self.peers[usize::from(to.0)].is_some() {
             return Ok(());
@@ -592,14 +605,10 @@ impl IpcTx {
                 .backpressure_strategy(BackpressureStrategy::DiscardData)
                 .create()
         )?;
-        let notifier = match self.peer_mode(to) {
-            Some(ReceiveMode::Blocking) => Some(ipc!(
-                "wake notifier",
-                wake_service(&self.node, &format!("wake.{}", to.0))?
-                    .notifier_builder()
-                    .create()
-            )?),
-            _ => None,
+        // A module in blocking mode listens on `wake.N`; one that spins has no such service.
+        let notifier = match open_wake_service(&self.node, &format!("wake.{}", to.0))? {
+            Some(wake) => Some(ipc!("wake notifier", wake.notifier_builder().create())?),
+            None => None,
         };
         self.peers[usize::from(to.0)] = Some(PeerLink {
             publisher,
@@ -785,7 +794,7 @@ impl HeartbeatMonitor {
 type SnapshotSample = Sample<ipc::Service, [u8], ()>;
 
 struct IpcSnapshots {
-    node: std::rc::Rc<Node<ipc::Service>>,
+    pub(self) node: std::rc::Rc<Node<ipc::Service>>,
     me: Addr,
     publisher: Option<Pub>,
     /// Per module read: its subscriber and the newest snapshot taken from it.

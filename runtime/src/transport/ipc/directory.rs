@@ -1,0 +1,302 @@
+//! Who is in the domain: the directory a supervisor publishes, or a scan of iceoryx2's nodes.
+//!
+//! - [`PublishedDirectory`]: a module of a supervised domain reads the supervisor's image (one
+//!   iceoryx2 blackboard entry, [`modbot_ipc_schema::directory`]) when its generation changes.
+//!   Nothing is scanned and nothing is cleaned: the supervisor learns every death from
+//!   `waitpid` or from silence, removes what the dead process left, and publishes anew.
+//! - [`ScannedDirectory`]: without a supervisor (modules started by hand, tools in a domain of
+//!   such modules) the node directory is read (one details file per node) and dead nodes are
+//!   cleaned by whoever sees them.
+//! - [`DirectoryWriter`]: the supervisor's side of the published one.
+
+use std::cell::{Cell, RefCell};
+use std::time::{Duration, Instant};
+
+use iceoryx2::config::Config;
+use iceoryx2::identifiers::UniqueNodeId;
+use iceoryx2::node::NodeView;
+use iceoryx2::port::reader::{BlackboardValue, EntryHandle, Reader};
+use iceoryx2::port::writer::{EntryHandleMut, Writer};
+use iceoryx2::prelude::*;
+use iceoryx2::service::messaging_pattern::MessagingPattern;
+use iceoryx2::service::port_factory::blackboard::PortFactory;
+use iceoryx2::service::port_factory::PortFactory as _;
+use modbot_ipc_schema::directory::{self, Image, Listing, View, IMAGE_LEN};
+use modbot_ipc_schema::heartbeat::ModuleState;
+use nix::sys::signal::kill;
+use nix::unistd::Pid;
+
+use super::{ipc_err, parse_node_name, service_name, MAX_NODES};
+use crate::transport::{Directory, PeerInfo, ReceiveMode, TransportError};
+
+/// The blackboard service that holds the published directory.
+const SERVICE: &str = "directory";
+/// Its one key.
+const KEY: u8 = 0;
+/// How often a reader looks whether the supervisor still lives.
+const WRITER_CHECK: Duration = Duration::from_millis(50);
+
+/// Whether a supervisor publishes the directory of the domain with `config`.
+pub(super) fn is_published(config: &Config) -> bool {
+    service_name(SERVICE).is_ok_and(|name| {
+        ipc::Service::does_exist(&name, config, MessagingPattern::Blackboard).unwrap_or(false)
+    })
+}
+
+/// The supervisor's directory, read in place.
+pub(crate) struct PublishedDirectory {
+    entry: EntryHandle<ipc::Service, u8, Image>,
+    _reader: Reader<ipc::Service, u8>,
+    _service: PortFactory<ipc::Service, u8>,
+    /// The value read last, boxed: it is 16 KiB.
+    last: RefCell<Option<Box<BlackboardValue<Image>>>>,
+    /// The node the reader belongs to, when the directory has one of its own (a tool's).
+    _node: Option<Node<ipc::Service>>,
+    /// What stands in when the supervisor is gone (it stopped, or died).
+    scan: ScannedDirectory,
+    /// When the writer was last seen alive, and whether it was.
+    writer_seen: Cell<Option<(Instant, bool)>>,
+}
+
+impl PublishedDirectory {
+    /// Opens the directory of the domain `node` belongs to; `Ok(None)` if nobody publishes one.
+    pub(super) fn open(
+        node: &Node<ipc::Service>,
+        config: &Config,
+    ) -> Result<Option<PublishedDirectory>, TransportError> {
+        let name = service_name(SERVICE)?;
+        let service = match node
+            .service_builder(&name)
+            .blackboard_opener::<u8>()
+            .max_readers(MAX_NODES)
+            .max_nodes(MAX_NODES)
+            .open()
+        {
+            Ok(s) => s,
+            Err(e) if format!("{e:?}").contains("DoesNotExist") => return Ok(None),
+            Err(e) => return Err(ipc_err("open the directory")(&e)),
+        };
+        let reader = service
+            .reader_builder()
+            .create()
+            .map_err(|e| ipc_err("directory reader")(&e))?;
+        let entry = reader
+            .entry::<Image>(&KEY)
+            .map_err(|e| ipc_err("directory entry")(&e))?;
+        Ok(Some(PublishedDirectory {
+            entry,
+            _reader: reader,
+            _service: service,
+            last: RefCell::new(None),
+            _node: None,
+            scan: ScannedDirectory {
+                config: config.clone(),
+            },
+            writer_seen: Cell::new(None),
+        }))
+    }
+
+    /// This directory, keeping `node` (the one it was opened with) alive as long as it lives.
+    pub(super) fn owning(mut self, node: Node<ipc::Service>) -> PublishedDirectory {
+        self._node = Some(node);
+        self
+    }
+}
+
+impl PublishedDirectory {
+    /// Nobody writes the directory any more: the supervisor stopped or died, and what it
+    /// published last is no longer true. The node directory is scanned instead.
+    /// A killed supervisor's writer stays registered until someone cleans up after it, so
+    /// its process is looked for too (at most every [`WRITER_CHECK`]).
+    fn orphaned(&self) -> bool {
+        if let Some((at, alive)) = self.writer_seen.get() {
+            if at.elapsed() < WRITER_CHECK {
+                return !alive;
+            }
+        }
+        let mut alive = false;
+        self._service.dynamic_config().list_writers(|w| {
+            alive |= w
+                .node_id
+                .pid::<ipc::Service>()
+                .is_ok_and(|pid| kill(Pid::from_raw(pid.value()), None).is_ok());
+            CallbackProgression::Continue
+        });
+        self.writer_seen.set(Some((Instant::now(), alive)));
+        !alive
+    }
+}
+
+impl Directory for PublishedDirectory {
+    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+        if self.orphaned() {
+            return self.scan.list(f);
+        }
+        let mut last = self.last.borrow_mut();
+        let value = last.insert(Box::new(self.entry.get()));
+        let view = View::parse(&value[..]).map_err(|e| TransportError::Ipc {
+            op: "read the directory",
+            detail: e.to_string(),
+        })?;
+        for e in view.entries() {
+            let Some(mode) = ReceiveMode::from_code(char::from(e.mode())) else {
+                continue;
+            };
+            f(PeerInfo {
+                addr: e.addr(),
+                name: e.name().to_owned(),
+                pid: e.pid(),
+                mode,
+                alive: e.state() == ModuleState::Running,
+                methods_digest: e.methods_digest(),
+            });
+        }
+        Ok(())
+    }
+
+    fn reap_dead(&self) -> usize {
+        if self.orphaned() {
+            self.scan.reap_dead()
+        } else {
+            0
+        }
+    }
+
+    fn changed(&self) -> bool {
+        self.orphaned()
+            || self
+                .last
+                .borrow()
+                .as_ref()
+                .is_none_or(|v| !self.entry.is_up_to_date(v))
+    }
+
+    fn published(&self) -> bool {
+        !self.orphaned()
+    }
+}
+
+/// The supervisor's side: publishes a new image when a module comes, goes or restarts.
+pub struct DirectoryWriter {
+    entry: EntryHandleMut<ipc::Service, u8, Image>,
+    _writer: Writer<ipc::Service, u8>,
+    _service: PortFactory<ipc::Service, u8>,
+    image: Box<Image>,
+    generation: u64,
+}
+
+impl DirectoryWriter {
+    /// Creates the directory of the domain `node` belongs to, empty (generation 0).
+    pub fn create(node: &Node<ipc::Service>) -> Result<DirectoryWriter, TransportError> {
+        let mut image: Box<Image> = vec![0u8; IMAGE_LEN]
+            .into_boxed_slice()
+            .try_into()
+            .expect("IMAGE_LEN bytes");
+        directory::write(&mut image[..], 0, &[]).map_err(|e| ipc_err("directory image")(&e))?;
+        let service = node
+            .service_builder(&service_name(SERVICE)?)
+            .blackboard_creator::<u8>()
+            .max_readers(MAX_NODES)
+            .max_nodes(MAX_NODES)
+            .add::<Image>(KEY, *image)
+            .create()
+            .map_err(|e| ipc_err("create the directory")(&e))?;
+        let writer = service
+            .writer_builder()
+            .create()
+            .map_err(|e| ipc_err("directory writer")(&e))?;
+        let entry = writer
+            .entry::<Image>(&KEY)
+            .map_err(|e| ipc_err("directory entry")(&e))?;
+        Ok(DirectoryWriter {
+            entry,
+            _writer: writer,
+            _service: service,
+            image,
+            generation: 0,
+        })
+    }
+
+    /// Publishes `listings` as the next generation.
+    pub fn publish(&mut self, listings: &[Listing]) -> Result<u64, TransportError> {
+        let generation = self.generation + 1;
+        directory::write(&mut self.image[..], generation, listings).map_err(|e| {
+            TransportError::Ipc {
+                op: "write the directory",
+                detail: e.to_string(),
+            }
+        })?;
+        self.entry.update_with_copy(*self.image);
+        self.generation = generation;
+        Ok(generation)
+    }
+
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+}
+
+/// Lists the nodes of the domain.
+#[derive(Debug)]
+pub(crate) struct ScannedDirectory {
+    pub(super) config: Config,
+}
+
+impl ScannedDirectory {
+    /// Like [`Directory::list`], with each module's iceoryx2 node id.
+    pub(super) fn list_with_ids(
+        &self,
+        f: &mut dyn FnMut(&UniqueNodeId, PeerInfo),
+    ) -> Result<(), TransportError> {
+        let mut visit = |view: &dyn NodeView, alive: bool| {
+            if let Some(details) = view.details() {
+                if let Some((addr, mode, name)) = parse_node_name(&details.name().to_string()) {
+                    let pid = view
+                        .id()
+                        .pid::<ipc::Service>()
+                        .map(|p| p.value() as u32)
+                        .unwrap_or(0);
+                    f(
+                        view.id(),
+                        PeerInfo {
+                            addr,
+                            name,
+                            pid,
+                            mode,
+                            alive,
+                            methods_digest: 0,
+                        },
+                    );
+                }
+            }
+        };
+        Node::<ipc::Service>::list(&self.config, |state| {
+            match &state {
+                NodeState::Alive(v) => visit(v, true),
+                NodeState::Dead(v) => visit(v, false),
+                NodeState::Inaccessible(_) | NodeState::Undefined(_) => {}
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| ipc_err("node list")(&e))
+    }
+}
+
+impl Directory for ScannedDirectory {
+    fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+        self.list_with_ids(&mut |_, p| f(p))
+    }
+
+    fn reap_dead(&self) -> usize {
+        let mut dead = Vec::new();
+        let _ = Node::<ipc::Service>::list(&self.config, |state| {
+            if let NodeState::Dead(v) = state {
+                dead.push(v);
+            }
+            CallbackProgression::Continue
+        });
+        dead.into_iter()
+            .filter(|v| v.clone().try_remove_stale_resources().is_ok())
+            .count()
+    }
+}
