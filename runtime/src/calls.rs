@@ -458,6 +458,12 @@ impl MethodQueue {
     }
 
     /// Calls waiting for an answer.
+    /// When [`MethodQueue::expire`] has work next (a deadline or a retransmission), `u64::MAX`
+    /// if never.
+    pub fn next_due_ns(&self) -> u64 {
+        self.earliest_ns
+    }
+
     pub fn waiting(&self) -> usize {
         self.slots
             .iter()

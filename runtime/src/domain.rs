@@ -11,6 +11,12 @@ use thiserror::Error;
 /// The largest frame a module's inbox takes by default (a 64 KiB payload plus header room).
 pub const DEFAULT_MAX_FRAME: usize = 64 * 1024 + 64;
 
+/// Where iceoryx2 keeps its node and service files for modbot's domains (its default is
+/// `/tmp/iceoryx2/`): on tmpfs, beside the shared memory, because a system of 254 modules
+/// creates thousands of them while it starts. The `iox2` CLI sees a domain with
+/// `root-path = "/dev/shm/iceoryx2/"` besides the domain's prefix in its `[global]` config.
+pub const ICEORYX2_ROOT: &str = "/dev/shm/iceoryx2/";
+
 /// A bad domain name.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("invalid domain name '{0}': use 1 to 40 characters of a-z, 0-9 and _")]
@@ -60,7 +66,9 @@ impl Domain {
         format!("modbot_{}.", self.name)
     }
 
-    /// The domain's files in `/dev/shm` and `/tmp/iceoryx2`, whoever left them.
+    /// The domain's files in `/dev/shm` (shared memory, and iceoryx2's node and service
+    /// files under [`ICEORYX2_ROOT`]) and in iceoryx2's default `/tmp/iceoryx2`, whoever left
+    /// them.
     pub fn files(&self) -> Vec<std::path::PathBuf> {
         let prefix = self.prefix();
         let mut found = Vec::new();
@@ -108,7 +116,9 @@ impl Domain {
             }
         }
         for dir in parents {
-            let is_root = dir == Path::new("/dev/shm") || dir.parent() == Some(Path::new("/tmp"));
+            let is_root = dir == Path::new("/dev/shm")
+                || dir == Path::new(ICEORYX2_ROOT.trim_end_matches('/'))
+                || dir.parent() == Some(Path::new("/tmp"));
             let shared = dir.ends_with("nodes") || dir.ends_with("services");
             if !is_root && !shared {
                 // Fails, as it should, if anything else is in it.

@@ -103,6 +103,9 @@ pub struct Module<S> {
     methods_digest: u32,
 }
 
+/// The longest a module in blocking mode sleeps without a frame or a due deadline.
+const MAX_IDLE_NS: u64 = 1_000_000_000;
+
 /// How often the phone book re-reads a scanned directory (liveness, new modules); a published
 /// one is read when it changes.
 const REFRESH_NS: u64 = 200_000_000;
@@ -451,7 +454,9 @@ impl<S> Module<S> {
         self.ctx.stop || crate::signals::termination_requested()
     }
 
-    /// Time until the next task is due (blocking mode sleeps at most this long).
+    /// Time until housekeeping has work next (blocking mode sleeps at most this long, unless a
+    /// frame wakes it): a task, a heartbeat, a call's deadline or retransmission, a snapshot, a
+    /// scanned directory's refresh, or a call waiting to be sent.
     pub(crate) fn idle_budget(&self) -> Duration {
         let now = self.ctx.now_ns();
         // A published directory is looked at on every wake-up, at least once a heartbeat.
@@ -460,14 +465,32 @@ impl<S> Module<S> {
         } else {
             self.next_refresh_ns
         };
+        let snapshot = if self.ctx.bb.is_empty() {
+            u64::MAX
+        } else if self.ctx.bb.changed() {
+            self.last_snapshot_ns + 1_000_000
+        } else {
+            self.last_snapshot_ns + self.def.snapshot_period_ns
+        };
+        let pending = if self.ctx.pending.is_empty() {
+            u64::MAX
+        } else {
+            now + 1_000_000
+        };
         let next = self
             .next_task_ns
             .iter()
             .copied()
-            .chain([refresh, self.next_beat_ns])
+            .chain([
+                refresh,
+                self.next_beat_ns,
+                self.ctx.calls.next_due_ns(),
+                snapshot,
+                pending,
+            ])
             .min()
             .unwrap_or(u64::MAX);
-        Duration::from_nanos(next.saturating_sub(now).clamp(100_000, 50_000_000))
+        Duration::from_nanos(next.saturating_sub(now).clamp(100_000, MAX_IDLE_NS))
     }
 
     pub(crate) fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {

@@ -119,6 +119,8 @@ fn forward_lines(module: usize, stream: impl Read + Send + 'static, logs: Sender
     let spawned = std::thread::Builder::new()
         .name(format!("log-{module}"))
         .spawn(move || {
+            // A child's end wakes the supervisor's loop, not this thread.
+            crate::signals::block_child_signal();
             for line in BufReader::new(stream).lines() {
                 let Ok(line) = line else { break };
                 if logs.send(LogLine { module, line }).is_err() {

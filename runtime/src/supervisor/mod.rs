@@ -88,6 +88,10 @@ pub enum SupervisorError {
     Module(#[from] crate::error::ModuleError),
 }
 
+/// The longest the supervisor sleeps between looks at heartbeats and deadlines (calls to it
+/// and its children's ends wake it at once).
+const IDLE_WAIT: Duration = Duration::from_millis(20);
+
 /// How long to run.
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
@@ -188,6 +192,16 @@ pub struct Supervisor {
     problems: Vec<String>,
     stop_failed: bool,
     status_dirty: bool,
+    /// Something the directory shows changed since it was published.
+    directory_dirty: bool,
+    /// When the status rows that `status` answers were last built, and whether a module's
+    /// state changed since.
+    rows_built: Option<Instant>,
+    rows_dirty: bool,
+    /// SIGCHLD tells when a child ended (else every child is looked at on every wake-up).
+    child_signal: bool,
+    /// When every child was last looked at regardless of SIGCHLD.
+    children_seen: Instant,
 }
 
 impl Supervisor {
@@ -202,6 +216,11 @@ impl Supervisor {
         let mut endpoint = open_endpoint(&transport, &used)?;
         endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
         let heartbeats = HeartbeatMonitor::new(&transport)?;
+        // A child's end interrupts the supervisor's wait and is looked for at once.
+        let child_signal = crate::signals::install_child_handler();
+        if let Err(e) = &child_signal {
+            tracing::debug!("SIGCHLD handler: {e}; children are looked at on every wake-up");
+        }
         let (logs_tx, logs) = unbounded();
         let slots = spec
             .modules
@@ -224,6 +243,11 @@ impl Supervisor {
             problems: Vec::new(),
             stop_failed: false,
             status_dirty: true,
+            directory_dirty: true,
+            rows_built: None,
+            rows_dirty: true,
+            child_signal: child_signal.is_ok(),
+            children_seen: Instant::now(),
         };
         sup.say(&format!(
             "starting {} module(s) in domain '{}'",
@@ -259,6 +283,7 @@ impl Supervisor {
         if let Err(e) = crate::signals::install_termination_handler() {
             self.say(&format!("cannot handle SIGTERM/SIGINT: {e}"));
         }
+
         let started = Instant::now();
         let mut last_table = Instant::now() - Duration::from_secs(1);
         loop {
@@ -290,7 +315,9 @@ impl Supervisor {
                 self.say("run time is up: stopping");
                 break;
             }
-            if let Err(e) = self.endpoint.wait(Duration::from_millis(5)) {
+            // Calls and SIGCHLD wake the loop; otherwise it looks at heartbeats and deadlines
+            // every IDLE_WAIT.
+            if let Err(e) = self.endpoint.wait(self.idle_wait()) {
                 tracing::debug!("supervisor wait: {e}");
             }
         }
@@ -304,6 +331,18 @@ impl Supervisor {
             problems: std::mem::take(&mut self.problems),
             ran_for,
         }
+    }
+
+    /// How long the loop may sleep: [`IDLE_WAIT`], or less if a restart is due sooner.
+    fn idle_wait(&self) -> Duration {
+        let now = self.now_ns();
+        self.slots
+            .iter()
+            .filter(|s| s.state == RunState::Restarting)
+            .map(|s| Duration::from_nanos(s.restart_at_ns.saturating_sub(now)))
+            .chain([IDLE_WAIT])
+            .min()
+            .unwrap_or(IDLE_WAIT)
     }
 
     /// Starts and stops the assembly hosts the coordinator asked for.
@@ -407,6 +446,8 @@ impl Supervisor {
             None => slot.state = RunState::Retired,
         }
         self.status_dirty = true;
+        self.directory_dirty = true;
+        self.rows_dirty = true;
     }
 
     fn now_ns(&self) -> u64 {
@@ -472,6 +513,8 @@ impl Supervisor {
         slot.last_beat_ns = 0;
         slot.killed_for = None;
         self.status_dirty = true;
+        self.directory_dirty = true;
+        self.rows_dirty = true;
         Ok(())
     }
 
@@ -521,9 +564,20 @@ impl Supervisor {
 
     /// Serves the supervisor's own calls (`status`, `down`) and keeps its phone book fresh.
     fn serve(&mut self) {
-        self.publish_directory();
-        let rows = self.rows();
-        self.endpoint.state_mut().rows = rows;
+        if std::mem::take(&mut self.directory_dirty) || self.roster.changed() {
+            self.publish_directory();
+        }
+        // The rows `status` answers: at once after a change, else fresh counters 4 times a
+        // second (building them for hundreds of modules on every wake-up costs).
+        if self
+            .rows_built
+            .is_none_or(|t| t.elapsed() >= Duration::from_millis(250))
+            || std::mem::take(&mut self.rows_dirty)
+        {
+            self.rows_built = Some(Instant::now());
+            let rows = self.rows();
+            self.endpoint.state_mut().rows = rows;
+        }
         for _ in 0..64 {
             match self.endpoint.poll_once() {
                 Ok(true) => {}
@@ -578,10 +632,15 @@ impl Supervisor {
             }
             slot.last_beat_ns = now;
             slot.counters = counters;
-            slot.methods_digest = digest;
+            if slot.methods_digest != digest {
+                slot.methods_digest = digest;
+                self.directory_dirty = true;
+            }
             if slot.state == RunState::Starting && state == ModuleState::Running {
                 slot.state = RunState::Running;
                 self.status_dirty = true;
+                self.directory_dirty = true;
+                self.rows_dirty = true;
                 // Its start (loading, opening channels: milliseconds to seconds of work) ran
                 // at normal priority; now that it is up, its real-time settings apply, so a
                 // process starting beside a running grid never holds up the grid's threads.
@@ -597,8 +656,18 @@ impl Supervisor {
             now,
             self.spec.supervision.heartbeat_timeout.as_nanos() as u64,
         );
+        // Children are looked at when SIGCHLD said one ended (and once a second, in case a
+        // signal was lost), not with one `waitpid` per module on every wake-up.
+        let ended = !self.child_signal
+            || crate::signals::take_child_ended()
+            || self.children_seen.elapsed() >= Duration::from_secs(1);
+        if ended {
+            self.children_seen = Instant::now();
+        }
         for i in 0..self.slots.len() {
-            self.check_exit(i, now);
+            if ended || self.slots[i].killed_for.is_some() {
+                self.check_exit(i, now);
+            }
             self.check_hang(i, now);
             let slot = &self.slots[i];
             if slot.state == RunState::Restarting && now >= slot.restart_at_ns {
@@ -632,6 +701,8 @@ impl Supervisor {
         if self.slots[i].retiring {
             self.slots[i].state = RunState::Retired;
             self.status_dirty = true;
+            self.directory_dirty = true;
+            self.rows_dirty = true;
             return;
         }
         let name = self.spec.modules[i].name.clone();
@@ -639,6 +710,8 @@ impl Supervisor {
         let slot = &mut self.slots[i];
         slot.last_exit = Some(reason.clone());
         self.status_dirty = true;
+        self.directory_dirty = true;
+        self.rows_dirty = true;
         match decision {
             Decision::RestartAt(at) => {
                 slot.state = RunState::Restarting;
@@ -680,6 +753,8 @@ impl Supervisor {
         let stop = m.restart.give_up == GiveUp::StopSystem;
         self.slots[i].state = RunState::Failed;
         self.status_dirty = true;
+        self.directory_dirty = true;
+        self.rows_dirty = true;
         self.say(&format!(
             "{name} FAILED: {why}; {}",
             if stop {

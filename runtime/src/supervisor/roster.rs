@@ -43,6 +43,8 @@ pub(super) struct Roster {
     unknown: Vec<(Addr, u32, u32)>,
     last_scan_ns: u64,
     published: Vec<Listing>,
+    /// The others changed since the last publication.
+    changed: bool,
 }
 
 impl Roster {
@@ -58,6 +60,7 @@ impl Roster {
             unknown: Vec::new(),
             last_scan_ns: 0,
             published: Vec::new(),
+            changed: false,
         })
     }
 
@@ -76,13 +79,14 @@ impl Roster {
         now_ns: u64,
     ) {
         if state == ModuleState::Stopping {
-            self.others.remove(&addr.0);
+            self.changed |= self.others.remove(&addr.0).is_some();
             self.unknown.retain(|u| u.0 != addr);
             return;
         }
         match self.others.get_mut(&addr.0) {
             Some(o) if o.listing.pid == pid => {
                 o.last_beat_ns = now_ns;
+                self.changed |= o.listing.methods_digest != methods_digest;
                 o.listing.methods_digest = methods_digest;
             }
             _ => {
@@ -125,6 +129,7 @@ impl Roster {
                     listing.addr,
                     listing.pid
                 );
+                self.changed = true;
                 self.others.insert(
                     listing.addr.0,
                     Other {
@@ -144,6 +149,7 @@ impl Roster {
             .map(|(a, _)| *a)
             .collect();
         if !gone.is_empty() {
+            self.changed = true;
             for a in gone {
                 self.others.remove(&a);
             }
@@ -151,9 +157,15 @@ impl Roster {
         }
     }
 
+    /// Whether the other modules changed since the last publication.
+    pub(super) fn changed(&self) -> bool {
+        self.changed
+    }
+
     /// Publishes the supervisor's modules (`own`) and the others if anything changed since the
     /// last publication. The supervisor's own modules win an address both claim.
     pub(super) fn publish(&mut self, own: Vec<Listing>) {
+        self.changed = false;
         let mut all = own;
         for o in self.others.values() {
             if !all.iter().any(|l| l.addr == o.listing.addr) {

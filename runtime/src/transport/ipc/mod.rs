@@ -73,6 +73,12 @@ impl IpcTransport {
         set_log_level_from_env_or(LogLevel::Error);
         let mut config = Config::default();
         config.global.prefix = ipc!("prefix", FileName::new(domain.prefix().as_bytes()))?;
+        // iceoryx2's node and service files (thousands at full size) on tmpfs, beside the
+        // shared memory: creating them on a disk file system costs start-up seconds.
+        config.global.set_root_path(&ipc!(
+            "root path",
+            Path::new(crate::domain::ICEORYX2_ROOT.as_bytes())
+        )?);
         // A subscriber keeps room for this many connections of departed publishers that still
         // hold samples; the default (128) costs ~0.45 MiB of heap per subscriber.
         config
