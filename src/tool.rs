@@ -6,14 +6,14 @@ use std::time::Duration;
 use anyhow::{anyhow, bail, Context};
 use modbot_ipc_schema::{sysmethod, Args, OwnedValue, SnapshotView, Value};
 use modbot_runtime::supervisor::status::Row;
-use modbot_runtime::{CallError, CallOptions, Domain, IpcTransport, Module, ModuleBuilder, Stats};
+use modbot_runtime::tool::{Calls, Tool};
+use modbot_runtime::{CallError, CallOptions, Domain, Stats};
 
-pub fn open(domain: &str) -> anyhow::Result<Module<()>> {
+/// Joins the domain: at a free address, or through the supervisor when every address is
+/// taken.
+pub fn open(domain: &str) -> anyhow::Result<Tool> {
     let domain = Domain::new(domain)?;
-    let transport = IpcTransport::new(&domain)?;
-    ModuleBuilder::new("modbot-cli", 0)
-        .open_tool(transport, ())
-        .context("cannot join the domain")
+    Tool::open(&domain, "modbot-cli").context("cannot join the domain")
 }
 
 /// One line of `modbot ls`.
@@ -30,7 +30,7 @@ struct LsLine {
 }
 
 /// The supervisor's status rows, if a supervisor runs in the domain.
-fn supervisor_rows(tool: &mut Module<()>) -> Option<Vec<Row>> {
+fn supervisor_rows(tool: &mut Tool) -> Option<Vec<Row>> {
     tool.call_blocking(
         "supervisor",
         "status",
@@ -54,11 +54,35 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
     } else {
         Vec::new()
     };
-    let mut lines = Vec::new();
-    for m in modules
+    let shown: Vec<_> = modules
         .iter()
-        .filter(|m| m.addr != me && m.name != "supervisor")
-    {
+        .filter(|m| Some(m.addr) != me && m.name != "supervisor")
+        .collect();
+    // Every live module describes itself (methods, counters); the calls go out together.
+    type Described = Result<([String; 3], String, bool), String>;
+    let mut described: Vec<Option<Described>> = vec![None; shown.len()];
+    let live: Vec<usize> = (0..shown.len()).filter(|&i| shown[i].alive).collect();
+    let names: Vec<&str> = live.iter().map(|&i| shown[i].name.as_str()).collect();
+    tool.call_each(
+        &names,
+        sysmethod::name(sysmethod::DESCRIBE).unwrap_or("describe"),
+        CallOptions::timeout(Duration::from_millis(500)),
+        |k, r| {
+            described[live[k]] = Some(match r {
+                Ok(a) => {
+                    let count = |i| a.i64(i).map(|n| n.to_string()).unwrap_or("-".into());
+                    a.text(3).map_err(|e| e.to_string()).map(|methods| {
+                        // Modules older than `active` do not send it: active.
+                        let active = !matches!(a.get(8), Some(Value::Bool(false)));
+                        ([count(5), count(6), count(7)], methods.to_owned(), active)
+                    })
+                }
+                Err(e) => Err(e.to_string()),
+            });
+        },
+    );
+    let mut lines = Vec::new();
+    for (m, described) in shown.iter().zip(described) {
         let sup = supervised.iter().find(|r| r.addr == m.addr.0);
         let mut line = LsLine {
             addr: m.addr.0,
@@ -87,33 +111,16 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
                 r.counters.replayed.to_string(),
             ];
         }
-        if m.alive {
-            let described = tool.call_blocking(
-                &m.name,
-                sysmethod::name(sysmethod::DESCRIBE).unwrap_or("describe"),
-                &[],
-                CallOptions::timeout(Duration::from_millis(500)),
-                |r| match r {
-                    Ok(a) => {
-                        let count = |i| a.i64(i).map(|n| n.to_string()).unwrap_or("-".into());
-                        let methods = a.text(3).map(str::to_owned).map_err(|e| e.to_string())?;
-                        // Modules older than `active` do not send it: active.
-                        let active = !matches!(a.get(8), Some(Value::Bool(false)));
-                        Ok(([count(5), count(6), count(7)], methods, active))
-                    }
-                    Err(e) => Err(e.to_string()),
-                },
-            );
-            match described {
-                Ok((counters, methods, active)) => {
-                    line.counters = counters;
-                    line.methods = methods.replace(',', " ");
-                    if !active {
-                        line.state = "deactivated".into();
-                    }
+        match described {
+            Some(Ok((counters, methods, active))) => {
+                line.counters = counters;
+                line.methods = methods.replace(',', " ");
+                if !active {
+                    line.state = "deactivated".into();
                 }
-                Err(e) => line.methods = format!("(no answer: {e})"),
             }
+            Some(Err(e)) => line.methods = format!("(no answer: {e})"),
+            None => {}
         }
         lines.push(line);
     }
@@ -220,7 +227,7 @@ pub fn down(domain: &str) -> anyhow::Result<ExitCode> {
         let others = tool
             .list_modules()?
             .into_iter()
-            .filter(|m| m.alive && m.addr != tool.addr())
+            .filter(|m| m.alive && Some(m.addr) != tool.addr())
             .count();
         if others == 0 {
             println!("domain '{domain}' is down");

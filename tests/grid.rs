@@ -319,8 +319,13 @@ fn a_restarted_host_is_released_again() {
             && sut.ls_field("host_hs", "STATE").as_deref() == Some("running")
     });
     let before = releases_of(&top(&sut), "S");
-    sut.wait_for("S to be released again", Duration::from_secs(10), || {
-        releases_of(&top(&sut), "S") > before + 20
+    sut.wait_until("S to be released again", Duration::from_secs(10), || {
+        let top = top(&sut);
+        if releases_of(&top, "S") > before + 20 {
+            Ok(())
+        } else {
+            Err(format!("{top}\nmodbot up:\n{}", sut.output_of(up)))
+        }
     });
     sut.signal(up, Signal::SIGTERM);
     sut.wait_exit(up, Duration::from_secs(30));

@@ -19,6 +19,7 @@
 //! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
 //! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set, stats,
 //!   activate/deactivate).
+//! - [`relay`]: calls a supervisor makes for tools that hold no module address.
 //! - [`hex`]: hex helpers for the command line and the golden vectors.
 //!
 //! The byte layouts are written down in `ipc_schema/README.md`, with golden vectors that the
@@ -33,6 +34,7 @@ pub mod directory;
 pub mod grid;
 pub mod heartbeat;
 pub mod hex;
+pub mod relay;
 pub mod rvmf;
 pub mod snapshot;
 pub mod sysmethod;

@@ -39,6 +39,9 @@ pub enum CallError {
     Encode(String),
     #[error("malformed answer from '{module}': {detail}")]
     BadAnswer { module: String, detail: String },
+    /// A call the supervisor made for a tool without an address failed; why, as it said.
+    #[error("{0}")]
+    Relayed(String),
     #[error(transparent)]
     Send(#[from] SendError),
     #[error(transparent)]

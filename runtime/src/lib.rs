@@ -24,6 +24,7 @@
 //! - [`system`]: the system description: the Lua file that lists a robot's module processes,
 //!   loaded in a sandbox and checked ([`system::load`]).
 //! - [`supervisor`]: `modbot up`: starts, watches and restarts a system's module processes.
+//! - [`tool`]: how a tool (the CLI) reaches a running system, also when every address is taken.
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 
 pub mod blackboard;
@@ -44,6 +45,7 @@ pub mod sim;
 pub mod stats;
 pub mod supervisor;
 pub mod system;
+pub mod tool;
 pub mod transport;
 
 pub use blackboard::Blackboard;

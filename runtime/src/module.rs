@@ -101,6 +101,8 @@ pub struct Module<S> {
     beats: u64,
     /// The digest of this module's method names, in its heartbeat.
     methods_digest: u32,
+    /// The generation of the published directory the phone book last took in.
+    book_generation: u64,
 }
 
 /// The longest a module in blocking mode sleeps without a frame or a due deadline.
@@ -220,7 +222,10 @@ impl<S> Module<S> {
         );
         // A published directory says when it changed; a scanned one is read on a timer.
         let directory_due = if self.ctx.directory.published() {
-            self.ctx.directory.changed()
+            let generation = self.ctx.directory.generation();
+            let due = generation != self.book_generation;
+            self.book_generation = generation;
+            due
         } else {
             now >= self.next_refresh_ns
         };
@@ -438,10 +443,7 @@ impl<S> Module<S> {
         args: &[Value<'_>],
         opts: CallOptions,
     ) -> Result<Vec<OwnedValue>, CallError> {
-        self.call_blocking(module, method, args, opts, |r| match r {
-            Ok(a) => Ok(a.as_slice().iter().map(Value::to_owned_value).collect()),
-            Err(e) => Err(e.clone()),
-        })
+        crate::tool::Calls::call_owned(self, module, method, args, opts)
     }
 
     /// Runs the default application controller until SIGTERM/SIGINT or [`Ctx::stop`].

@@ -14,7 +14,7 @@ use thiserror::Error;
 use super::processes::COORDINATOR;
 use crate::calls::CallOptions;
 use crate::error::CallError;
-use crate::module::Module;
+use crate::tool::Calls;
 
 /// The outcome of one switch.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -97,7 +97,7 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
 }
 
 /// Asks the coordinator where the assemblies stand.
-pub fn status<S>(module: &mut Module<S>) -> Result<Status, SwitchError> {
+pub fn status(module: &mut impl Calls) -> Result<Status, SwitchError> {
     let text = module.call_blocking(
         COORDINATOR,
         "assembly",
@@ -115,8 +115,8 @@ pub fn status<S>(module: &mut Module<S>) -> Result<Status, SwitchError> {
 
 /// Switches to assembly `name`: the coordinator prepares it while the running one goes on,
 /// then switches at an announced tick. Waits up to `timeout` for the outcome.
-pub fn switch<S>(
-    module: &mut Module<S>,
+pub fn switch(
+    module: &mut impl Calls,
     name: &str,
     timeout: Duration,
 ) -> Result<Switched, SwitchError> {

@@ -230,6 +230,7 @@ impl<S> ModuleBuilder<S> {
             modbot_ipc_schema::directory::methods_digest(b.methods.iter().map(|(n, _)| n.as_str()));
         let mut module = Module {
             methods_digest,
+            book_generation: 0,
             beat_period_ns,
             next_beat_ns: now,
             beats: 0,

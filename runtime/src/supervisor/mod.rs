@@ -26,6 +26,7 @@
 //! - [`env`]: what a module process learns from its environment.
 //! - `child`: spawning one module process and forwarding its output.
 //! - [`policy`]: restart decisions and exit reasons.
+//! - `relay`: calls of tools that hold no module address, made by the supervisor.
 //! - `roster`: the domain's directory, published to every module when it changes.
 //! - [`rt`]: CPU affinity and SCHED_FIFO for a module process.
 //! - [`status`]: the status rows and table.
@@ -33,6 +34,7 @@
 mod child;
 pub mod env;
 pub mod policy;
+mod relay;
 mod roster;
 pub mod rt;
 pub mod status;
@@ -60,6 +62,7 @@ use crate::transport::ipc::{HeartbeatMonitor, IpcTransport};
 use crate::transport::{Directory, ReceiveMode, TransportError};
 use child::LogLine;
 use policy::{Decision, ExitReason, RestartTracker};
+use relay::Relay;
 use roster::Roster;
 use status::{Row, RunState};
 
@@ -123,6 +126,8 @@ struct Shared {
     requests: Vec<HostRequest>,
     /// Whether the system can start assembly hosts (it has a grid with assemblies).
     hosts_allowed: bool,
+    /// Relayed calls that ended: their handles and the tools' answers.
+    relayed: Vec<(crate::calls::CallHandle, Vec<u8>)>,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -182,6 +187,7 @@ pub struct Supervisor {
     slots: Vec<Slot>,
     endpoint: Module<Shared>,
     roster: Roster,
+    relay: Relay,
     heartbeats: HeartbeatMonitor,
     logs_tx: Sender<LogLine>,
     logs: Receiver<LogLine>,
@@ -202,6 +208,9 @@ pub struct Supervisor {
     child_signal: bool,
     /// When every child was last looked at regardless of SIGCHLD.
     children_seen: Instant,
+    /// Modules that came up and the supervisor has no link to yet: it opens them a few at a
+    /// time while idle, so that the first calls it relays for a tool find them open.
+    to_connect: Vec<Addr>,
 }
 
 impl Supervisor {
@@ -213,6 +222,7 @@ impl Supervisor {
         let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
         sweep(&domain, directory.as_ref(), &used)?;
         let roster = Roster::new(&transport)?;
+        let relay = Relay::new(&transport)?;
         let mut endpoint = open_endpoint(&transport, &used)?;
         endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
         let heartbeats = HeartbeatMonitor::new(&transport)?;
@@ -234,6 +244,7 @@ impl Supervisor {
             slots,
             endpoint,
             roster,
+            relay,
             heartbeats,
             logs_tx,
             logs,
@@ -248,6 +259,7 @@ impl Supervisor {
             rows_dirty: true,
             child_signal: child_signal.is_ok(),
             children_seen: Instant::now(),
+            to_connect: Vec::new(),
         };
         sup.say(&format!(
             "starting {} module(s) in domain '{}'",
@@ -578,6 +590,7 @@ impl Supervisor {
             let rows = self.rows();
             self.endpoint.state_mut().rows = rows;
         }
+        self.relay.serve(&mut self.endpoint);
         for _ in 0..64 {
             match self.endpoint.poll_once() {
                 Ok(true) => {}
@@ -589,6 +602,16 @@ impl Supervisor {
             }
         }
         self.endpoint.housekeeping();
+        self.relay.serve(&mut self.endpoint);
+        // A link costs about a millisecond to open: a few per wake-up.
+        for _ in 0..4 {
+            let Some(addr) = self.to_connect.pop() else {
+                break;
+            };
+            if let Err(e) = self.endpoint.ctx().tx.connect(addr) {
+                tracing::debug!("no link to module {addr} yet: {e}");
+            }
+        }
     }
 
     /// Heartbeats, exits, hangs and due restarts.
@@ -650,6 +673,7 @@ impl Supervisor {
                 }
                 let name = self.spec.modules[i].name.clone();
                 self.say(&format!("{name} is up (pid {pid})"));
+                self.to_connect.push(Addr(addr));
             }
         }
         self.roster.check_others(
@@ -935,6 +959,7 @@ fn open_endpoint(transport: &IpcTransport, used: &[u8]) -> Result<Module<Shared>
             .method("down", down_method)
             .method("spawn_host", spawn_host_method)
             .method("retire", retire_method)
+            .on_done(relay::on_done)
             .open(transport.clone(), Shared::default());
         match opened {
             Ok(m) => return Ok(m),

@@ -216,14 +216,15 @@ pub trait Directory {
     /// published directory leaves this to its supervisor (0).
     fn reap_dead(&self) -> usize;
 
-    /// Whether the directory may have changed since it was last listed. A scanned directory
-    /// cannot tell without scanning: it says yes, and its readers list it on a timer.
-    fn changed(&self) -> bool {
-        true
+    /// A number that changes whenever a published directory changes (its generation); a
+    /// scanned directory cannot tell without scanning and says 0: its readers list it on a
+    /// timer.
+    fn generation(&self) -> u64 {
+        0
     }
 
     /// Whether a supervisor publishes this directory: listing it is cheap (no scan), and
-    /// [`Directory::changed`] is exact.
+    /// [`Directory::generation`] says when it changed.
     fn published(&self) -> bool {
         false
     }

@@ -164,6 +164,9 @@ fn main() -> anyhow::Result<()> {
     signals::install_termination_handler()?;
     wait_for_hosts(&mut module, &hosts)?;
 
+    // `ledger` answers from the start: the tick thread refreshes it every 200 ms.
+    let mut coord = coord;
+    coord.encode_ledger(false, &mut module.state_mut().ledger);
     let (to_tick, commands) = std::sync::mpsc::channel();
     let (tell, from_tick) = std::sync::mpsc::sync_channel(1024);
     let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies)?;

@@ -162,13 +162,14 @@ impl Directory for PublishedDirectory {
         }
     }
 
-    fn changed(&self) -> bool {
-        self.orphaned()
-            || self
-                .last
-                .borrow()
-                .as_ref()
-                .is_none_or(|v| !self.entry.is_up_to_date(v))
+    fn generation(&self) -> u64 {
+        let mut last = self.last.borrow_mut();
+        if last.as_ref().is_none_or(|v| !self.entry.is_up_to_date(v)) {
+            *last = Some(Box::new(self.entry.get()));
+        }
+        last.as_ref()
+            .and_then(|v| View::parse(&v[..]).ok())
+            .map_or(0, |view| view.generation())
     }
 
     fn published(&self) -> bool {

@@ -2,11 +2,14 @@
 //!
 //! - this file: endpoints (inbox, broadcast and groups, wake-ups, heartbeats, snapshots);
 //! - [`directory`]: who is in the domain (the supervisor's published directory, or a scan).
+//! - `relay`: calls of tools without a module address, made by the supervisor.
 
 mod directory;
+mod relay;
 
 pub use directory::DirectoryWriter;
 use directory::{PublishedDirectory, ScannedDirectory};
+pub use relay::{RelayClient, RelayRequest, RelayServer};
 
 use core::time::Duration;
 use std::collections::HashMap;
