@@ -105,8 +105,8 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
 }
 
 /// The module counts to measure: `MODBOT_BENCH_SCALE_SIZES` (comma-separated, e.g. `2,128`)
-/// if set, else 2, 16, 32, 64 and 253 (quick) or 2, 16, 32, 64, 128 and 253. The first is the
-/// baseline of the others.
+/// if set, else 2, 16 and 64 (quick) or 2, 16, 32, 64, 128 and 253. The first is the baseline
+/// of the others.
 fn sizes(opts: &Opts) -> anyhow::Result<Vec<usize>> {
     if let Ok(text) = std::env::var("MODBOT_BENCH_SCALE_SIZES") {
         let sizes = text
@@ -122,7 +122,7 @@ fn sizes(opts: &Opts) -> anyhow::Result<Vec<usize>> {
         return Ok(sizes);
     }
     Ok(if opts.quick {
-        vec![2, 16, 32, 64, MAX_MODULES]
+        vec![2, 16, 64]
     } else {
         vec![2, 16, 32, 64, 128, MAX_MODULES]
     })
@@ -153,6 +153,10 @@ struct Measured {
     pss: Histogram<u64>,
     rss: Histogram<u64>,
     call: Histogram<u64>,
+    /// `modbot ls`, start to exit, three times.
+    ls: Histogram<u64>,
+    /// Modules SIGKILLed (at 64 modules and more): from the kill to answering a call again.
+    recovery: Histogram<u64>,
 }
 
 fn push_rows(report: &mut Report, m: &Measured) {
@@ -189,6 +193,25 @@ fn push_rows(report: &mut Report, m: &Measured) {
             .param("mode", "busy"),
         "scale.call",
     ));
+    report.push(base(
+        Row::single("scale.idle_cpu", (m.idle_cpu * 1000.0).round() as u64)
+            .param("modules", n)
+            .param("of", "supervisor and modules")
+            .unit("permille of a core"),
+        "scale.idle_cpu",
+    ));
+    report.push(base(
+        Row::from_histogram("scale.ls", &m.ls).param("modules", n),
+        "scale.ls",
+    ));
+    if !m.recovery.is_empty() {
+        report.push(
+            Row::from_histogram("scale.recovery", &m.recovery)
+                .param("modules", n)
+                .param("fault", "SIGKILL")
+                .is_baseline(),
+        );
+    }
 }
 
 /// The report note: every size in one line each, next to the raw iceoryx2 figures.
@@ -320,6 +343,12 @@ fn measure(opts: &Opts, n: usize, calls: u64, budget: Duration) -> anyhow::Resul
         || Ok(std::fs::read_to_string(&results).ok()),
     )?;
     let call = parse_results(&text)?;
+    let ls = time_ls(opts, &scratch.domain, n)?;
+    let recovery = if n >= 64 {
+        kill_and_recover(&scratch.domain, &modules, left())?
+    } else {
+        crate::sample::histogram()
+    };
     let (status, leftover) = sys.stop_with_status()?;
     let mut remarks = Vec::new();
     if !status.is_some_and(|s| s.success()) {
@@ -342,7 +371,107 @@ fn measure(opts: &Opts, n: usize, calls: u64, budget: Duration) -> anyhow::Resul
         pss,
         rss,
         call,
+        ls,
+        recovery,
     })
+}
+
+/// `modbot ls` three times, start to exit; every run must list all `n` modules.
+fn time_ls(opts: &Opts, domain: &Domain, n: usize) -> anyhow::Result<Histogram<u64>> {
+    let modbot = procs::binary(opts, "modbot")?;
+    let mut h = crate::sample::histogram();
+    for _ in 0..3 {
+        let t = Instant::now();
+        let out = std::process::Command::new(&modbot)
+            .args(["ls", "--tsv", "--domain", domain.name()])
+            .output()?;
+        h.saturating_record(t.elapsed().as_nanos() as u64);
+        let listed = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .skip(1)
+            .filter(|l| l.contains("running"))
+            .count();
+        if !out.status.success() || listed != n {
+            bail!(
+                "modbot ls listed {listed} running modules of {n}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+    }
+    Ok(h)
+}
+
+/// Ten modules (not m1 or m2), picked at random, SIGKILLed one after the other: each time, how
+/// long from the kill until it answers `echo` again (the supervisor sees the end at once and
+/// restarts it after its backoff, 100 ms).
+fn kill_and_recover(
+    domain: &Domain,
+    modules: &[u32],
+    budget: Duration,
+) -> anyhow::Result<Histogram<u64>> {
+    use modbot_runtime::tool::{Calls, Tool};
+    let mut tool = Tool::open(domain, "bench").context("the benchmark cannot join the domain")?;
+    let mut h = crate::sample::histogram();
+    let deadline = Instant::now() + budget.min(Duration::from_secs(120));
+    let mut rng = fastrand_seed();
+    let mut names: Vec<(String, u32)> = tool
+        .list_modules()?
+        .into_iter()
+        .filter(|p| p.alive && p.name.starts_with('m') && p.name != "m1" && p.name != "m2")
+        .filter(|p| modules.contains(&p.pid))
+        .map(|p| (p.name, p.pid))
+        .collect();
+    for _ in 0..10.min(names.len()) {
+        let (name, pid) = &names.swap_remove(rng.next() % names.len());
+        let killed = Instant::now();
+        nix::sys::signal::kill(
+            nix::unistd::Pid::from_raw(*pid as i32),
+            nix::sys::signal::Signal::SIGKILL,
+        )?;
+        // The old process may still answer for a moment: wait until it is gone.
+        while nix::sys::signal::kill(nix::unistd::Pid::from_raw(*pid as i32), None).is_ok()
+            && killed.elapsed() < Duration::from_secs(1)
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        loop {
+            let answered = tool.call_blocking(
+                name,
+                "echo",
+                &[],
+                CallOptions::timeout(Duration::from_millis(100)).with_retry(RetryPolicy::NONE),
+                |r| r.is_ok(),
+            );
+            if answered {
+                h.saturating_record(killed.elapsed().as_nanos() as u64);
+                break;
+            }
+            if Instant::now() > deadline {
+                bail!("{name} did not answer again within the benchmark's time");
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+    Ok(h)
+}
+
+/// A small generator for picking victims (xorshift, seeded by the clock).
+struct Pick(u64);
+
+impl Pick {
+    fn next(&mut self) -> usize {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0 as usize
+    }
+}
+
+fn fastrand_seed() -> Pick {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| d.as_nanos() as u64);
+    Pick(t | 1)
 }
 
 /// User and system CPU time of processes `pids`, in clock ticks.

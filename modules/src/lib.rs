@@ -8,6 +8,8 @@
 //!   the simulated building of [`moser`].
 //! - `modbot-faulty`: a module that panics, exits, hangs, floods or spams on request, for the
 //!   fault-injection tests.
+//! - `modbot-fleet`: a sensor fleet (sensors reporting to aggregators, [`fleet`]), the system to
+//!   run at the full address space.
 //! - [`moser`]: MOSER's simulated world (building, intruder, patrol planner), shared by its modules.
 //!
 //! [`common`] holds what every module program shares: its command-line options and logging.
@@ -15,6 +17,7 @@
 pub mod common;
 pub mod control_station;
 pub mod faulty;
+pub mod fleet;
 pub mod high_level;
 pub mod intrusion;
 pub mod mobility;

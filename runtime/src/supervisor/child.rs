@@ -41,6 +41,7 @@ pub(super) fn environment(
         ),
         (env::MLOCKALL, if spec.mlock { "1" } else { "0" }.to_owned()),
         (env::EPOCH_NS, epoch_ns.to_string()),
+        (env::ASSIGNED, format!("{}.{}", spec.addr, spec.name)),
     ];
     for (name, value) in ours {
         vars.insert(name.to_owned(), value);

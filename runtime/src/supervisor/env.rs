@@ -17,6 +17,11 @@ pub const DOMAIN: &str = "MODBOT_DOMAIN";
 /// When `modbot up` started the system, ns of CLOCK_MONOTONIC: the same for every module of
 /// the system, restarted ones included. The epoch of simulated time ([`crate::sim::SimTime`]).
 pub const EPOCH_NS: &str = "MODBOT_EPOCH_NS";
+/// `ADDR.NAME`: the address and name the supervisor assigned this module, unique in its
+/// domain by the supervisor's word. A module that opens with exactly these takes them without
+/// claiming them in shared memory (two services fewer per module); any other address or name
+/// is claimed as usual.
+pub const ASSIGNED: &str = "MODBOT_ASSIGNED";
 /// Simulated seconds per real second (default 1); descriptions set it in a module's `env`.
 /// Read by [`crate::sim::SimTime::from_env`].
 pub const SIM_SPEED: &str = "MODBOT_SIM_SPEED";

@@ -37,6 +37,9 @@ type Sub = Subscriber<ipc::Service, [u8], ()>;
 
 /// Most modules (and tools) a domain holds at once, plus room for stale ports.
 const MAX_NODES: usize = 300;
+/// Listeners of a module's own wake-up event: its own, and a restarted one's while the dead
+/// one's is not cleaned up yet. (A broadcast bus's has one per listening module.)
+const OWN_WAKE_LISTENERS: usize = 2;
 /// Frames an inbox holds before it refuses more.
 const INBOX_DEPTH: usize = 64;
 /// Largest broadcast or multicast frame.
@@ -288,19 +291,44 @@ fn shared_bus(
 fn wake_service(
     node: &Node<ipc::Service>,
     name: &str,
+    listeners: usize,
 ) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, TransportError> {
     ipc!(
         "open wake-up event",
         node.service_builder(&service_name(name)?)
             .event()
-            .max_listeners(MAX_NODES)
+            .max_listeners(listeners)
             .max_notifiers(MAX_NODES)
             .max_nodes(MAX_NODES)
             .open_or_create()
     )
 }
 
-/// The wake-up event `name` if it exists (its listener created it).
+/// Refuses `addr` or `name` if the published directory lists another live process with it.
+fn refuse_taken(dir: &PublishedDirectory, addr: Addr, name: &str) -> Result<(), TransportError> {
+    let mut taken = Ok(());
+    dir.list(&mut |p| {
+        if !p.alive || p.pid == std::process::id() || taken.is_err() {
+            return;
+        }
+        if p.addr == addr {
+            taken = Err(TransportError::AddressTaken {
+                addr,
+                holder: p.name.clone(),
+                pid: p.pid,
+            });
+        } else if p.name == name {
+            taken = Err(TransportError::NameTaken {
+                name: name.to_owned(),
+                addr: p.addr,
+                pid: p.pid,
+            });
+        }
+    })?;
+    taken
+}
+
+/// A module's wake-up event `name` if it exists (the module, in blocking mode, created it).
 fn open_wake_service(
     node: &Node<ipc::Service>,
     name: &str,
@@ -309,7 +337,7 @@ fn open_wake_service(
     match node
         .service_builder(&service_name(name)?)
         .event()
-        .max_listeners(MAX_NODES)
+        .max_listeners(OWN_WAKE_LISTENERS)
         .max_notifiers(MAX_NODES)
         .max_nodes(MAX_NODES)
         .open()
@@ -368,7 +396,20 @@ impl Transport for IpcTransport {
         }
         check_name(name)?;
         let node = self.node(&node_name(addr, mode, name))?;
-        let claims = self.claim(&node, addr, name)?;
+        // Under a supervisor, the address and name it assigned are this module's by its word.
+        let assigned = self.supervised
+            && std::env::var(crate::supervisor::env::ASSIGNED)
+                .is_ok_and(|a| a == format!("{}.{name}", addr.0));
+        let published = PublishedDirectory::open(&node, &self.config)?;
+        let claims = if assigned {
+            Vec::new()
+        } else {
+            // The supervisor's modules hold no claims: what it published says who they are.
+            if let Some(dir) = &published {
+                refuse_taken(dir, addr, name)?;
+            }
+            self.claim(&node, addr, name)?
+        };
         // The wake-up listeners first: a sender opens a notifier only if `wake.N` exists when it
         // opens the inbox, so it must exist before the inbox does.
         let bus_names: Vec<String> = joins
@@ -381,14 +422,14 @@ impl Transport for IpcTransport {
         if mode == ReceiveMode::Blocking {
             listeners.push(ipc!(
                 "wake listener",
-                wake_service(&node, &format!("wake.{}", addr.0))?
+                wake_service(&node, &format!("wake.{}", addr.0), OWN_WAKE_LISTENERS)?
                     .listener_builder()
                     .create()
             )?);
             for bus in &bus_names {
                 listeners.push(ipc!(
                     "bus listener",
-                    wake_service(&node, &format!("{bus}.wake"))?
+                    wake_service(&node, &format!("{bus}.wake"), MAX_NODES)?
                         .listener_builder()
                         .create()
                 )?);
@@ -446,11 +487,10 @@ impl Transport for IpcTransport {
             publisher: None,
             readers: HashMap::new(),
         };
-        let directory: Box<dyn Directory> =
-            match PublishedDirectory::open(&snapshots.node, &self.config)? {
-                Some(published) => Box::new(published),
-                None => self.scanned_directory(),
-            };
+        let directory: Box<dyn Directory> = match published {
+            Some(published) => Box::new(published),
+            None => self.scanned_directory(),
+        };
         Ok(Endpoint {
             addr,
             rx: Box::new(rx),
@@ -642,7 +682,7 @@ impl IpcTx {
         )?;
         let notifier = Some(ipc!(
             "bus notifier",
-            wake_service(&self.node, &format!("{bus}.wake"))?
+            wake_service(&self.node, &format!("{bus}.wake"), MAX_NODES)?
                 .notifier_builder()
                 .create()
         )?);

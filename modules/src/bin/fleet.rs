@@ -1,0 +1,83 @@
+//! `modbot-fleet`: one module of a sensor fleet, a sensor or an aggregator
+//! (see `modbot_modules::fleet`).
+
+use std::time::Duration;
+
+use clap::{Parser, Subcommand};
+use modbot_ipc_schema::OwnedValue;
+use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::fleet::{self, Aggregator, Sensor};
+use modbot_runtime::{Blackboard, ModuleBuilder};
+
+/// A module of a sensor fleet.
+///
+/// `sensor --aggregator NAME`: reports a simulated temperature to its aggregator every period;
+/// answers `read()`; blackboard `value`. `aggregator`: keeps every sensor's latest reading;
+/// answers `summary()` (sensors, mean, min, max, reports); blackboard `sensors`, `mean`,
+/// `reports`.
+#[derive(Debug, Parser)]
+#[command(name = "modbot-fleet", version)]
+struct Cli {
+    #[command(flatten)]
+    module: ModuleArgs,
+    #[command(subcommand)]
+    role: Role,
+}
+
+#[derive(Debug, Subcommand)]
+enum Role {
+    /// A sensor.
+    Sensor {
+        /// The module it reports to.
+        #[arg(long)]
+        aggregator: String,
+        /// Report period in milliseconds.
+        #[arg(long, default_value_t = 1000)]
+        period_ms: u64,
+    },
+    /// An aggregator.
+    Aggregator,
+}
+
+fn main() -> anyhow::Result<()> {
+    init_logging();
+    let cli = Cli::parse();
+    let name = cli.module.name.clone().unwrap_or_else(|| "fleet".into());
+    let addr = cli.module.addr.unwrap_or(1);
+    let transport = cli.module.transport()?;
+    match cli.role {
+        Role::Sensor {
+            aggregator,
+            period_ms,
+        } => {
+            let bb = Blackboard::builder()
+                .item("value", OwnedValue::F64(f64::NAN))
+                .build()?;
+            ModuleBuilder::new(&name, addr)
+                .mode(cli.module.receive_mode())
+                .method("read", fleet::read)
+                .every(Duration::from_millis(period_ms.max(1)), fleet::sense)
+                .blackboard(bb)
+                .snapshot_period(Duration::from_secs(1))
+                .peer(&aggregator)
+                .open(transport, Sensor::new(&aggregator))?
+                .run()?;
+        }
+        Role::Aggregator => {
+            let bb = Blackboard::builder()
+                .item("sensors", OwnedValue::I64(0))
+                .item("mean", OwnedValue::F64(f64::NAN))
+                .item("reports", OwnedValue::I64(0))
+                .build()?;
+            ModuleBuilder::new(&name, addr)
+                .mode(cli.module.receive_mode())
+                .method("summary", fleet::summary)
+                .on_report(fleet::on_reading)
+                .blackboard(bb)
+                .snapshot_period(Duration::from_secs(1))
+                .open(transport, Aggregator::default())?
+                .run()?;
+        }
+    }
+    Ok(())
+}
