@@ -5,6 +5,8 @@
 //! is found on the next refresh; a dead module is marked unavailable; a restarted one (new pid)
 //! is seen coming back and its method table is learned again.
 
+use std::collections::HashMap;
+
 use modbot_ipc_schema::{Addr, Args};
 
 use crate::error::CallError;
@@ -31,6 +33,9 @@ pub struct Entry {
 pub struct PhoneBook {
     /// Indexed by address.
     entries: Vec<Option<Entry>>,
+    /// Name → the address of the live module of that name, else of a dead one: a call
+    /// resolves its callee without comparing every name of a full domain.
+    by_name: HashMap<String, u8>,
 }
 
 /// What a refresh saw change.
@@ -44,6 +49,7 @@ impl PhoneBook {
     pub fn new() -> PhoneBook {
         PhoneBook {
             entries: vec![None; 256],
+            by_name: HashMap::new(),
         }
     }
 
@@ -111,19 +117,39 @@ impl PhoneBook {
                 (None, None) => {}
             }
         }
+        self.index_names();
         Ok(changes)
+    }
+
+    fn index_names(&mut self) {
+        self.by_name.clear();
+        for e in self.entries.iter().flatten() {
+            let live = e.alive;
+            let addr = e.addr.0;
+            let entries = &self.entries;
+            self.by_name
+                .entry(e.name.clone())
+                .and_modify(|a| {
+                    let held = entries[usize::from(*a)].as_ref().is_some_and(|h| h.alive);
+                    if live && !held {
+                        *a = addr;
+                    }
+                })
+                .or_insert(addr);
+        }
     }
 
     /// The live module named `name`.
     pub fn lookup(&self, name: &str) -> Result<&Entry, CallError> {
-        let mut dead = None;
-        for e in self.entries.iter().flatten().filter(|e| e.name == name) {
-            if e.alive {
-                return Ok(e);
-            }
-            dead = Some(e);
+        let found = self
+            .by_name
+            .get(name)
+            .and_then(|a| self.entries[usize::from(*a)].as_ref())
+            .filter(|e| e.name == name);
+        if let Some(e) = found.filter(|e| e.alive) {
+            return Ok(e);
         }
-        match dead {
+        match found {
             Some(e) => Err(CallError::NotAvailable {
                 name: name.to_owned(),
                 why: format!("its process (pid {}) died; it has not come back", e.pid),

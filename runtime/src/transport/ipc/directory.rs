@@ -50,6 +50,8 @@ pub(crate) struct PublishedDirectory {
     _service: PortFactory<ipc::Service, u8>,
     /// The value read last, boxed: it is 16 KiB.
     last: RefCell<Option<Box<BlackboardValue<Image>>>>,
+    /// Its generation.
+    last_generation: Cell<u64>,
     /// The node the reader belongs to, when the directory has one of its own (a tool's).
     _node: Option<Node<ipc::Service>>,
     /// What stands in when the supervisor is gone (it stopped, or died).
@@ -88,6 +90,7 @@ impl PublishedDirectory {
             _reader: reader,
             _service: service,
             last: RefCell::new(None),
+            last_generation: Cell::new(0),
             _node: None,
             scan: ScannedDirectory {
                 config: config.clone(),
@@ -138,6 +141,7 @@ impl Directory for PublishedDirectory {
             op: "read the directory",
             detail: e.to_string(),
         })?;
+        self.last_generation.set(view.generation());
         for e in view.entries() {
             let Some(mode) = ReceiveMode::from_code(char::from(e.mode())) else {
                 continue;
@@ -165,11 +169,13 @@ impl Directory for PublishedDirectory {
     fn generation(&self) -> u64 {
         let mut last = self.last.borrow_mut();
         if last.as_ref().is_none_or(|v| !self.entry.is_up_to_date(v)) {
-            *last = Some(Box::new(self.entry.get()));
+            let value = Box::new(self.entry.get());
+            // Read once per change: a full image has 254 entries to check.
+            self.last_generation
+                .set(View::parse(&value[..]).map_or(0, |v| v.generation()));
+            *last = Some(value);
         }
-        last.as_ref()
-            .and_then(|v| View::parse(&v[..]).ok())
-            .map_or(0, |view| view.generation())
+        self.last_generation.get()
     }
 
     fn published(&self) -> bool {
