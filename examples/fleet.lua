@@ -5,7 +5,7 @@
 -- `modbot call agg1.summary` (tools reach a full system through the supervisor), or
 -- `modbot up examples/fleet.lua --var n=16` for a small one.
 
-domain "fleet"
+domain(vars.domain or "fleet")
 
 local aggregators = tonumber(vars.aggregators or "4")
 local n = tonumber(vars.n or tostring(253 - aggregators))

@@ -3,7 +3,8 @@
 //! It is the system to run at the MRA's full address space (`examples/fleet.lua`).
 //!
 //! - A sensor reads a simulated temperature (a slow sine, its phase set by its address, so
-//!   every sensor reads differently), keeps it on its blackboard (`value`), answers `read()`,
+//!   every sensor reads differently), keeps it on its blackboard (`value`), answers `read()`
+//!   with a reading taken then,
 //!   and sends it as a REPORT (topic [`READING_TOPIC`]) to its aggregator every period.
 //! - An aggregator answers `summary()` with (sensors heard, mean, min, max, reports received)
 //!   and keeps the same on its blackboard.
@@ -58,13 +59,14 @@ pub fn sense(s: &mut Sensor, ctx: &mut Ctx) {
     }
 }
 
-/// `read()`: the latest reading.
+/// `read()`: a reading taken now.
 pub fn read(
     s: &mut Sensor,
-    _: &mut Ctx,
+    ctx: &mut Ctx,
     _: &modbot_ipc_schema::Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
+    s.value = temperature(ctx.addr(), ctx.now_ns() as f64 / 1e9);
     reply.f64(s.value);
     Ok(())
 }

@@ -12,7 +12,7 @@ use modbot_runtime::{Blackboard, ModuleBuilder};
 /// A module of a sensor fleet.
 ///
 /// `sensor --aggregator NAME`: reports a simulated temperature to its aggregator every period;
-/// answers `read()`; blackboard `value`. `aggregator`: keeps every sensor's latest reading;
+/// answers `read()` (a reading taken then); blackboard `value`. `aggregator`: keeps every sensor's latest reading;
 /// answers `summary()` (sensors, mean, min, max, reports); blackboard `sensors`, `mean`,
 /// `reports`.
 #[derive(Debug, Parser)]
