@@ -222,7 +222,7 @@ fn comparison(measured: &[Measured]) -> String {
         .map(|m| {
             format!(
                 "{} modules: up in {:.2} s, {:.1} MiB of /dev/shm, Pss p50 {:.1} MiB (Rss {:.1} MiB), \
-                 the idle modules use {:.0} % of one core, call p50 {:.2} µs p99 {:.1} µs ({} \
+                 the idle system (supervisor included) uses {:.1} % of one core, `modbot ls` p50 {:.0} ms, call p50 {:.2} µs p99 {:.1} µs ({} \
                  calls){}",
                 m.modules,
                 m.startup.as_secs_f64(),
@@ -230,6 +230,7 @@ fn comparison(measured: &[Measured]) -> String {
                 mib(m.pss.value_at_quantile(0.5)),
                 mib(m.rss.value_at_quantile(0.5)),
                 m.idle_cpu * 100.0,
+                m.ls.value_at_quantile(0.5) as f64 / 1e6,
                 m.call.value_at_quantile(0.5) as f64 / 1e3,
                 m.call.value_at_quantile(0.99) as f64 / 1e3,
                 m.call.len(),
@@ -258,19 +259,18 @@ fn comparison(measured: &[Measured]) -> String {
          m1 → m2 in busy-poll mode on cores 0 and 1 while the others sleep (blocking). A \
          description holds at most {MAX_MODULES} modules: addresses are 1..=254 and the \
          supervisor takes one, so the largest system is {MAX_MODULES} modules + the supervisor \
-         = 254 endpoints, and no `modbot` tool can join it. Raw iceoryx2 on these machines \
-         (notes: 254 processes, one inbox each, publishers to ~4 peers, dead-node cleanup on \
-         open turned off): 12–16 MiB, up in 2–3 s, RTT 1.1–2.3 µs, RSS 5 MiB per process. Here \
-         start-up and idle CPU grow with the square of the module count: every module re-reads \
-         the whole iceoryx2 node directory (one details file per node, parsed as TOML) for its \
-         phone book every 200 ms and on every call to a name it does not know, and iceoryx2 \
-         scans every node again on each service open (cleanup_dead_nodes_on_open/creation, on by \
-         default). /dev/shm grows with the square too: one `.connection` file (~8 KiB touched) \
-         per publisher–subscriber pair, about N² of them, as every module holds a publisher on \
-         the shared broadcast bus (it announces itself there) connected to every module's \
-         broadcast subscriber. The module program is this benchmark executable (started through \
-         `sh -c exec`), whose larger binary raises Rss more than Pss. A stop of a big system \
-         takes long: the supervisor stops one module after the other.",
+         = 254 endpoints; `modbot ls` then holds no address and goes through the supervisor's \
+         relay. Raw iceoryx2 on these machines (notes: 254 processes, one inbox each, publishers \
+         to ~4 peers, dead-node cleanup on open turned off): 12–16 MiB, up in 2–3 s, RTT \
+         1.1–2.3 µs, RSS 5 MiB per process. The supervisor publishes the directory (modules \
+         never scan iceoryx2's node files), cleans up after dead processes, and assigns \
+         addresses and names without claim services; iceoryx2's node and service files are on \
+         tmpfs. What remains per module: its node, inbox, wake-up event, heartbeat publisher and \
+         the links to its peers (a .connection and a .data file each); on tmpfs each small file \
+         is a 4 KiB page. Idle CPU counts the supervisor and every module (heartbeats once a \
+         second, a task once a second); m1 and m2 wake every 10 ms between measurements. \
+         Recovery: SIGKILL of a random module (not m1, m2) until it answers a call again: the \
+         supervisor sees the end at once (SIGCHLD), restarts it after its backoff (100 ms).",
         sizes.join("; ")
     )
 }

@@ -84,6 +84,40 @@ pub fn evaluate(report: &mut Report) {
                 )
             },
         ),
+        at_full_scale(
+            report,
+            "254 modules: idle system",
+            "≤ 5 % of one core",
+            "scale.idle_cpu",
+            |r, m| {
+                absolute(
+                    r,
+                    "254 modules: idle system",
+                    "≤ 5 % of one core (50 ‰)",
+                    ("scale.idle_cpu", &[("modules", m)]),
+                    |r| r.p50_ns,
+                    "",
+                    50,
+                )
+            },
+        ),
+        at_full_scale(
+            report,
+            "254 modules: modbot ls",
+            "answers in ≤ 200 ms",
+            "scale.ls",
+            |r, m| {
+                absolute(
+                    r,
+                    "254 modules: modbot ls",
+                    "answers in ≤ 200 ms (slowest of 3)",
+                    ("scale.ls", &[("modules", m)]),
+                    |r| r.max_ns,
+                    "max",
+                    200_000_000,
+                )
+            },
+        ),
     ];
     report.targets = targets;
 }
@@ -439,7 +473,7 @@ mod tests {
             t.measured,
             "no grid.tick_error row with fifo=true hogs=0 in this run"
         );
-        assert_eq!(sut.targets.len(), 8);
+        assert_eq!(sut.targets.len(), 10);
         assert!(sut.targets.iter().all(|t| t.met.is_none()));
     }
 
