@@ -263,8 +263,15 @@ fn main() -> anyhow::Result<()> {
             }
         }
         if !busy {
-            // Woken by a call at once; the tick thread's news waits up to 2 ms.
-            module.wait_for_frame(Duration::from_millis(2))?;
+            // Woken by a call at once; the tick thread's news waits up to 2 ms while a switch
+            // is under way, else up to 20 ms (fewer wake-ups of the coordinator's process
+            // beside its real-time thread).
+            let news = if switching.busy() || ended.is_some() {
+                Duration::from_millis(2)
+            } else {
+                Duration::from_millis(20)
+            };
+            module.wait_for_frame(news)?;
         }
     }
     drop(to_tick);

@@ -84,6 +84,12 @@ impl Switching {
         })
     }
 
+    /// Whether a switch is asked for or under way (the service thread then looks at the tick
+    /// thread's news often).
+    pub fn busy(&self) -> bool {
+        self.job.is_some() || !matches!(self.phase, Phase::Idle)
+    }
+
     pub fn ticks(&mut self, ticks: u64) {
         self.ticks = ticks;
     }
