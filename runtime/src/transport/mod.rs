@@ -7,7 +7,8 @@
 //! Service layout of the iceoryx2 backend, per domain (it scales to 254 modules because a
 //! module connects only to the peers it actually talks to):
 //! - `claim.addr.N`, `claim.name.NAME`: event services created exclusively, so an address or
-//!   a name has one owner;
+//!   a name has one owner (a module started by a supervisor takes the address and name it was
+//!   assigned without them: the supervisor's directory says who holds what);
 //! - `inbox.N`: publish-subscribe `[u8]`, module N's only subscriber; senders open a publisher
 //!   on first use. Full inboxes refuse new frames (no silent overwrite): the sender sees it;
 //! - `wake.N`: event, for modules in blocking mode;
@@ -16,10 +17,11 @@
 //!   broadcast;
 //! - `bb.N`: module N's blackboard snapshots, history 1;
 //! - `heartbeat`: publish-subscribe, every module publishes its 48-byte heartbeat there and the
-//!   supervisor subscribes (one publisher per module, few subscribers: it stays small).
-//!
+//!   supervisor subscribes (one publisher per module, few subscribers: it stays small);
 //! - `directory`: a blackboard the supervisor writes: who is in the domain (see
-//!   [`ipc::DirectoryWriter`]).
+//!   [`ipc::DirectoryWriter`]);
+//! - `relay`: request-response, the supervisor's: calls of tools that hold no address (see
+//!   [`ipc::RelayServer`]).
 //!
 //! Liveness comes from the supervisor's directory, or without a supervisor from iceoryx2 nodes:
 //! one per module, named `mNNN.MODE.NAME`.
