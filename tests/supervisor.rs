@@ -567,3 +567,34 @@ module "sonar" { addr = tonumber(vars.addr or "2"), program = "modbot-sonar" }
     let out = sut.modbot(&["up", file, "--var", "no-equals"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// A module program that refuses its input says why in one line and exits 1, without a
+/// backtrace even with RUST_BACKTRACE=1 (these machines set it); so does a module of a system.
+#[test]
+fn a_refused_start_is_one_line_without_a_backtrace() {
+    let out = std::process::Command::new(common::bin("modbot-sonar"))
+        .args(["--sensors", "100"])
+        .env("RUST_BACKTRACE", "1")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(
+        stderr.trim_end(),
+        "modbot-sonar: --sensors 100: use 1 to 64",
+        "{stderr}"
+    );
+    let mut sut = TestDomain::new("oneline");
+    let file = sut.write_system(&format!(
+        "{FAST}module \"sonar\" {{ addr = 2, program = \"modbot-sonar\", args = {{ \"--sensors\", \"100\" }}, restart = \"never\" }}\n"
+    ));
+    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
+    sut.wait_exit(up, Duration::from_secs(30));
+    let log = sut.output_of(up);
+    assert!(
+        log.contains("modbot-sonar: --sensors 100: use 1 to 64"),
+        "{log}"
+    );
+    assert!(!log.contains("stack backtrace"), "{log}");
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}

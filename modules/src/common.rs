@@ -38,6 +38,19 @@ impl ModuleArgs {
     }
 }
 
+/// Ends a module program: an error is one line on stderr, `PROGRAM: what went wrong: its
+/// causes`, and exit status 1 — never a backtrace, whatever `RUST_BACKTRACE` says (a panic
+/// keeps its backtrace: that is a bug, not a refusal).
+pub fn finish(program: &str, result: anyhow::Result<()>) -> std::process::ExitCode {
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{program}: {e:#}");
+            std::process::ExitCode::from(1)
+        }
+    }
+}
+
 /// Logs to stderr, filtered by `RUST_LOG` (default `info`); colours only on a terminal (under
 /// `modbot up` the supervisor reads the lines through a pipe).
 pub fn init_logging() {

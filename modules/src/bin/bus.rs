@@ -94,7 +94,11 @@ fn block_method(
         .map_err(|_| MethodError::Failed("the bus bridge's cycle has ended".into()))
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    modbot_modules::common::finish("modbot-bus", run())
+}
+
+fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
     let grid = cli.grid.load()?;

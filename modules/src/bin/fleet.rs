@@ -39,7 +39,11 @@ enum Role {
     Aggregator,
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    modbot_modules::common::finish("modbot-fleet", run())
+}
+
+fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
     let name = cli.module.name.clone().unwrap_or_else(|| "fleet".into());

@@ -25,7 +25,11 @@ struct Cli {
     host: String,
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    modbot_modules::common::finish("modbot-host", run())
+}
+
+fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
     let grid = cli.grid.load()?;

@@ -33,7 +33,11 @@ struct Cli {
     period_ms: u64,
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    modbot_modules::common::finish("modbot-intrusion", run())
+}
+
+fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
     anyhow::ensure!(

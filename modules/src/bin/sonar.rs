@@ -70,7 +70,11 @@ fn parse_point(text: &str) -> Result<(f64, f64), String> {
     Ok((num(x)?, num(y)?))
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    modbot_modules::common::finish("modbot-sonar", run())
+}
+
+fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
     anyhow::ensure!(

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
+use std::thread::JoinHandle;
 
 use crossbeam::channel::Sender;
 
@@ -62,7 +63,7 @@ pub fn spawn(
     supervision: &Supervision,
     epoch_ns: u64,
     logs: &Sender<LogLine>,
-) -> std::io::Result<Child> {
+) -> std::io::Result<(Child, Vec<JoinHandle<()>>)> {
     let mut cmd = Command::new(&spec.program);
     cmd.arg("--domain")
         .arg(domain.name())
@@ -106,17 +107,22 @@ pub fn spawn(
         })
     };
     let mut child = cmd.spawn()?;
+    let mut readers = Vec::new();
     if let Some(out) = child.stdout.take() {
-        forward_lines(index, out, logs.clone());
+        readers.extend(forward_lines(index, out, logs.clone()));
     }
     if let Some(err) = child.stderr.take() {
-        forward_lines(index, err, logs.clone());
+        readers.extend(forward_lines(index, err, logs.clone()));
     }
-    Ok(child)
+    Ok((child, readers))
 }
 
 /// Sends each line of `stream` to `logs` from a thread of its own, until the stream ends.
-fn forward_lines(module: usize, stream: impl Read + Send + 'static, logs: Sender<LogLine>) {
+fn forward_lines(
+    module: usize,
+    stream: impl Read + Send + 'static,
+    logs: Sender<LogLine>,
+) -> Option<JoinHandle<()>> {
     let spawned = std::thread::Builder::new()
         .name(format!("log-{module}"))
         .spawn(move || {
@@ -129,8 +135,12 @@ fn forward_lines(module: usize, stream: impl Read + Send + 'static, logs: Sender
                 }
             }
         });
-    if let Err(e) = spawned {
-        tracing::warn!("module {module}'s output is not shown: no thread to read it ({e})");
+    match spawned {
+        Ok(handle) => Some(handle),
+        Err(e) => {
+            tracing::warn!("module {module}'s output is not shown: no thread to read it ({e})");
+            None
+        }
     }
 }
 

@@ -158,6 +158,8 @@ struct Slot {
     methods_digest: u32,
     /// Asked to stop for good (a replaced assembly's host): its end is not a failure.
     retiring: bool,
+    /// The threads forwarding its output: what it wrote last is shown before its end is.
+    log_readers: Vec<std::thread::JoinHandle<()>>,
 }
 
 impl Slot {
@@ -176,6 +178,7 @@ impl Slot {
             counters: Counters::default(),
             methods_digest: 0,
             retiring: false,
+            log_readers: Vec::new(),
         }
     }
 }
@@ -502,7 +505,7 @@ impl Supervisor {
 
     fn spawn(&mut self, i: usize) -> Result<(), SupervisorError> {
         let m = &self.spec.modules[i];
-        let child = child::spawn(
+        let (child, log_readers) = child::spawn(
             i,
             m,
             &self.domain,
@@ -519,6 +522,7 @@ impl Supervisor {
         let now = self.now_ns();
         let slot = &mut self.slots[i];
         slot.child = Some(child);
+        slot.log_readers = log_readers;
         slot.pid = pid;
         slot.state = RunState::Starting;
         slot.started_ns = now;
@@ -718,6 +722,7 @@ impl Supervisor {
         };
         slot.child = None;
         let reason = slot.killed_for.take().unwrap_or_else(|| reason_of(status));
+        self.flush_output_of(i);
         // The dead process's ports would keep "receiving" until cleaned: clean them now, and
         // tell its peers it is gone.
         self.roster.reap();
@@ -845,6 +850,19 @@ impl Supervisor {
         }
     }
 
+    /// Shows what module `i`, which ended, wrote last: its output threads end when its pipes
+    /// close (waited for up to 200 ms: a process it left behind may hold them open).
+    fn flush_output_of(&mut self, i: usize) {
+        let deadline = Instant::now() + Duration::from_millis(200);
+        while self.slots[i].log_readers.iter().any(|r| !r.is_finished())
+            && Instant::now() < deadline
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        self.slots[i].log_readers.retain(|r| !r.is_finished());
+        self.forward_logs();
+    }
+
     /// Stops every module in reverse order and removes the domain's shared memory.
     fn shutdown(&mut self) {
         let grace = self.spec.supervision.stop_grace;
@@ -879,6 +897,7 @@ impl Supervisor {
                     Err(_) => break None,
                 }
             };
+            self.flush_output_of(i);
             let slot = &mut self.slots[i];
             slot.state = RunState::Stopped;
             if let Some(status) = status {

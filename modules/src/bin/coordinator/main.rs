@@ -122,7 +122,11 @@ fn ledger_method(
     Ok(())
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    modbot_modules::common::finish("modbot-coordinator", run())
+}
+
+fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
     let grid = cli.grid.load()?;
