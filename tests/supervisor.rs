@@ -1,6 +1,6 @@
 //! Fault injection under `modbot up`, with real processes: every test runs its own system (its
 //! own domain and description), kills, stops or starves real module processes, and checks that
-//! nothing of the domain is left in /dev/shm or /tmp/iceoryx2 afterwards.
+//! nothing of the domain is left in /dev/shm or iceoryx2's folders afterwards.
 
 mod common;
 
