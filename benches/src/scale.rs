@@ -59,14 +59,14 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let started = Instant::now();
     let mut measured: Vec<Measured> = Vec::new();
     for &n in &sizes {
-        // Start-up grows with the square of the module count or faster once the idle modules
-        // saturate the machine (see `comparison`): skip a size whose measurement, predicted
-        // with the cube (quick) or the square (full) of the count, would not fit in what is
+        // A size's measurement is fixed waits (settling, idle CPU) plus what grows about
+        // linearly with the module count (start-up, stop): skip a size whose measurement,
+        // predicted in proportion to the count from the last size, would not fit in what is
         // left.
         let left = budget.saturating_sub(started.elapsed());
         // From 2 modules the fixed costs dominate: no prediction.
         if let Some(last) = measured.last().filter(|m| m.modules >= 16) {
-            let k = (n as f64 / last.modules as f64).powi(if opts.quick { 3 } else { 2 });
+            let k = n as f64 / last.modules as f64;
             let predicted = last.took.mul_f64(k);
             if predicted > left {
                 report.note(format!(
