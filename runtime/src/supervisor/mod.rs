@@ -200,13 +200,14 @@ pub struct Supervisor {
     name_width: usize,
     problems: Vec<String>,
     stop_failed: bool,
-    status_dirty: bool,
-    /// Something the directory shows changed since it was published.
-    directory_dirty: bool,
-    /// When the status rows that `status` answers were last built, and whether a module's
-    /// state changed since.
+    /// Counts changes of what the supervisor shows (a module's state, pid, methods); the live
+    /// table, the status rows and the directory each remember the count they last showed.
+    changes: u64,
+    table_shown: u64,
+    rows_shown: u64,
+    directory_shown: u64,
+    /// When the status rows that `status` answers were last built.
     rows_built: Option<Instant>,
-    rows_dirty: bool,
     /// SIGCHLD tells when a child ended (else every child is looked at on every wake-up).
     child_signal: bool,
     /// When every child was last looked at regardless of SIGCHLD.
@@ -256,10 +257,11 @@ impl Supervisor {
             name_width,
             problems: Vec::new(),
             stop_failed: false,
-            status_dirty: true,
-            directory_dirty: true,
+            changes: 1,
+            table_shown: 0,
+            rows_shown: 0,
+            directory_shown: 0,
             rows_built: None,
-            rows_dirty: true,
             child_signal: child_signal.is_ok(),
             children_seen: Instant::now(),
             to_connect: Vec::new(),
@@ -307,10 +309,10 @@ impl Supervisor {
             self.watch();
             self.forward_logs();
             if opts.show_status
-                && self.status_dirty
+                && self.changes != self.table_shown
                 && last_table.elapsed() > Duration::from_millis(200)
             {
-                self.status_dirty = false;
+                self.table_shown = self.changes;
                 last_table = Instant::now();
                 self.print_table();
             }
@@ -460,9 +462,7 @@ impl Supervisor {
             }
             None => slot.state = RunState::Retired,
         }
-        self.status_dirty = true;
-        self.directory_dirty = true;
-        self.rows_dirty = true;
+        self.changes += 1;
     }
 
     fn now_ns(&self) -> u64 {
@@ -528,9 +528,7 @@ impl Supervisor {
         slot.started_ns = now;
         slot.last_beat_ns = 0;
         slot.killed_for = None;
-        self.status_dirty = true;
-        self.directory_dirty = true;
-        self.rows_dirty = true;
+        self.changes += 1;
         Ok(())
     }
 
@@ -580,7 +578,8 @@ impl Supervisor {
 
     /// Serves the supervisor's own calls (`status`, `down`) and keeps its phone book fresh.
     fn serve(&mut self) {
-        if std::mem::take(&mut self.directory_dirty) || self.roster.changed() {
+        if self.changes != self.directory_shown || self.roster.changed() {
+            self.directory_shown = self.changes;
             self.publish_directory();
         }
         // The rows `status` answers: at once after a change, else fresh counters 4 times a
@@ -588,8 +587,9 @@ impl Supervisor {
         if self
             .rows_built
             .is_none_or(|t| t.elapsed() >= Duration::from_millis(250))
-            || std::mem::take(&mut self.rows_dirty)
+            || self.changes != self.rows_shown
         {
+            self.rows_shown = self.changes;
             self.rows_built = Some(Instant::now());
             let rows = self.rows();
             self.endpoint.state_mut().rows = rows;
@@ -661,13 +661,11 @@ impl Supervisor {
             slot.counters = counters;
             if slot.methods_digest != digest {
                 slot.methods_digest = digest;
-                self.directory_dirty = true;
+                self.changes += 1;
             }
             if slot.state == RunState::Starting && state == ModuleState::Running {
                 slot.state = RunState::Running;
-                self.status_dirty = true;
-                self.directory_dirty = true;
-                self.rows_dirty = true;
+                self.changes += 1;
                 // Its start (loading, opening channels: milliseconds to seconds of work) ran
                 // at normal priority; now that it is up, its real-time settings apply, so a
                 // process starting beside a running grid never holds up the grid's threads.
@@ -729,18 +727,14 @@ impl Supervisor {
         self.publish_directory();
         if self.slots[i].retiring {
             self.slots[i].state = RunState::Retired;
-            self.status_dirty = true;
-            self.directory_dirty = true;
-            self.rows_dirty = true;
+            self.changes += 1;
             return;
         }
         let name = self.spec.modules[i].name.clone();
         let decision = self.slots[i].tracker.on_exit(&reason, now);
         let slot = &mut self.slots[i];
         slot.last_exit = Some(reason.clone());
-        self.status_dirty = true;
-        self.directory_dirty = true;
-        self.rows_dirty = true;
+        self.changes += 1;
         match decision {
             Decision::RestartAt(at) => {
                 slot.state = RunState::Restarting;
@@ -781,9 +775,7 @@ impl Supervisor {
         let name = m.name.clone();
         let stop = m.restart.give_up == GiveUp::StopSystem;
         self.slots[i].state = RunState::Failed;
-        self.status_dirty = true;
-        self.directory_dirty = true;
-        self.rows_dirty = true;
+        self.changes += 1;
         self.say(&format!(
             "{name} FAILED: {why}; {}",
             if stop {

@@ -51,7 +51,7 @@ impl Roster {
     /// Creates the domain's directory (empty until the first [`Roster::publish`]).
     pub(super) fn new(transport: &IpcTransport) -> Result<Roster, TransportError> {
         let node = transport.node(&format!("directory.{}", std::process::id()))?;
-        let writer = transport.publish_directory(&node)?;
+        let writer = DirectoryWriter::create(&node)?;
         Ok(Roster {
             writer,
             _node: node,

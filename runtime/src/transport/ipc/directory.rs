@@ -18,6 +18,7 @@ use iceoryx2::node::NodeView;
 use iceoryx2::port::reader::{BlackboardValue, EntryHandle, Reader};
 use iceoryx2::port::writer::{EntryHandleMut, Writer};
 use iceoryx2::prelude::*;
+use iceoryx2::service::builder::blackboard::BlackboardOpenError;
 use iceoryx2::service::messaging_pattern::MessagingPattern;
 use iceoryx2::service::port_factory::blackboard::PortFactory;
 use iceoryx2::service::port_factory::PortFactory as _;
@@ -75,7 +76,7 @@ impl PublishedDirectory {
             .open()
         {
             Ok(s) => s,
-            Err(e) if format!("{e:?}").contains("DoesNotExist") => return Ok(None),
+            Err(BlackboardOpenError::DoesNotExist) => return Ok(None),
             Err(e) => return Err(ipc_err("open the directory")(&e)),
         };
         let reader = service
@@ -107,6 +108,18 @@ impl PublishedDirectory {
 }
 
 impl PublishedDirectory {
+    /// Copies the image if it changed since the last copy (an atomic compare otherwise), and
+    /// reads its generation once per change: a full image has 254 entries to check.
+    fn refresh(&self) {
+        let mut last = self.last.borrow_mut();
+        if last.as_ref().is_none_or(|v| !self.entry.is_up_to_date(v)) {
+            let value = Box::new(self.entry.get());
+            self.last_generation
+                .set(View::parse(&value[..]).map_or(0, |v| v.generation()));
+            *last = Some(value);
+        }
+    }
+
     /// Nobody writes the directory any more: the supervisor stopped or died, and what it
     /// published last is no longer true. The node directory is scanned instead.
     /// A killed supervisor's writer stays registered until someone cleans up after it, so
@@ -135,13 +148,13 @@ impl Directory for PublishedDirectory {
         if self.orphaned() {
             return self.scan.list(f);
         }
-        let mut last = self.last.borrow_mut();
-        let value = last.insert(Box::new(self.entry.get()));
+        self.refresh();
+        let last = self.last.borrow();
+        let value = last.as_ref().expect("read by refresh");
         let view = View::parse(&value[..]).map_err(|e| TransportError::Ipc {
             op: "read the directory",
             detail: e.to_string(),
         })?;
-        self.last_generation.set(view.generation());
         for e in view.entries() {
             let Some(mode) = ReceiveMode::from_code(char::from(e.mode())) else {
                 continue;
@@ -167,14 +180,7 @@ impl Directory for PublishedDirectory {
     }
 
     fn generation(&self) -> u64 {
-        let mut last = self.last.borrow_mut();
-        if last.as_ref().is_none_or(|v| !self.entry.is_up_to_date(v)) {
-            let value = Box::new(self.entry.get());
-            // Read once per change: a full image has 254 entries to check.
-            self.last_generation
-                .set(View::parse(&value[..]).map_or(0, |v| v.generation()));
-            *last = Some(value);
-        }
+        self.refresh();
         self.last_generation.get()
     }
 

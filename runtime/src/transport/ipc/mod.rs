@@ -117,26 +117,16 @@ impl IpcTransport {
         Ok(t)
     }
 
-    /// Whether a supervisor publishes this domain's directory (seen when this transport was
-    /// made).
-    pub fn supervised(&self) -> bool {
-        self.supervised
-    }
-
     /// The directory as iceoryx2's node files tell it, and the cleaning of dead nodes: the
     /// supervisor's (it publishes what it learns) and the fallback of unsupervised domains.
     pub fn scanned_directory(&self) -> Box<dyn Directory> {
-        Box::new(ScannedDirectory {
-            config: self.config.clone(),
-        })
+        Box::new(self.scan())
     }
 
-    /// Creates the published directory of this domain (the supervisor does, once).
-    pub fn publish_directory(
-        &self,
-        node: &Node<ipc::Service>,
-    ) -> Result<DirectoryWriter, TransportError> {
-        DirectoryWriter::create(node)
+    fn scan(&self) -> ScannedDirectory {
+        ScannedDirectory {
+            config: self.config.clone(),
+        }
     }
 
     pub fn domain(&self) -> &Domain {
@@ -181,9 +171,7 @@ impl IpcTransport {
         Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
         TransportError,
     > {
-        let dir = ScannedDirectory {
-            config: self.config.clone(),
-        };
+        let dir = self.scan();
         let mut claims = Vec::new();
         for (service, is_addr) in [
             (format!("claim.addr.{}", addr.0), true),
@@ -522,10 +510,7 @@ impl Transport for IpcTransport {
         // A system may be starting in this domain right now: only files older than this
         // check are removed, so what a process creates while we look is left alone.
         let before = std::time::SystemTime::now();
-        let dir = ScannedDirectory {
-            config: self.config.clone(),
-        };
-        dir.reap_dead();
+        self.scan().reap_dead();
         if self.tool.get() {
             // A system may be starting: its first node is invisible to a listing for a
             // moment, and removing its files would cut it off. Dead nodes are reaped above
