@@ -19,4 +19,6 @@ grid { base_period = 0.001, priority = 60, assemblies = "arm", assembly = vars.a
 
 -- The bus: served every tick, owns the drives (the host named "bus" is the bus bridge). It
 -- stays when the assembly changes; the assemblies connect to its ports.
-component "robot" { type = "bus", host = "bus", period = 1, params = { axes = 6 } }
+-- With `handover`, the running trajectory generator tells it the command it will give two ticks
+-- on, which it forwards to the generator of an assembly taking over (bumpless in velocity).
+component "robot" { type = "bus", host = "bus", period = 1, params = { axes = 6, handover = true } }

@@ -11,7 +11,7 @@ component "enable" { type = "drive_enable", host = "ctrl", period = 1, params = 
 component "path"   { type = "waypoints",    host = "ctrl", period = 10,
                      params = { axes = 6, points = points, dwell = tonumber(vars.dwell or "0.2") } }
 component "ptp"    { type = "ptp",          host = "ctrl", period = 1, policy = "fault",
-                     params = { axes = 6, v_max = 1.0, a_max = 4.0 } }
+                     params = { axes = 6, handover = true, v_max = 1.0, a_max = 4.0 } }
 component "ff"     { type = "feedforward",  host = "ctrl", period = 1,
                      params = { axes = 6, inertia = { 2.0, 2.0, 1.0, 0.2, 0.2, 0.1 } } }
 component "watch"  { type = "monitor",      host = "ctrl", period = 1, policy = "fault",
@@ -24,6 +24,8 @@ connect "enable.mode -> robot.mode"
 connect "ptp.done -> path.done"
 connect "path.goal -> ptp.goal"
 connect "robot.demand_position -> ptp.start"    -- bumpless: starts where the drives were commanded
+connect "robot.handover -> ptp.handover"        -- and the command it replaces, exactly
+connect "ptp.handover -> robot.handover"        -- what a successor takes over from
 connect "ptp.q -> robot.target_position"
 connect "ptp.qd -> robot.target_velocity"
 connect "ptp.q -> ff.q"

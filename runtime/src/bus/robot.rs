@@ -7,7 +7,9 @@
 //!   `demand_position`: the position the drive was last commanded (CiA 402's position demand
 //!   value, 0x6062) while in operation enabled in CSP, else its actual position — where a
 //!   generator taking over should start for the command not to jump. Params: `axes`
-//!   (default 6), `backend` (`sim`). In the bus bridge process (`modbot-bus`) it drives that
+//!   (default 6), `backend` (`sim`), `handover` (bool, default false: with it, input and
+//!   output `handover`, the running generator's handover forwarded one cycle later, see
+//!   [`handover`](crate::grid::control::handover)). In the bus bridge process (`modbot-bus`) it drives that
 //!   process's [`Bridge`], which has the watchdog; elsewhere (the reference run, tests) a
 //!   private simulation.
 //! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled
@@ -29,6 +31,7 @@ use crate::grid::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
     PortValue, Registry, PERIOD_S,
 };
+use crate::grid::control::handover;
 use modbot_ipc_schema::grid::Release;
 
 /// Registers `bus` and `drive_enable`.
@@ -74,14 +77,20 @@ const BUS_OUT: [&str; 6] = [
 
 fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
     let n = axes(p)?;
+    let (mut inputs, mut outputs) = (ports(&BUS_IN, n), ports(&BUS_OUT, n));
+    if handover::wanted(p)? {
+        inputs.push(handover::port(n));
+        outputs.push(handover::port(n));
+    }
     Ok(ComponentInfo {
         type_name: "bus",
         doc: "the drives on the bus: one cycle per release (serve it every tick)",
-        inputs: ports(&BUS_IN, n),
-        outputs: ports(&BUS_OUT, n),
+        inputs,
+        outputs,
         params: vec![
             ParamDecl::optional("axes", ParamType::I64, ParamValue::I64(6)),
             ParamDecl::optional("backend", ParamType::Text, ParamValue::Text("sim".into())),
+            handover::param(),
         ],
     })
 }
@@ -143,6 +152,19 @@ impl Component for Bus {
             target_torque: at(4, i),
         });
         let actuals = b.actuals();
+        let (outputs, forwarded) = outputs.split_at_mut(BUS_OUT.len().min(outputs.len()));
+        if let (Some(from), Some(to)) = (inputs.get(BUS_IN.len()), forwarded.first_mut()) {
+            // The running generator's handover, for a generator taking over; none while the
+            // drives do not follow the assembly.
+            if let PortValue::F64s(to) = &mut *to {
+                if to.len() == slice(from).len() {
+                    to.copy_from_slice(slice(from));
+                }
+            }
+            if b.safe_stop.is_some() {
+                handover::invalidate(to);
+            }
+        }
         for (port, out) in outputs.iter_mut().enumerate() {
             if let PortValue::F64s(values) = out {
                 for (i, (v, a)) in values.iter_mut().zip(actuals.iter()).enumerate() {

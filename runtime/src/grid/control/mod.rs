@@ -8,8 +8,8 @@
 //!
 //! | type | inputs | outputs | parameters |
 //! |---|---|---|---|
-//! | `ptp` | `goal`, `start` | `q`, `qd`, `qdd`, `done: bool` | `v_max`, `a_max` (per axis, required), `bessel_hz` (f64, 0: off) |
-//! | `hold_position` | `start` | `q`, `qd`, `qdd` | |
+//! | `ptp` | `goal`, `start`, (`handover`) | `q`, `qd`, `qdd`, `done: bool`, `handover` | `v_max`, `a_max` (per axis, required), `bessel_hz` (f64, 0: off), `handover` (bool, false) |
+//! | `hold_position` | `start`, (`handover`) | `q`, `qd`, `qdd`, `handover` | `a_max` (per axis, 4), `handover` (bool, false) |
 //! | `feedforward` | `q`, `qd`, `qdd` | `tau_ff` | `inertia` (per axis, required), `gravity`, `viscous` (per axis, 0), `coupling` (f64, 0) |
 //! | `cascade` | `q_ref`, `qd_ref`, `tau_ff`, `q`, `qd` | `tau` | `kp`, `kv`, `ki`, `tau_max` (per axis, required) |
 //! | `monitor` | `q`, `qd`, `q_ref` | `ok: bool`, `code: i64`, `axis: i64` | `q_min`, `q_max`, `qd_max`, `following_max` (per axis, required) |
@@ -23,7 +23,9 @@
 //!
 //! # Layout
 //! - [`trajectory`]: `ptp` (synchronized trapezoidal point-to-point motion) and
-//!   `hold_position`; [`bessel`]: the 2nd-order Bessel low-pass filter `ptp` may apply.
+//!   `hold_position`; [`bessel`]: the 2nd-order Bessel low-pass filter `ptp` may apply;
+//!   [`handover`]: the port through which a generator taking over learns the exact command it
+//!   replaces (`f64[3·axes + 1]`; an input only with param `handover = true`).
 //! - [`feedforward`]: a simplified rigid-body model, τ = M(q)·q̈ + c(q, q̇) + g(q).
 //! - [`cascade`]: the P-PI position/velocity cascade with anti-windup.
 //! - [`monitor`]: latching limits on position, velocity and following error; a breach is an
@@ -34,6 +36,7 @@
 pub mod bessel;
 pub mod cascade;
 pub mod feedforward;
+pub mod handover;
 pub mod monitor;
 pub mod trajectory;
 pub mod waypoints;
@@ -413,8 +416,9 @@ connect "ptp.q -> mon.q_ref"
             "axis 5 reaches its limit"
         );
         // The slowest axis (5: 2 rad at 2.5 rad/s, 4 rad/s²) needs 1.425 s: the goal is valid
-        // at tick 1, the motion ends at its release 1426, whose outputs are valid at 1427.
-        assert_eq!(sut.done_at, Some(1 + 1425 + 1));
+        // at tick 1, the motion begins two ticks later and ends at its release 1428, whose
+        // outputs are valid at 1429.
+        assert_eq!(sut.done_at, Some(1 + 2 + 1425 + 1));
         assert_eq!(sut.trips, 0);
         // With a 10 Hz Bessel filter the commanded velocity rounds off (and may pass v_max by
         // the filter's overshoot), and the plant tracks it closer still.

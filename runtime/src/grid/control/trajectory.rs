@@ -7,7 +7,9 @@
 //!
 //! At its first release it latches `start` and rests there. When a new goal arrives (`goal`
 //! differs from the last goal it took) while it is at rest (`done`), it latches `start` again,
-//! so that the motion starts from where the robot is (bumpless), and moves to `goal`. A goal
+//! so that the motion starts from where the robot is (bumpless), and moves to `goal`,
+//! beginning two ticks later (what it commands is decided two ticks ahead: see `handover`
+//! below). A goal
 //! that arrives during a motion is taken once that motion is done; a goal with a non-finite
 //! value is ignored, and so is an axis of `start` that is not finite (the commanded position
 //! stays).
@@ -38,13 +40,21 @@
 //! velocity it predicted at `a_max` (per axis), so neither the commanded position nor its
 //! velocity jumps, then takes the goal from where it came to rest.
 //!
+//! Output `handover` is the command it will give two ticks on (see [`super::handover`]). With
+//! param `handover = true` it has an input `handover` too (connect the bus's): tracking, it
+//! follows that instead of carrying `start` ahead, and taking over it brakes from exactly the
+//! command it replaces, so the velocity changes at the switch by at most one tick of `a_max`
+//! whatever the running motion did meanwhile.
+//!
 //! # `hold_position`
 //! Input `start`; outputs `q` (= `start` as latched at the first release, 0 on an axis where it
 //! was not finite), `qd` and `qdd` (zeros): the generator of an assembly that holds the robot.
 //! Tracking, it follows `start` as `ptp` does; taking over a robot in motion it brakes at its
-//! param `a_max` (default 4 rad/s², per axis) and holds where it comes to rest.
+//! param `a_max` (default 4 rad/s², per axis) and holds where it comes to rest. Output and
+//! param `handover` as for `ptp`.
 
 use super::bessel::Bessel2;
+use super::handover::{self, Handover};
 use super::{
     array, array_mut, array_ports, at, axes, axes_decl, per_axis, per_axis_decl, per_axis_default,
     positive, rest,
@@ -64,16 +74,22 @@ pub(super) fn ptp_info(p: &Params) -> Result<ComponentInfo, String> {
     }
     let mut outputs = array_ports(&["q", "qd", "qdd"], n);
     outputs.push(PortDecl::new("done", PortType::Bool));
+    outputs.push(handover::port(n));
+    let mut inputs = array_ports(&["goal", "start"], n);
+    if handover::wanted(p)? {
+        inputs.push(handover::port(n));
+    }
     Ok(ComponentInfo {
         type_name: "ptp",
         doc: "synchronized trapezoidal point-to-point motion from start to goal",
-        inputs: array_ports(&["goal", "start"], n),
+        inputs,
         outputs,
         params: vec![
             axes_decl(),
             per_axis_decl("v_max"),
             per_axis_decl("a_max"),
             ParamDecl::optional("bessel_hz", ParamType::F64, ParamValue::F64(0.0)),
+            handover::param(),
         ],
     })
 }
@@ -95,8 +111,12 @@ struct Axis {
 }
 
 impl Axis {
-    /// Position, velocity and acceleration `t` seconds into a motion of `duration`.
+    /// Position, velocity and acceleration `t` seconds into a motion of `duration` (at rest
+    /// where it starts before it begins, `t` < 0).
     fn at(&self, t: f64, duration: f64) -> [f64; 3] {
+        if t < 0.0 {
+            return [self.from, 0.0, 0.0];
+        }
         let (d, a, v, t_a) = (self.distance.abs(), self.a, self.v, self.t_a);
         let [s, sd, sdd] = if t >= duration {
             [d, 0.0, 0.0]
@@ -146,6 +166,8 @@ struct Ptp {
     /// At rest where braking brought it: the next motion starts from there, not from the
     /// demand it reads (one tick old).
     braked: bool,
+    /// Whether it has the `handover` input (param `handover`).
+    takes_handover: bool,
 }
 
 /// Where the running assembly will have commanded the robot when a tracking component takes
@@ -329,6 +351,7 @@ impl Ptp {
             brake: Brake::new(n),
             stops: vec![0.0; n],
             braked: false,
+            takes_handover: handover::wanted(p)?,
         })
     }
 
@@ -401,27 +424,87 @@ impl Ptp {
             self.target[i] = to;
         }
         self.duration = duration;
-        self.began = tick;
+        // Begun [`handover::TICKS`] ticks on: what it commands is decided that far ahead, so
+        // the handover it writes is what it will command, a new goal included.
+        self.began = tick + handover::TICKS;
         self.moving = duration > 0.0;
         self.settled = self.filters.is_empty();
     }
-}
 
-impl Component for Ptp {
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    /// At rest where braking brings it: the next goal is taken from there.
+    fn rest_where_braking_ends(&mut self) {
+        let mut stops = std::mem::take(&mut self.stops);
+        self.brake.stops(&mut stops);
+        self.latch(&stops);
+        self.stops = stops;
+        self.brake.duration = 0.0;
+        self.braked = true;
+    }
+
+    /// The handover it reads, if it has the input and what it reads there is valid.
+    fn handover<'a>(&self, inputs: &'a [PortValue]) -> Option<Handover<'a>> {
+        let port = inputs.get(2).filter(|_| self.takes_handover)?;
+        Handover::read(port, self.target.len())
+    }
+
+    /// Writes the command it will give [`handover::TICKS`] ticks after `tick`, as things stand
+    /// (a goal it has not taken yet aside).
+    fn write_handover(&self, tick: u64, out: &mut PortValue) {
+        let then = tick + handover::TICKS;
+        // Signed: a motion may begin after `tick`.
+        let elapsed = |began: u64, at: u64| (at as f64 - began as f64) * self.dt;
+        if self.brake.duration > 0.0 {
+            let t = elapsed(self.brake.began, then);
+            handover::write(out, |i| self.brake.at(i, t));
+        } else if self.moving || !self.settled {
+            handover::write(out, |i| {
+                let profile = |m: u64| self.axes[i].at(elapsed(self.began, m), self.duration);
+                let Some(filters) = self.filters.get(i) else {
+                    return profile(then);
+                };
+                // The filters as they will have stepped through the ticks to come.
+                let mut filters = *filters;
+                let mut y = [0.0; 3];
+                for m in tick + 1..=then {
+                    for ((y, filter), x) in y.iter_mut().zip(&mut filters).zip(profile(m)) {
+                        *y = filter.step(x);
+                    }
+                }
+                y
+            });
+        } else {
+            handover::write(out, |i| [self.target[i], 0.0, 0.0]);
+        }
+    }
+
+    /// The command of a live release (see [`Component::step`]).
+    fn command(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let (goal, start) = (array(&inputs[0]), array(&inputs[1]));
+        let taken = self.handover(inputs);
         if let Some(v0) = self.ahead.take_over() {
-            // Taken over from the running assembly's motion: brake from its velocity first,
-            // from one tick on from where it rests (its outputs apply one tick later).
-            self.brake
-                .begin(tick, &self.target, v0, &self.a_max, self.dt);
+            // Taken over from the running assembly's motion: brake from its velocity first.
+            // From the command it replaces, when it handed that over; else from the one tick
+            // on from where it rests, carried at the velocity predicted (its outputs apply one
+            // tick later).
+            match taken {
+                Some(h) => self.brake.begin(tick, h.q(), h.qd(), &self.a_max, 0.0),
+                None => self
+                    .brake
+                    .begin(tick, &self.target, v0, &self.a_max, self.dt),
+            }
+            if self.brake.duration == 0.0 {
+                // At rest already: the next motion starts where it took over, not from the
+                // demand it reads (older).
+                self.rest_where_braking_ends();
+            }
         }
         if !self.latched {
             self.latch(start);
             self.latched = true;
         }
         let dt = self.dt;
-        let elapsed = |began: u64| tick.saturating_sub(began) as f64 * dt;
+        // Signed: a motion planned begins [`handover::TICKS`] ticks later.
+        let elapsed = |began: u64| (tick as f64 - began as f64) * dt;
         if self.brake.duration > 0.0 {
             let t = elapsed(self.brake.began);
             if self.brake.active(t) {
@@ -429,13 +512,7 @@ impl Component for Ptp {
                 outputs[3] = PortValue::Bool(false);
                 return;
             }
-            // At rest where braking brought it; the goal is taken from there.
-            let mut stops = std::mem::take(&mut self.stops);
-            self.brake.stops(&mut stops);
-            self.latch(&stops);
-            self.stops = stops;
-            self.brake.duration = 0.0;
-            self.braked = true;
+            self.rest_where_braking_ends();
         }
         if self.moving && elapsed(self.began) >= self.duration {
             self.moving = false;
@@ -474,17 +551,30 @@ impl Component for Ptp {
         }
         outputs[3] = PortValue::Bool(false);
     }
+}
 
-    /// Rests where the robot will be commanded to be when it takes over (`start`, carried
-    /// ahead: see [`Lead`]); the first goal it sees after that is new, so it then moves from
-    /// there.
-    fn track(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+impl Component for Ptp {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.command(tick, inputs, outputs);
+        self.write_handover(tick, &mut outputs[4]);
+    }
+
+    /// Rests where the robot will be commanded to be when it takes over (the handover it
+    /// reads, else `start` carried ahead: see [`Lead`]); the first goal it sees after that is
+    /// new, so it then moves from there.
+    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let mut ahead = std::mem::take(&mut self.ahead);
-        self.latch(ahead.track(array(&inputs[1])));
+        let taken = self.handover(inputs);
+        let extrapolated = ahead.track(array(&inputs[1]));
+        match taken {
+            Some(h) => self.latch(h.q()),
+            None => self.latch(extrapolated),
+        }
         self.ahead = ahead;
         self.latched = true;
         rest(outputs, &self.target);
         outputs[3] = PortValue::Bool(true);
+        self.write_handover(tick, &mut outputs[4]);
     }
 }
 
@@ -493,13 +583,23 @@ const HOLD_A_MAX: f64 = 4.0;
 
 pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
     let n = axes(p)?;
+    let mut inputs = array_ports(&["start"], n);
+    if handover::wanted(p)? {
+        inputs.push(handover::port(n));
+    }
+    let mut outputs = array_ports(&["q", "qd", "qdd"], n);
+    outputs.push(handover::port(n));
     Ok(ComponentInfo {
         type_name: "hold_position",
         doc: "holds start as latched at the first release: q = start, qd = qdd = 0; taking \
               over a moving robot, brakes at a_max first and holds where it comes to rest",
-        inputs: array_ports(&["start"], n),
-        outputs: array_ports(&["q", "qd", "qdd"], n),
-        params: vec![axes_decl(), per_axis_default("a_max", HOLD_A_MAX)],
+        inputs,
+        outputs,
+        params: vec![
+            axes_decl(),
+            per_axis_default("a_max", HOLD_A_MAX),
+            handover::param(),
+        ],
     })
 }
 
@@ -522,6 +622,7 @@ pub(super) fn make_hold(p: &Params) -> Result<Box<dyn Component>, String> {
         a_max,
         dt,
         brake: Brake::new(n),
+        takes_handover: handover::wanted(p)?,
     }))
 }
 
@@ -536,13 +637,37 @@ struct Hold {
     dt: f64,
     /// Taken over in motion: braking to rest, then holding there.
     brake: Brake,
+    /// Whether it has the `handover` input (param `handover`).
+    takes_handover: bool,
 }
 
-impl Component for Hold {
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+impl Hold {
+    /// The handover it reads, if it has the input and what it reads there is valid.
+    fn handover<'a>(&self, inputs: &'a [PortValue]) -> Option<Handover<'a>> {
+        let port = inputs.get(1).filter(|_| self.takes_handover)?;
+        Handover::read(port, self.q.len())
+    }
+
+    /// Writes the command it will give [`handover::TICKS`] ticks after `tick`.
+    fn write_handover(&self, tick: u64, out: &mut PortValue) {
+        let t = (tick + handover::TICKS).saturating_sub(self.brake.began) as f64 * self.dt;
+        if self.brake.active(t) {
+            handover::write(out, |i| self.brake.at(i, t));
+        } else {
+            handover::write(out, |i| [self.q[i], 0.0, 0.0]);
+        }
+    }
+
+    /// The command of a live release (see [`Component::step`]).
+    fn command(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let taken = self.handover(inputs);
         if let Some(v0) = self.ahead.take_over() {
-            // As ptp: brake from the velocity taken over, from one tick on.
-            self.brake.begin(tick, &self.q, v0, &self.a_max, self.dt);
+            // As ptp: brake from the command it replaces, or from the velocity predicted, one
+            // tick on.
+            match taken {
+                Some(h) => self.brake.begin(tick, h.q(), h.qd(), &self.a_max, 0.0),
+                None => self.brake.begin(tick, &self.q, v0, &self.a_max, self.dt),
+            }
             self.brake.stops(&mut self.q);
         }
         let t = tick.saturating_sub(self.brake.began) as f64 * self.dt;
@@ -560,16 +685,30 @@ impl Component for Hold {
         }
         rest(outputs, &self.q);
     }
+}
 
-    /// Follows `start`, carried ahead (see [`Lead`]), until it takes over, then holds there.
-    fn track(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let ahead = self.ahead.track(array(&inputs[0]));
+impl Component for Hold {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.command(tick, inputs, outputs);
+        self.write_handover(tick, &mut outputs[3]);
+    }
+
+    /// Follows the handover it reads, else `start` carried ahead (see [`Lead`]), until it
+    /// takes over, then holds there.
+    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let taken = self.handover(inputs);
+        let extrapolated = self.ahead.track(array(&inputs[0]));
+        let ahead = match taken {
+            Some(h) => h.q(),
+            None => extrapolated,
+        };
         for (i, q) in self.q.iter_mut().enumerate() {
             let x = at(ahead, i);
             *q = if x.is_finite() { x } else { 0.0 };
         }
         self.latched = true;
         rest(outputs, &self.q);
+        self.write_handover(tick, &mut outputs[3]);
     }
 }
 
@@ -606,10 +745,18 @@ mod tests {
         let mut sut = ptp(&[1.0], &[2.0], 0.0);
         sut.step(0, &[&[0.0], &[0.0]]);
         assert_eq!(sut.outputs[3], PortValue::Bool(true));
-        // 2 rad at 1 rad/s and 2 rad/s²: 0.5 s up, 1.5 s cruising, 0.5 s down.
+        // 2 rad at 1 rad/s and 2 rad/s²: 0.5 s up, 1.5 s cruising, 0.5 s down, begun two
+        // ticks after the goal came.
         let seen = run(&mut sut, 10, 5000, &[2.0]);
-        assert_eq!(seen.len(), 2501);
-        let at = |ms: usize| [0, 1, 2].map(|p| seen[ms][p][0]);
+        assert_eq!(seen.len(), 2 + 2501);
+        assert_eq!(
+            seen[..2],
+            [
+                [vec![0.0], vec![0.0], vec![0.0]],
+                [vec![0.0], vec![0.0], vec![0.0]]
+            ]
+        );
+        let at = |ms: usize| [0, 1, 2].map(|p| seen[2 + ms][p][0]);
         assert_eq!(at(0), [0.0, 0.0, 2.0]);
         assert!((at(250)[0] - 0.0625).abs() < 1e-12);
         assert!((at(250)[1] - 0.5).abs() < 1e-12);
@@ -625,10 +772,10 @@ mod tests {
         let mut sut = ptp(&[1.0], &[2.0], 0.0);
         let seen = run(&mut sut, 0, 5000, &[-0.25]);
         // 2·√(0.25 / 2) = 0.7071 s, peak 2 · 0.3536 = 0.7071 rad/s.
-        assert_eq!(seen.len(), 709);
+        assert_eq!(seen.len(), 2 + 709);
         let peak = seen.iter().map(|s| s[1][0].abs()).fold(0.0, f64::max);
         assert!((peak - 0.5f64.sqrt()).abs() < 2e-3, "{peak}");
-        assert_eq!(seen[708][0], [-0.25]);
+        assert_eq!(seen[2 + 708][0], [-0.25]);
     }
 
     #[test]
@@ -648,8 +795,8 @@ mod tests {
             }
         }
         // Axis 0 sets the duration (2.5 s); axis 1 (2 s alone) keeps its acceleration.
-        assert_eq!(seen.len(), 2501);
-        assert_eq!(seen[10][2][1], -1.0);
+        assert_eq!(seen.len(), 2 + 2501);
+        assert_eq!(seen[2 + 10][2][1], -1.0);
     }
 
     #[test]
@@ -714,7 +861,7 @@ mod tests {
             .with("a_max", ParamValue::I64(2));
         let mut sut = Harness::new("ptp", params, 1);
         let seen = run(&mut sut, 0, 10_000, &[2.0, 2.0]);
-        assert_eq!(seen.len(), 2501);
+        assert_eq!(seen.len(), 2 + 2501);
     }
 
     #[test]
@@ -817,6 +964,158 @@ mod tests {
         // From 0.8 rad/s at 4 rad/s², it stops 0.08 rad on.
         assert!((end - (cruise(99) + 0.08)).abs() < 2e-3, "held at {end}");
         assert_eq!(sut.out(1), [0.0], "at rest");
+    }
+
+    /// The bus's position commands, tick by tick, when `new` takes over from `old` at tick
+    /// `switch` as LET and a bus with `handover` connect them: the bus at tick n commands the
+    /// output of n − 1 of the generator live at n and forwards its handover of n − 1 (at the
+    /// switch tick, the incoming one's last tracking release); the generators read the bus's
+    /// outputs of n − 1 (`inputs(demand, handover)`), so the handover they read at n is the
+    /// one written at n − 2. `new` tracks from tick 10.
+    fn swap(
+        old: &mut Harness,
+        old_inputs: impl Fn(u64, &[f64], &[f64]) -> Vec<Vec<f64>>,
+        new: &mut Harness,
+        new_inputs: impl Fn(u64, &[f64], &[f64]) -> Vec<Vec<f64>>,
+        switch: u64,
+        end: u64,
+    ) -> Vec<f64> {
+        let ports = [old.outputs.len() - 1, new.outputs.len() - 1];
+        let mut commands = Vec::new();
+        // The bus's outputs of the tick before (demand and handover), and each generator's
+        // (command and handover).
+        let mut bus = (0.0, vec![0.0; 4]);
+        let mut released = [(0.0, vec![0.0; 4]), (0.0, vec![0.0; 4])];
+        for n in 0..end {
+            // The bus at n reads the output of n − 1 of the generator live at n: at the switch
+            // tick the incoming one's last tracking output.
+            let served = released[usize::from(n >= switch)].clone();
+            commands.push(served.0);
+            let demand = [bus.0];
+            let mut release = |sut: &mut Harness, which: usize, inputs: Vec<Vec<f64>>, live| {
+                let inputs: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
+                if live {
+                    sut.step(n, &inputs);
+                } else {
+                    sut.track(n, &inputs);
+                }
+                released[which] = (sut.out(0)[0], sut.out(ports[which]).to_vec());
+            };
+            if n < switch {
+                release(old, 0, old_inputs(n, &demand, &bus.1), true);
+            }
+            if n >= 10 {
+                release(new, 1, new_inputs(n, &demand, &bus.1), n >= switch);
+            }
+            bus = served;
+        }
+        commands
+    }
+
+    fn handover_params(sut: Params) -> Params {
+        sut.with("handover", ParamValue::Bool(true))
+    }
+
+    /// The largest velocity step of a swap from a ptp moving 0.1 rad (from tick 40 on, at
+    /// 4 rad/s²: triangular, turning from +a to −a at tick 198, at rest from 356) to `new`,
+    /// at each switch tick from 20 to 400: before, during and after the motion.
+    fn largest_step_of_swaps(
+        new: impl Fn() -> Harness,
+        new_inputs: impl Fn(&[f64], &[f64]) -> Vec<Vec<f64>> + Copy,
+        check: impl Fn(u64, &Harness, &[f64]),
+    ) -> f64 {
+        let mut largest = 0.0f64;
+        for switch in 20..=400 {
+            let mut old = ptp(&[1.0], &[4.0], 0.0);
+            let mut new = new();
+            let commands = swap(
+                &mut old,
+                |n, d, _| vec![vec![if n < 40 { 0.0 } else { 0.1 }], d.to_vec()],
+                &mut new,
+                |_, d, h| new_inputs(d, h),
+                switch,
+                1000,
+            );
+            check(switch, &new, &commands);
+            largest = largest.max(largest_velocity_step(&commands));
+        }
+        largest
+    }
+
+    #[test]
+    fn a_generator_taking_over_at_any_tick_of_the_running_motion_changes_the_velocity_by_at_most_one_tick_of_its_limit(
+    ) {
+        let one_tick = 4.0 * 0.001 * 1.000_001;
+        let hold = || {
+            let params = Params::new().with("axes", ParamValue::I64(1));
+            Harness::new("hold_position", handover_params(params), 1)
+        };
+        let step = largest_step_of_swaps(
+            hold,
+            |d, h| vec![d.to_vec(), h.to_vec()],
+            |switch, hold, _| assert_eq!(hold.out(1), [0.0], "to hold at {switch}: at rest"),
+        );
+        assert!(step <= one_tick, "to hold: {step} rad/s");
+        let ptp = || {
+            let params = Params::new()
+                .with("axes", ParamValue::I64(1))
+                .with("v_max", list(&[1.0]))
+                .with("a_max", list(&[4.0]));
+            Harness::new("ptp", handover_params(params), 1)
+        };
+        let step = largest_step_of_swaps(
+            ptp,
+            |d, h| vec![vec![-0.05], d.to_vec(), h.to_vec()],
+            |switch, _, commands| {
+                assert_eq!(
+                    commands.last(),
+                    Some(&-0.05),
+                    "to ptp at {switch}: then at its goal"
+                )
+            },
+        );
+        assert!(step <= one_tick, "to ptp: {step} rad/s");
+    }
+
+    #[test]
+    fn without_the_handover_a_take_over_extrapolates_and_steps_further_at_the_corners() {
+        // What the handover is for: the same swaps, the demand carried ahead instead.
+        let hold = || {
+            Harness::new(
+                "hold_position",
+                Params::new().with("axes", ParamValue::I64(1)),
+                1,
+            )
+        };
+        let step = largest_step_of_swaps(hold, |d, _| vec![d.to_vec()], |_, _, _| {});
+        assert!(step > 4.0 * 0.001 * 1.5, "{step}");
+    }
+
+    #[test]
+    fn a_handover_written_by_ptp_is_the_command_it_gives_two_ticks_later() {
+        for bessel_hz in [0.0, 5.0] {
+            let mut sut = ptp(&[1.0], &[4.0], bessel_hz);
+            let mut written = Vec::new();
+            let mut given = Vec::new();
+            for tick in 0..1500 {
+                sut.step(tick, &[&[0.3], &[0.0]]);
+                given.push([0, 1, 2].map(|p| sut.out(p)[0]));
+                written.push(sut.out(4).to_vec());
+            }
+            for tick in 2..1500 {
+                let [q, qd, qdd] = given[tick];
+                let h = &written[tick - 2];
+                // Within what settling snaps to the goal.
+                let close = (h[0] - q).abs() < 1e-9
+                    && (h[1] - qd).abs() < 1e-9
+                    && (h[2] - qdd).abs() < 1e-9;
+                assert!(
+                    close && h[3] == 1.0,
+                    "bessel {bessel_hz}, tick {tick}: {h:?} vs {:?}",
+                    given[tick]
+                );
+            }
+        }
     }
 
     #[test]
