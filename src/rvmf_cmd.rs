@@ -37,7 +37,8 @@ pub enum RvmfCommand {
     },
     /// Print a frame's fields, one `field: value` per line. Exits 2 on a malformed frame.
     Decode {
-        /// The frame as hex.
+        /// The frame as hex, or `-` to read it from standard input: hex text (whitespace
+        /// ignored) or, if that is not hex, the raw bytes.
         hex: String,
     },
 }
@@ -61,7 +62,7 @@ pub fn run(command: RvmfCommand) -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        RvmfCommand::Decode { hex: text } => match decode(&text) {
+        RvmfCommand::Decode { hex: text } => match frame_bytes(&text).and_then(|b| decode(&b)) {
             Ok(lines) => {
                 print!("{lines}");
                 ExitCode::SUCCESS
@@ -90,9 +91,24 @@ fn encode(
             "--method is required for {what} (the {what} operand)"
         ))
     };
+    let no_op = |what: &str| match op {
+        Some(_) => Err(format!(
+            "a{what} frame carries no method, code or topic: leave out --method"
+        )),
+        None => Ok(()),
+    };
     let kind = match kind {
-        KindArg::Ack => FrameKind::Ack,
-        KindArg::Reply => FrameKind::Reply,
+        KindArg::Ack => {
+            no_op("n ack")?;
+            if payload.is_some() {
+                return Err("an ack frame carries no payload: leave out --payload".into());
+            }
+            FrameKind::Ack
+        }
+        KindArg::Reply => {
+            no_op(" reply")?;
+            FrameKind::Reply
+        }
         KindArg::Retry => FrameKind::Retry {
             method: need_op("retry")?,
         },
@@ -118,12 +134,29 @@ fn encode(
     };
     let mut out = vec![0; spec.encoded_len(payload.len())];
     spec.encode(&payload, &mut out).map_err(|e| e.to_string())?;
+    // What a receiver would refuse is not printed as a frame.
+    Frame::decode_strict(&out)
+        .map_err(|e| format!("--payload is not a sequence of values a receiver accepts: {e}"))?;
     Ok(hex::encode(&out))
 }
 
-fn decode(text: &str) -> Result<String, String> {
-    let bytes = hex::decode(text).map_err(|e| e.to_string())?;
-    let frame = Frame::decode_strict(&bytes).map_err(|e| e.to_string())?;
+/// The frame's bytes: `text` as hex, or for `-` standard input, as hex text or raw bytes.
+fn frame_bytes(text: &str) -> Result<Vec<u8>, String> {
+    if text != "-" {
+        return hex::decode(text).map_err(|e| e.to_string());
+    }
+    let mut input = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut input)
+        .map_err(|e| format!("reading standard input: {e}"))?;
+    let as_hex = std::str::from_utf8(&input).ok().and_then(|t| {
+        let digits: String = t.chars().filter(|c| !c.is_ascii_whitespace()).collect();
+        hex::decode(&digits).ok().filter(|_| !digits.is_empty())
+    });
+    Ok(as_hex.unwrap_or(input))
+}
+
+fn decode(bytes: &[u8]) -> Result<String, String> {
+    let frame = Frame::decode_strict(bytes).map_err(|e| e.to_string())?;
     let mut out = String::new();
     let mut line = |k: &str, v: String| out.push_str(&format!("{k}: {v}\n"));
     line("kind", frame.kind().kind().to_string());

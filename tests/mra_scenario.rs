@@ -42,6 +42,104 @@ fn frames_have_the_sizes_of_the_paper_and_decode_back() {
     }
 }
 
+/// `encode` prints only frames a receiver accepts: an operand or payload the kind does not
+/// carry, or a payload that is not a sequence of values, is refused with the reason (exit 2).
+#[test]
+fn the_encoder_refuses_what_the_kind_does_not_carry_and_payloads_a_receiver_rejects() {
+    let sut = TestDomain::new("encode_refusals");
+    let frame = |extra: &[&str]| {
+        let mut args = vec!["rvmf", "encode"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--dst", "3", "--src", "1"]);
+        sut.modbot(&args)
+    };
+    for (extra, why) in [
+        (&["ack", "--method", "1"][..], "leave out --method"),
+        (&["reply", "--method", "1"][..], "leave out --method"),
+        (&["ack", "--payload", "01"][..], "leave out --payload"),
+        (
+            &["reply", "--payload", "c1"][..],
+            "not a sequence of values",
+        ),
+        (
+            &["exec", "--method", "2", "--payload", "92"][..],
+            "not a sequence of values",
+        ),
+    ] {
+        let out = frame(extra);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {stderr}");
+        assert!(out.stdout.is_empty(), "{extra:?} printed a frame");
+        assert!(
+            stderr.contains(why) && stderr.lines().count() == 1,
+            "{extra:?}: {stderr}"
+        );
+    }
+    let reply = frame(&["reply", "--payload", "01"]);
+    assert!(reply.status.success(), "a valid payload is encoded");
+}
+
+/// `decode -` reads the frame from standard input, as hex text or raw bytes, also a frame too
+/// large for a command-line argument (an argument holds at most 128 KiB of hex).
+#[test]
+fn a_frame_decodes_from_standard_input_as_hex_or_raw_bytes_whatever_its_size() {
+    use modbot_ipc_schema::{Addr, FrameKind, FrameSpec, Seq};
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+    // A REPLY whose one value is a 100 000-byte bin 32: c6, the length, the bytes.
+    let mut payload = vec![0xc6];
+    payload.extend_from_slice(&100_000u32.to_be_bytes());
+    payload.extend(std::iter::repeat_n(0xab, 100_000));
+    let spec = FrameSpec {
+        dst: Addr(3),
+        src: Addr(1),
+        seq: Seq::new(4).unwrap(),
+        kind: FrameKind::Reply,
+    };
+    let mut frame = vec![0; spec.encoded_len(payload.len())];
+    spec.encode(&payload, &mut frame).unwrap();
+    let hex: String = frame.iter().map(|b| format!("{b:02x}")).collect();
+    let decode = |input: &[u8]| {
+        let mut child = Command::new(common::bin("modbot"))
+            .args(["rvmf", "decode", "-"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        child.stdin.take().unwrap().write_all(input).unwrap();
+        child.wait_with_output().unwrap()
+    };
+    for (what, input) in [
+        ("raw", frame.clone()),
+        ("hex", format!("{hex}\n").into_bytes()),
+    ] {
+        let out = decode(&input);
+        let fields = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{what}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        for line in [
+            "kind: reply",
+            "dst: 3",
+            "src: 1",
+            "seq: 4",
+            "(extended form)",
+            "value[0]: bytes",
+        ] {
+            assert!(
+                fields.contains(line),
+                "{what}: {line} missing in {:.300}",
+                fields
+            );
+        }
+    }
+    let out = decode(&frame[..frame.len() - 1]);
+    assert_eq!(out.status.code(), Some(2), "a truncated frame is malformed");
+}
+
 fn bb_f64(sut: &TestDomain, module: &str, item: &str) -> f64 {
     sut.modbot_ok(&["bb", module, item]).trim().parse().unwrap()
 }
