@@ -1,11 +1,7 @@
 //! What every module program shares: `--domain`, `--name`, `--addr`, `--mode`, and logging.
 
-use std::path::PathBuf;
-
 use clap::Args;
-use modbot_runtime::grid::GridSpec;
-use modbot_runtime::system::{self, DefaultResolver};
-use modbot_runtime::{Domain, IpcTransport, ReceiveMode};
+use modbot_core::{Domain, IpcTransport, ReceiveMode};
 
 /// The options every module program takes.
 #[derive(Debug, Clone, Args)]
@@ -63,48 +59,4 @@ pub fn init_logging() {
         .with_writer(std::io::stderr)
         .with_target(false)
         .init();
-}
-
-/// The options of the grid's programs (coordinator, hosts, bus bridge): the system
-/// description they all load, with its variables.
-#[derive(Debug, Clone, Args)]
-pub struct GridArgs {
-    /// The system description with the grid.
-    #[arg(long)]
-    pub system: PathBuf,
-    /// A variable for the description (`vars.KEY`); repeatable.
-    #[arg(long = "var", value_parser = system::parse_var)]
-    pub vars: Vec<(String, String)>,
-    /// The assembly whose components this host steps (its hosts are started with it).
-    #[arg(long, requires = "generation")]
-    pub assembly: Option<String>,
-    /// The assembly's generation.
-    #[arg(long, requires = "assembly")]
-    pub generation: Option<u16>,
-    /// Run the grid in lockstep whatever the description says (`modbot up --lockstep`).
-    #[arg(long)]
-    pub lockstep: bool,
-}
-
-impl GridArgs {
-    /// Loads the description and returns its grid.
-    pub fn load(&self) -> anyhow::Result<GridSpec> {
-        let resolver = DefaultResolver::for_file(&self.system);
-        let spec = system::load_with_vars(&self.system, &resolver, &self.vars)?;
-        let mut grid = spec
-            .grid
-            .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))?;
-        if self.lockstep {
-            grid.timing.clock = modbot_runtime::grid::GridClock::Lockstep;
-        }
-        match (&self.assembly, self.generation) {
-            (Some(name), Some(generation)) => Ok(system::load_assembly(
-                &grid,
-                name,
-                generation,
-                &modbot_runtime::grid::Registry::builtin(),
-            )?),
-            _ => Ok(grid),
-        }
-    }
 }

@@ -6,10 +6,10 @@
 //! `deactivate_module(module)` (the last two switch a module on or off, e.g. to let the near-infrared ring stand in for the sonar).
 //! When the scenario ends it collects every module's traffic statistics and prints the summary.
 
+use modbot_core::module::Report;
+use modbot_core::stats::{Histogram, Stats};
+use modbot_core::{Ctx, MethodError, Reply};
 use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::module::Report;
-use modbot_runtime::stats::{Histogram, Stats};
-use modbot_runtime::{Ctx, MethodError, Reply};
 
 use crate::high_level::SUMMARY_TOPIC;
 use crate::intrusion::ALERT_TOPIC;

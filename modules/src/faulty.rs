@@ -10,9 +10,9 @@
 //!
 //! With `--slow-ms N` the module takes N ms over every REPORT it receives: a slow consumer.
 
+use modbot_core::module::Report;
+use modbot_core::{Ctx, Dest, MethodError, Reply};
 use modbot_ipc_schema::{Addr, Args, Value};
-use modbot_runtime::module::Report;
-use modbot_runtime::{Ctx, Dest, MethodError, Reply};
 
 /// What the module was asked to do next.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

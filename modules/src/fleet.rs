@@ -11,9 +11,9 @@
 
 use std::collections::BTreeMap;
 
+use modbot_core::module::Report;
+use modbot_core::{Ctx, MethodError, Reply};
 use modbot_ipc_schema::{Addr, Value};
-use modbot_runtime::module::Report;
-use modbot_runtime::{Ctx, MethodError, Reply};
 
 /// The topic of a sensor's reading.
 pub const READING_TOPIC: u8 = 1;

@@ -10,9 +10,9 @@
 //!
 //! Methods: `patrol(wing)`, `stop()`. Blackboard: `state`, `wing`, `goal`, `replans`, `laps`.
 
+use modbot_core::sim::SimTime;
+use modbot_core::{CallError, CallHandle, Ctx, MethodError, Reply};
 use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::sim::SimTime;
-use modbot_runtime::{CallError, CallHandle, Ctx, MethodError, Reply};
 
 use crate::moser::building::Building;
 use crate::moser::geometry::P;

@@ -13,9 +13,9 @@
 //! light]` — and re-arms when the probability falls below a third of the threshold.
 //! Blackboard: `heat`, `motion`, `light`, `probability`, `alerts`.
 
+use modbot_core::sim::SimTime;
+use modbot_core::Ctx;
 use modbot_ipc_schema::Value;
-use modbot_runtime::sim::SimTime;
-use modbot_runtime::Ctx;
 
 use crate::moser::building::Building;
 use crate::moser::geometry::P;

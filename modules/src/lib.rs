@@ -22,5 +22,4 @@ pub mod high_level;
 pub mod intrusion;
 pub mod mobility;
 pub mod moser;
-pub mod service_thread;
 pub mod sonar;

@@ -13,9 +13,9 @@
 //! furniture: a move that would touch one is stopped and counted in `collisions`. Time may run
 //! faster than real time: every step is scaled by the system's simulation speed.
 
+use modbot_core::blackboard::ItemId;
+use modbot_core::{CallError, CallHandle, Ctx, MethodError, Reply, Report};
 use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::blackboard::ItemId;
-use modbot_runtime::{CallError, CallHandle, Ctx, MethodError, Reply, Report};
 
 use crate::moser::building::Building;
 use crate::moser::geometry::P;

@@ -9,8 +9,8 @@
 //! pose comes from the mobility module's blackboard snapshots. Ranges are measured from the
 //! robot's centre.
 
+use modbot_core::{Ctx, Dest, MethodError, Reply};
 use modbot_ipc_schema::{F64s, Value};
-use modbot_runtime::{Ctx, Dest, MethodError, Reply};
 
 use crate::moser::building::Building;
 use crate::moser::geometry::P;

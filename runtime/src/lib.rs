@@ -6,9 +6,14 @@
 //! blackboard as zero-copy snapshots.
 //!
 //! # Layout
-//! - [`domain`]: the namespace of a system's shared memory (an iceoryx2 prefix).
-//! - [`transport`]: the transport traits, with the iceoryx2 backend ([`transport::ipc`]) and an
-//!   in-process one for tests ([`transport::local`]).
+//! The module core (`modbot-core`) and the transport (`modbot-transport`) are crates of their
+//! own, re-exported here under their old paths; this crate adds the grid, the bus, the system
+//! descriptions and the supervisor.
+//!
+//! - [`transport`] (the crate `modbot-transport`, re-exported): the transport traits, with the
+//!   iceoryx2 backend ([`transport::ipc`]) and an in-process one for tests
+//!   ([`transport::local`]); [`domain`] (from it too): the namespace of a system's shared
+//!   memory (an iceoryx2 prefix).
 //! - [`module`]: declaring a module ([`ModuleBuilder`]) and the message manager that serves it.
 //! - [`ctx`]: what a module's code can do: call, report, read snapshots, use its blackboard.
 //! - [`calls`]: the method queue, matching answers by (peer, sequence), with retransmission.
@@ -27,36 +32,10 @@
 //! - [`tool`]: how a tool (the CLI) reaches a running system, also when every address is taken.
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 
-pub mod blackboard;
 pub mod bus;
-pub mod calls;
-pub mod clock;
-pub mod ctx;
-pub mod domain;
-pub mod error;
 pub mod grid;
-mod manager;
-pub mod module;
-pub mod phonebook;
-pub mod run;
-pub mod served;
-pub mod signals;
-pub mod sim;
-pub mod stats;
 pub mod supervisor;
 pub mod system;
-pub mod tool;
-pub mod transport;
 
-pub use blackboard::Blackboard;
-pub use calls::{CallHandle, CallOptions, RetryPolicy};
-pub use ctx::Ctx;
-pub use domain::Domain;
-pub use error::{CallError, MethodError, ModuleError};
-pub use module::{Module, ModuleBuilder, Reply, Report};
-pub use run::run;
-pub use sim::SimTime;
-pub use stats::{Histogram, Stats};
-pub use transport::ipc::IpcTransport;
-pub use transport::local::LocalTransport;
-pub use transport::{Dest, ReceiveMode};
+// The module core and the transport, under the paths they had in this crate.
+pub use modbot_core::*;

@@ -3,12 +3,12 @@
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use modbot_core::sim::SimTime;
+use modbot_core::stats::Stats;
+use modbot_core::{signals, CallError, CallOptions, Module, ModuleBuilder};
 use modbot_ipc_schema::{NakCode, OwnedValue, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::control_station::{self, Station, Summary};
-use modbot_runtime::sim::SimTime;
-use modbot_runtime::stats::Stats;
-use modbot_runtime::{signals, CallError, CallOptions, Module, ModuleBuilder};
 
 /// The control station: sends the robot on patrol, shows its progress and alerts as a line log,
 /// and ends the scenario with a summary.

@@ -3,9 +3,9 @@
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_core::ModuleBuilder;
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::faulty::{self, Faulty};
-use modbot_runtime::ModuleBuilder;
 
 /// A module that panics, exits, hangs, floods or spams when called to; see `modbot_modules::faulty`.
 ///

@@ -4,10 +4,10 @@
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
+use modbot_core::{Blackboard, ModuleBuilder};
 use modbot_ipc_schema::OwnedValue;
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::fleet::{self, Aggregator, Sensor};
-use modbot_runtime::{Blackboard, ModuleBuilder};
 
 /// A module of a sensor fleet.
 ///

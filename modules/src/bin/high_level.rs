@@ -3,11 +3,11 @@
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_core::{Blackboard, ModuleBuilder};
 use modbot_ipc_schema::OwnedValue;
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::high_level::{self, HighLevel};
 use modbot_modules::moser::building::moser_building;
-use modbot_runtime::{Blackboard, ModuleBuilder};
 
 /// The high-level processing module: turns "patrol wing N" into planned paths and drives the
 /// mobility module along them, planning around obstacles its map does not know.

@@ -3,12 +3,12 @@
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_core::{Blackboard, ModuleBuilder};
 use modbot_ipc_schema::OwnedValue;
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::intrusion::{self, Intrusion};
 use modbot_modules::moser::building::moser_building;
 use modbot_modules::moser::intruder::moser_intruder;
-use modbot_runtime::{Blackboard, ModuleBuilder};
 
 /// Heat, light and motion sensors fused into the probability of an intruder; above the
 /// threshold, an alert to the control station with the position and the probability.

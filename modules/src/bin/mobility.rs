@@ -3,12 +3,12 @@
 use std::time::Duration;
 
 use clap::{Parser, ValueEnum};
+use modbot_core::sim::SimTime;
+use modbot_core::{Blackboard, ModuleBuilder};
 use modbot_ipc_schema::OwnedValue;
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::mobility::{self, Base, Ids};
 use modbot_modules::moser::building::moser_building;
-use modbot_runtime::sim::SimTime;
-use modbot_runtime::{Blackboard, ModuleBuilder};
 
 /// Simulated mobile base, starting at (0, 0) heading along +x, or at a building's start.
 ///

@@ -4,11 +4,11 @@
 use std::time::Duration;
 
 use clap::{Parser, ValueEnum};
+use modbot_core::{Blackboard, ModuleBuilder};
 use modbot_ipc_schema::OwnedValue;
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_modules::moser::building::moser_building;
 use modbot_modules::sonar::{self, Ring, SensorKind, Sonar, World};
-use modbot_runtime::{Blackboard, ModuleBuilder};
 
 /// A ring of simulated range sensors (default: 12 ultrasonic sonars over the front 180°).
 ///

@@ -9,7 +9,7 @@
 //!   generator taking over should start for the command not to jump. Params: `axes`
 //!   (default 6), `backend` (`sim`), `handover` (bool, default false: with it, input and
 //!   output `handover`, the running generator's handover forwarded one cycle later, see
-//!   [`handover`](crate::grid::control::handover)). In the bus bridge process (`modbot-bus`) it drives that
+//!   [`handover`]). In the bus bridge process (`modbot-bus`) it drives that
 //!   process's [`Bridge`], which has the watchdog; elsewhere (the reference run, tests) a
 //!   private simulation.
 //! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled

@@ -32,7 +32,7 @@
 //! - [`status`]: the status rows and table.
 
 mod child;
-pub mod env;
+pub use modbot_transport::launch as env;
 pub mod policy;
 mod relay;
 mod roster;
@@ -612,7 +612,7 @@ impl Supervisor {
             let Some(addr) = self.to_connect.pop() else {
                 break;
             };
-            if let Err(e) = self.endpoint.ctx().tx.connect(addr) {
+            if let Err(e) = self.endpoint.ctx().connect(addr) {
                 tracing::debug!("no link to module {addr} yet: {e}");
             }
         }

@@ -1,4 +1,13 @@
-//! How frames move between module processes.
+//! modbot-transport: how frames move between module processes — the bottom of modbot's
+//! crates (it uses only `modbot-ipc-schema` and iceoryx2).
+//!
+//! # Layout
+//! - this file: the [`Transport`], [`Endpoint`] and [`Directory`] traits and [`TransportError`];
+//! - [`ipc`]: the iceoryx2 backend (endpoints, the supervisor's published directory, the relay
+//!   for tools without an address); [`local`]: the in-process backend for fast tests;
+//! - [`domain`]: a domain's name, its iceoryx2 prefix and root, and the sweep of its files;
+//! - [`launch`]: what a supervisor tells the module processes it starts, through their
+//!   environment (written by the supervisor, read by the transport and the module runtime).
 //!
 //! The traits here are the whole interface the message manager needs; [`ipc`] implements them
 //! on iceoryx2 shared memory (real runs, one process per module) and [`local`] inside one process
@@ -26,7 +35,9 @@
 //! Liveness comes from the supervisor's directory, or without a supervisor from iceoryx2 nodes:
 //! one per module, named `mNNN.MODE.NAME`.
 
+pub mod domain;
 pub mod ipc;
+pub mod launch;
 pub mod local;
 
 use core::time::Duration;

@@ -28,7 +28,7 @@ use nix::sys::signal::kill;
 use nix::unistd::Pid;
 
 use super::{ipc_err, parse_node_name, service_name, MAX_NODES};
-use crate::transport::{Directory, PeerInfo, ReceiveMode, TransportError};
+use crate::{Directory, PeerInfo, ReceiveMode, TransportError};
 
 /// The blackboard service that holds the published directory.
 const SERVICE: &str = "directory";

@@ -9,7 +9,7 @@ pub(crate) fn run_loop<S>(module: &mut Module<S>) -> Result<(), ModuleError> {
     if let Err(e) = crate::signals::install_termination_handler() {
         tracing::warn!("cannot handle SIGTERM/SIGINT: {e}");
     }
-    crate::supervisor::env::apply_mlockall();
+    crate::transport::launch::apply_mlockall();
     while !module.should_stop() {
         let mut served = 0;
         while served < 64 && module.poll_once()? {

@@ -16,7 +16,7 @@ use iceoryx2::service::port_factory::request_response::PortFactory;
 use modbot_ipc_schema::Addr;
 
 use super::{ipc_err, open_wake_service, service_name, IpcTransport};
-use crate::transport::TransportError;
+use crate::TransportError;
 
 /// The relay service.
 const SERVICE: &str = "relay";

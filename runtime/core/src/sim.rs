@@ -12,14 +12,14 @@
 //! second is two simulated seconds.
 //!
 //! ```
-//! use modbot_runtime::sim::SimTime;
+//! use modbot_core::sim::SimTime;
 //! let sim = SimTime::new(1_000_000_000, 2.0);
 //! assert_eq!(sim.seconds(1_500_000_000), 1.0);
 //! assert_eq!(sim.sim_dt(10_000_000), 0.02);
 //! ```
 
 use crate::clock::{Clock, MonotonicClock};
-use crate::supervisor::env;
+use crate::transport::launch as env;
 
 /// A system's simulated time: an epoch on CLOCK_MONOTONIC and a speed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -386,7 +386,7 @@ impl Transport for IpcTransport {
         let node = self.node(&node_name(addr, mode, name))?;
         // Under a supervisor, the address and name it assigned are this module's by its word.
         let assigned = self.supervised
-            && std::env::var(crate::supervisor::env::ASSIGNED)
+            && std::env::var(crate::launch::ASSIGNED)
                 .is_ok_and(|a| a == format!("{}.{name}", addr.0));
         let published = PublishedDirectory::open(&node, &self.config)?;
         let claims = if assigned {

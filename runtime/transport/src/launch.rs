@@ -15,7 +15,7 @@ pub const MLOCKALL: &str = "MODBOT_MLOCKALL";
 /// The system's domain (module programs also take `--domain`).
 pub const DOMAIN: &str = "MODBOT_DOMAIN";
 /// When `modbot up` started the system, ns of CLOCK_MONOTONIC: the same for every module of
-/// the system, restarted ones included. The epoch of simulated time ([`crate::sim::SimTime`]).
+/// the system, restarted ones included. The epoch of simulated time (`modbot_core::sim::SimTime`).
 pub const EPOCH_NS: &str = "MODBOT_EPOCH_NS";
 /// `ADDR.NAME`: the address and name the supervisor assigned this module, unique in its
 /// domain by the supervisor's word. A module that opens with exactly these takes them without
@@ -23,7 +23,7 @@ pub const EPOCH_NS: &str = "MODBOT_EPOCH_NS";
 /// is claimed as usual.
 pub const ASSIGNED: &str = "MODBOT_ASSIGNED";
 /// Simulated seconds per real second (default 1); descriptions set it in a module's `env`.
-/// Read by [`crate::sim::SimTime::from_env`].
+/// Read by `modbot_core::sim::SimTime::from_env`.
 pub const SIM_SPEED: &str = "MODBOT_SIM_SPEED";
 
 /// The heartbeat period without a supervisor's setting.

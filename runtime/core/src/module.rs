@@ -495,7 +495,9 @@ impl<S> Module<S> {
         Duration::from_nanos(next.saturating_sub(now).clamp(100_000, MAX_IDLE_NS))
     }
 
-    pub(crate) fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
+    /// Sleeps until a frame or a wake-up arrives, or `timeout` passed (for a loop of its own,
+    /// as the supervisor's; [`crate::run`] does this for a module program).
+    pub fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
         self.rx.wait(timeout)
     }
 }

@@ -5,9 +5,10 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_grid_processes::grid_args::GridArgs;
+use modbot_grid_processes::service_thread::serve_module;
 use modbot_ipc_schema::{Args, Value};
-use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
-use modbot_modules::service_thread::serve_module;
+use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
 use modbot_runtime::bus::{PlantParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};

@@ -4,8 +4,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser;
-use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
-use modbot_modules::service_thread::serve_module;
+use modbot_grid_processes::grid_args::GridArgs;
+use modbot_grid_processes::service_thread::serve_module;
+use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::host::Host;

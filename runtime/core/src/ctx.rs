@@ -257,6 +257,12 @@ impl Ctx {
     }
 
     /// Turns a send failure into what the caller should read.
+    /// Opens the link to module `addr` now rather than at the first frame sent to it (a
+    /// supervisor connects to its modules ahead of its first call).
+    pub fn connect(&mut self, addr: Addr) -> Result<(), crate::transport::SendError> {
+        self.tx.connect(addr)
+    }
+
     pub(crate) fn explain(&self, addr: Addr, e: CallError) -> CallError {
         let name = self
             .book

@@ -126,7 +126,7 @@ impl<S> ModuleBuilder<S> {
         transport: T,
         state: S,
     ) -> Result<Module<S>, ModuleError> {
-        if let Ok(groups) = std::env::var(crate::supervisor::env::GROUPS) {
+        if let Ok(groups) = std::env::var(crate::transport::launch::GROUPS) {
             for g in groups.split(',').filter(|g| !g.is_empty()) {
                 if !self.groups.iter().any(|have| have == g) {
                     self.groups.push(g.to_owned());
@@ -225,7 +225,7 @@ impl<S> ModuleBuilder<S> {
             .iter()
             .map(|(p, _)| now + p.as_nanos() as u64)
             .collect();
-        let beat_period_ns = crate::supervisor::env::heartbeat_period().as_nanos() as u64;
+        let beat_period_ns = crate::transport::launch::heartbeat_period().as_nanos() as u64;
         let methods_digest =
             modbot_ipc_schema::directory::methods_digest(b.methods.iter().map(|(n, _)| n.as_str()));
         let mut module = Module {

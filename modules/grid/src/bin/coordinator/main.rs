@@ -15,8 +15,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use modbot_grid_processes::grid_args::GridArgs;
 use modbot_ipc_schema::{Args, Value};
-use modbot_modules::common::{init_logging, GridArgs, ModuleArgs};
+use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::grid::coordinator::Coordinator;
 use modbot_runtime::grid::offload::Offload;
 use modbot_runtime::grid::GridSpec;

@@ -1,0 +1,16 @@
+//! modbot's grid processes: the programs `modbot up` starts for a system's time grid.
+//!
+//! - `modbot-coordinator`: the grid's clock; releases every component on the base period
+//!   (its tick thread), and serves methods, loads assemblies and drives a switch (its service
+//!   thread).
+//! - `modbot-host`: steps the components of one host of the description.
+//! - `modbot-bus`: the bus bridge, the host named `bus`: serves the drives every tick, with its
+//!   watchdog.
+//!
+//! [`grid_args`]: the options they share (the description, its variables, an assembly);
+//! [`service_thread`]: a module served on a thread of normal priority beside the real-time one.
+//! The module programs that use no grid are in `modbot-modules`, which links no grid, bus or
+//! Lua.
+
+pub mod grid_args;
+pub mod service_thread;

@@ -1,0 +1,53 @@
+//! modbot-core: the module core — what every module process links, and nothing of the time
+//! grid, the bus or the system descriptions (no mlua).
+//!
+//! Each module of a robot is its own OS process. It declares a name, an 8-bit address, a table
+//! of local methods and a blackboard; the core serves RVMF* frames to those methods, calls
+//! other modules' methods through the phone book and the method queue, and publishes the
+//! blackboard as zero-copy snapshots. It stands on `modbot-transport` only.
+//!
+//! # Layout
+//! - [`module`]: declaring a module ([`ModuleBuilder`]) and the message manager that serves it.
+//! - [`ctx`]: what a module's code can do: call, report, read snapshots, use its blackboard.
+//! - [`calls`]: the method queue, matching answers by (peer, sequence), with retransmission.
+//! - `manager`: the message manager, serving one incoming frame.
+//! - [`served`]: the requests served lately, so a retransmission is not executed twice.
+//! - [`phonebook`]: names to addresses, liveness and method tables.
+//! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
+//! - [`run`]: the default application controller (main loop, signals, receive modes).
+//! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
+//! - [`sim`]: the simulated time all processes of a system share (`MODBOT_EPOCH_NS`).
+//! - [`tool`]: how a tool (the CLI) reaches a running system, also when every address is taken.
+//! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
+//! - [`transport`], [`domain`]: re-exported from `modbot-transport`.
+
+pub mod blackboard;
+pub mod calls;
+pub mod clock;
+pub mod ctx;
+pub mod error;
+mod manager;
+pub mod module;
+pub mod phonebook;
+pub mod run;
+pub mod served;
+pub mod signals;
+pub mod sim;
+pub mod stats;
+pub mod tool;
+
+pub use modbot_transport as transport;
+pub use modbot_transport::domain;
+
+pub use blackboard::Blackboard;
+pub use calls::{CallHandle, CallOptions, RetryPolicy};
+pub use ctx::Ctx;
+pub use domain::Domain;
+pub use error::{CallError, MethodError, ModuleError};
+pub use module::{Module, ModuleBuilder, Reply, Report};
+pub use run::run;
+pub use sim::SimTime;
+pub use stats::{Histogram, Stats};
+pub use transport::ipc::IpcTransport;
+pub use transport::local::LocalTransport;
+pub use transport::{Dest, ReceiveMode};
