@@ -171,7 +171,7 @@ fn main() -> ExitCode {
             &file,
             run_for,
             &vars,
-            &modbot_runtime::grid::processes::GridRun {
+            &modbot_runtime::supervisor::processes::GridRun {
                 ticks,
                 trace,
                 lockstep,

@@ -433,8 +433,9 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
 /// `modbot bus`: the bus bridge's ledger.
 pub fn bus(domain: &str) -> anyhow::Result<ExitCode> {
     let mut tool = open(domain)?;
-    let module =
-        modbot_runtime::grid::processes::host_module(modbot_runtime::grid::processes::BUS_HOST);
+    let module = modbot_runtime::supervisor::processes::host_module(
+        modbot_runtime::supervisor::processes::BUS_HOST,
+    );
     let text = tool.call_blocking(
         &module,
         "bus",

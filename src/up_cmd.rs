@@ -4,7 +4,7 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use modbot_runtime::grid::processes::{self, GridRun};
+use modbot_runtime::supervisor::processes::{self, GridRun};
 use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError};
 use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::Domain;

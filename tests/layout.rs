@@ -10,16 +10,19 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-ipc-schema", "ipc_schema", 0),
     ("modbot-transport", "runtime/transport", 1),
     ("modbot-core", "runtime/core", 2),
-    ("modbot-runtime", "runtime", 3),
+    ("modbot-grid", "runtime/grid", 3),
     ("modbot-modules", "modules", 3),
-    ("modbot-grid-processes", "modules/grid", 4),
-    ("modbot", ".", 5),
-    ("modbot-benches", "benches", 5),
+    ("modbot-system", "runtime/system", 4),
+    ("modbot-supervisor", "runtime/supervisor", 5),
+    ("modbot-runtime", "runtime", 6),
+    ("modbot-grid-processes", "modules/grid", 7),
+    ("modbot", ".", 8),
+    ("modbot-benches", "benches", 8),
 ];
 
-/// The workspace crates `[dependencies]` of the manifest in `dir` names (dev-dependencies are
-/// tests' business).
-fn internal_dependencies(dir: &str) -> BTreeSet<String> {
+/// The names in the `[dependencies]` of the manifest in `dir` (dev-dependencies are tests'
+/// business).
+fn dependencies(dir: &str) -> BTreeSet<String> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(root.join(dir).join("Cargo.toml")).unwrap();
     let mut section = String::new();
@@ -27,16 +30,22 @@ fn internal_dependencies(dir: &str) -> BTreeSet<String> {
     for line in text.lines().map(str::trim) {
         if line.starts_with('[') {
             section = line.to_owned();
-            continue;
-        }
-        if section != "[dependencies]" {
-            continue;
-        }
-        let name = line.split(['=', '.', ' ']).next().unwrap_or_default();
-        if LAYERS.iter().any(|(crate_name, ..)| *crate_name == name) {
-            found.insert(name.to_owned());
+        } else if section == "[dependencies]" && !line.is_empty() && !line.starts_with('#') {
+            found.insert(
+                line.split(['=', '.', ' '])
+                    .next()
+                    .unwrap_or_default()
+                    .to_owned(),
+            );
         }
     }
+    found
+}
+
+/// The workspace crates among [`dependencies`].
+fn internal_dependencies(dir: &str) -> BTreeSet<String> {
+    let mut found = dependencies(dir);
+    found.retain(|name| LAYERS.iter().any(|(crate_name, ..)| crate_name == name));
     found
 }
 
@@ -59,7 +68,8 @@ fn every_crate_depends_only_on_crates_below_it() {
 
 #[test]
 fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
-    // modbot-runtime holds the grid, the bus and the system descriptions (mlua).
+    // The grid and the bus are modbot-grid's, the system descriptions (mlua) modbot-system's;
+    // modbot-runtime is the facade over all of them.
     let dirs: BTreeMap<&str, &str> = LAYERS.iter().map(|(n, d, _)| (*n, *d)).collect();
     let mut seen = BTreeSet::new();
     let mut todo = vec!["modbot-modules".to_owned()];
@@ -76,4 +86,14 @@ fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("modules/Cargo.toml"))
             .unwrap();
     assert!(!manifest.contains("mlua"));
+}
+
+#[test]
+fn only_the_system_descriptions_link_lua() {
+    let lua: Vec<&str> = LAYERS
+        .iter()
+        .filter(|(_, dir, _)| dependencies(dir).contains("mlua"))
+        .map(|(name, ..)| *name)
+        .collect();
+    assert_eq!(lua, ["modbot-system"]);
 }

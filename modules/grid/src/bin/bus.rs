@@ -14,7 +14,7 @@ use modbot_runtime::bus::{PlantParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::host::Host;
-use modbot_runtime::grid::processes::{host_module, BUS_HOST};
+use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
 use modbot_runtime::{signals, Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
@@ -178,7 +178,7 @@ fn run() -> anyhow::Result<()> {
                 b.next_look_ns(now())
             };
             // Idle: a bounded piece of an assembly's preparation, then sleep.
-            host.prepare_step(&node, Registry::builtin)?;
+            host.prepare_step(&node, modbot_grid_processes::grid_args::load_assembly)?;
             // At most 5 ms at a time, to look at the termination flag.
             host.wait(Some(Duration::from_nanos(next.clamp(1_000, 5_000_000))));
         }

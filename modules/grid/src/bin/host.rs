@@ -57,7 +57,7 @@ fn run() -> anyhow::Result<()> {
     while !signals::termination_requested() && !service.is_finished() {
         // Wakes up for its releases; every 5 ms also to look at the termination flag.
         host.wait_and_serve(Some(Duration::from_millis(5)), &now)?;
-        host.prepare_step(&node, Registry::builtin)?;
+        host.prepare_step(&node, modbot_grid_processes::grid_args::load_assembly)?;
     }
     if host.stale > 0 {
         tracing::warn!(

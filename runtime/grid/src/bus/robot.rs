@@ -1,0 +1,260 @@
+//! The bus and its drives as grid components (MoRC's EtherCAT module and Robot component).
+//!
+//! - `bus`: one bus cycle per release (give it period 1: the bus is served every tick).
+//!   Inputs per axis (all `f64[axes]`): `controlword`, `mode` (8 CSP, 9 CSV, 10 CST),
+//!   `target_position`, `target_velocity`, `target_torque`. Outputs per axis: `statusword`,
+//!   `motor_position`, `motor_velocity`, `motor_torque`, `link_position`, and
+//!   `demand_position`: the position the drive was last commanded (CiA 402's position demand
+//!   value, 0x6062) while in operation enabled in CSP, else its actual position — where a
+//!   generator taking over should start for the command not to jump. Params: `axes`
+//!   (default 6), `backend` (`sim`), `handover` (bool, default false: with it, input and
+//!   output `handover`, the running generator's handover forwarded one cycle later, see
+//!   [`handover`]). In the bus bridge process (`modbot-bus`) it drives that
+//!   process's [`Bridge`], which has the watchdog; elsewhere (the reference run, tests) a
+//!   private simulation.
+//! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled
+//!   in a mode (param `mode`, default 8, CSP), resets faults once (a rising edge of bit 7) when
+//!   param `reset_faults` is true, and never re-enables a drive held in quick stop unless
+//!   `reset_faults` is true: then it sends *disable voltage* once (CiA 402 transition 12) and
+//!   enables it again — the recovery after a safe stop. Input `statusword: f64[axes]`, outputs
+//!   `controlword`, `mode`.
+
+use std::sync::{Arc, Mutex};
+
+use super::backend::AxisCommand;
+use super::bridge::{self, Bridge, Served};
+use super::cia402::DriveState;
+use super::plant::PlantParams;
+use super::sim::SimBackend;
+use crate::component::{
+    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
+    PortValue, Registry, PERIOD_S,
+};
+use crate::control::handover;
+use modbot_core::clock::{Clock, MonotonicClock};
+use modbot_ipc_schema::grid::Release;
+
+/// Registers `bus` and `drive_enable`.
+pub fn register(registry: &mut Registry) {
+    registry.register(bus_info, make_bus);
+    registry.register(enable_info, make_enable);
+}
+
+fn axes(p: &Params) -> Result<usize, String> {
+    let n = if p.get("axes").is_some() {
+        p.i64("axes")?
+    } else {
+        6
+    };
+    if !(1..=16).contains(&n) {
+        return Err(format!("param 'axes' must be 1 to 16, not {n}"));
+    }
+    Ok(n as usize)
+}
+
+fn ports(names: &[&'static str], n: usize) -> Vec<PortDecl> {
+    names
+        .iter()
+        .map(|name| PortDecl::new(name, PortType::F64s(n)))
+        .collect()
+}
+
+const BUS_IN: [&str; 5] = [
+    "controlword",
+    "mode",
+    "target_position",
+    "target_velocity",
+    "target_torque",
+];
+const BUS_OUT: [&str; 6] = [
+    "statusword",
+    "motor_position",
+    "motor_velocity",
+    "motor_torque",
+    "link_position",
+    "demand_position",
+];
+
+fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
+    let n = axes(p)?;
+    let (mut inputs, mut outputs) = (ports(&BUS_IN, n), ports(&BUS_OUT, n));
+    if handover::wanted(p)? {
+        inputs.push(handover::port(n));
+        outputs.push(handover::port(n));
+    }
+    Ok(ComponentInfo {
+        type_name: "bus",
+        doc: "the drives on the bus: one cycle per release (serve it every tick)",
+        inputs,
+        outputs,
+        params: vec![
+            ParamDecl::optional("axes", ParamType::I64, ParamValue::I64(6)),
+            ParamDecl::optional("backend", ParamType::Text, ParamValue::Text("sim".into())),
+            handover::param(),
+        ],
+    })
+}
+
+fn make_bus(p: &Params) -> Result<Box<dyn Component>, String> {
+    let n = axes(p)?;
+    if p.get("backend").is_some() && p.text("backend")? != "sim" {
+        return Err(format!(
+            "unknown bus backend '{}' (known: sim)",
+            p.text("backend")?
+        ));
+    }
+    let bridge = match bridge::process_bridge().get() {
+        Some(b) => {
+            let axes = bridge::lock(b).axes();
+            if axes != n {
+                return Err(format!("the bus bridge has {axes} axes, the component {n}"));
+            }
+            b.clone()
+        }
+        None => {
+            let period_ns = (p.f64(PERIOD_S)? * 1e9).round() as u64;
+            Arc::new(Mutex::new(Bridge::new(
+                Box::new(SimBackend::new(n, PlantParams::default())),
+                period_ns,
+            )))
+        }
+    };
+    Ok(Box::new(Bus { bridge }))
+}
+
+struct Bus {
+    bridge: Arc<Mutex<Bridge>>,
+}
+
+fn slice(v: &PortValue) -> &[f64] {
+    match v {
+        PortValue::F64s(x) => x,
+        _ => &[],
+    }
+}
+
+impl Component for Bus {
+    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let at = |port: usize, i: usize| slice(&inputs[port]).get(i).copied().unwrap_or(0.0);
+        let now = MonotonicClock.now_ns();
+        let (generation, flags) = crate::host::serving();
+        let served = Served {
+            tick,
+            generation,
+            safe_stop: flags & Release::SAFE_STOP != 0,
+        };
+        let mut b = bridge::lock(&self.bridge);
+        b.serve_release(now, &served, |i| AxisCommand {
+            controlword: at(0, i).clamp(0.0, 65535.0) as u16,
+            mode: at(1, i).clamp(-128.0, 127.0) as i8,
+            target_position: at(2, i),
+            target_velocity: at(3, i),
+            target_torque: at(4, i),
+        });
+        let actuals = b.actuals();
+        let (outputs, forwarded) = outputs.split_at_mut(BUS_OUT.len().min(outputs.len()));
+        if let (Some(from), Some(to)) = (inputs.get(BUS_IN.len()), forwarded.first_mut()) {
+            // The running generator's handover, for a generator taking over; none while the
+            // drives do not follow the assembly.
+            if let PortValue::F64s(to) = &mut *to {
+                if to.len() == slice(from).len() {
+                    to.copy_from_slice(slice(from));
+                }
+            }
+            if b.safe_stop.is_some() {
+                handover::invalidate(to);
+            }
+        }
+        for (port, out) in outputs.iter_mut().enumerate() {
+            if let PortValue::F64s(values) = out {
+                for (i, (v, a)) in values.iter_mut().zip(actuals.iter()).enumerate() {
+                    *v = match port {
+                        0 => f64::from(a.statusword),
+                        1 => a.motor_position,
+                        2 => a.motor_velocity,
+                        3 => a.motor_torque,
+                        4 => a.link_position,
+                        _ => b.demand_position(i),
+                    };
+                }
+            }
+        }
+    }
+}
+
+fn enable_info(p: &Params) -> Result<ComponentInfo, String> {
+    let n = axes(p)?;
+    Ok(ComponentInfo {
+        type_name: "drive_enable",
+        doc: "walks every drive to operation enabled in a mode; never re-enables a quick stop",
+        inputs: ports(&["statusword"], n),
+        outputs: ports(&["controlword", "mode"], n),
+        params: vec![
+            ParamDecl::optional("axes", ParamType::I64, ParamValue::I64(6)),
+            ParamDecl::optional("mode", ParamType::I64, ParamValue::I64(8)),
+            ParamDecl::optional("reset_faults", ParamType::Bool, ParamValue::Bool(false)),
+        ],
+    })
+}
+
+fn make_enable(p: &Params) -> Result<Box<dyn Component>, String> {
+    let n = axes(p)?;
+    let mode = if p.get("mode").is_some() {
+        p.i64("mode")?
+    } else {
+        8
+    };
+    if !(8..=10).contains(&mode) {
+        return Err(format!(
+            "param 'mode' must be 8 (CSP), 9 (CSV) or 10 (CST), not {mode}"
+        ));
+    }
+    let reset = p.get("reset_faults").is_some() && p.bool("reset_faults")?;
+    Ok(Box::new(Enable {
+        mode: mode as f64,
+        reset,
+        reset_sent: vec![false; n],
+    }))
+}
+
+struct Enable {
+    mode: f64,
+    reset: bool,
+    /// Per axis: the fault reset's rising edge was sent (bit 7 goes low again next).
+    reset_sent: Vec<bool>,
+}
+
+impl Component for Enable {
+    fn step(&mut self, _tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let status = slice(&inputs[0]);
+        let (cw, rest) = outputs.split_at_mut(1);
+        let (PortValue::F64s(cw), PortValue::F64s(mode)) = (&mut cw[0], &mut rest[0]) else {
+            return;
+        };
+        for i in 0..cw.len() {
+            let sw = status.get(i).copied().unwrap_or(0.0).clamp(0.0, 65535.0) as u16;
+            let state = DriveState::from_statusword(sw).unwrap_or(DriveState::NotReadyToSwitchOn);
+            let word = match state {
+                DriveState::SwitchOnDisabled => 0x06,
+                DriveState::ReadyToSwitchOn => 0x07,
+                DriveState::SwitchedOn | DriveState::OperationEnabled => 0x0f,
+                // The recovery after a safe stop: disable voltage (transition 12), then enable.
+                DriveState::QuickStopActive if self.reset => 0x00,
+                // Held: a lost master must not re-enable it.
+                DriveState::QuickStopActive => 0x02,
+                DriveState::Fault if self.reset && !self.reset_sent[i] => {
+                    self.reset_sent[i] = true;
+                    0x80
+                }
+                DriveState::Fault
+                | DriveState::FaultReactionActive
+                | DriveState::NotReadyToSwitchOn => 0x00,
+            };
+            if word != 0x80 && state != DriveState::Fault {
+                self.reset_sent[i] = false;
+            }
+            cw[i] = f64::from(word);
+            mode[i] = self.mode;
+        }
+    }
+}

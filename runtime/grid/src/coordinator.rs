@@ -1,0 +1,1047 @@
+//! The coordinator: the only process that reads the clock. Every base tick it releases the
+//! components that are due, collects their done notices, detects overruns and keeps the ledger.
+//!
+//! Tick n, in this order:
+//! 1. done notices that arrived are taken — for a component due now whose release still runs,
+//!    after a short grace asleep on the hosts' done wake-up (the notice may be on its way); on
+//!    the lockstep clock, until it is done: a release m of a component with
+//!    period k that is done by now is *on time* if n ≤ m + k; its outputs become valid at
+//!    m + k. A late one is only counted (its overrun was counted at its deadline);
+//! 2. on-time outputs whose time has come (valid_from ≤ n) become the valid version;
+//! 3. the recorder, if any, writes every output as valid at n;
+//! 4. every component due at n (n mod k = 0) is released with, for each source of its inputs,
+//!    the version valid at n. A component whose previous release is not done is not released:
+//!    that is an overrun. With the `hold` policy downstream keeps reading its last valid
+//!    outputs; with `fault` the grid stops releasing and reports the fault.
+//!
+//! The tick path does not allocate: notices are fixed-size and written in place.
+
+use std::io::Write;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use modbot_ipc_schema::grid::{Done, Release, MAX_SOURCES, PING, READY};
+use zerocopy::IntoBytes;
+
+use super::ledger::{self, ComponentRow, GridRow};
+use super::recorder::{self, Recorder};
+use super::spec::{GridClock, GridSpec, OverrunPolicy};
+use super::tick::TickSource;
+use super::wire::{self, Pub, Sub, Threadsafe};
+use modbot_core::stats::Histogram;
+use modbot_core::transport::TransportError;
+
+/// Deadlines in a row a component with the `fault` policy may miss before its assembly faults:
+/// one late wake-up on a shared machine is counted, a dead or stuck host faults within this
+/// many periods.
+pub const FAULT_AFTER: u64 = 3;
+
+/// In lockstep, how long the coordinator waits for a due release before it gives up on
+/// lockstep for that tick and counts an overrun (a dead or stopped host).
+pub const LOCKSTEP_STUCK: core::time::Duration = core::time::Duration::from_secs(10);
+
+/// How far past its first announced tick a switch may be postponed because the incoming
+/// assembly's releases near the switch were late, before it fails.
+pub const MAX_POSTPONE_TICKS: u64 = 2000;
+
+/// What the trace records of a release that did not go as LET planned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Miss {
+    /// Still running at its deadline (`# overrun`).
+    Overrun,
+    /// Not executed: an input's version was gone (`# stale`).
+    Stale,
+}
+/// One component, as the coordinator tracks it.
+struct Comp {
+    period: u64,
+    host: usize,
+    fault_policy: bool,
+    sources: Vec<usize>,
+    /// The release awaiting its done notice.
+    pending: Option<u64>,
+    /// An on-time completion whose outputs become valid at this tick.
+    ready: Option<u64>,
+    /// The version of its outputs valid now (0: the initial zeros).
+    valid_from: u64,
+    releases: u64,
+    overruns: u64,
+    /// Overruns in a row, up to the last on-time release.
+    in_a_row: u64,
+    late: u64,
+    failed: u64,
+    /// Releases not executed: an input's version was gone when the host served it.
+    stale: u64,
+    exec_min: u64,
+    exec: Histogram,
+    latency: Histogram,
+}
+
+/// The coordinator's link to one host: its release notices and its wake-up. Opened on any
+/// thread (an assembly's links are opened off the tick thread) and handed to the coordinator.
+pub struct HostLink {
+    /// The host's name and the generation of its components (0: the system's own).
+    name: String,
+    generation: u16,
+    release: Pub<Threadsafe>,
+    wake: Notifier<Threadsafe>,
+    /// The releases of this tick, sent as one sample with one wake-up when the tick's releases
+    /// are made.
+    batch: Vec<u8>,
+}
+
+impl Comp {
+    /// An on-time completion whose time has come becomes the valid version.
+    fn take_ready(&mut self, n: u64) {
+        if self.ready.is_some_and(|from| from <= n) {
+            self.valid_from = self.ready.take().unwrap_or(self.valid_from);
+        }
+    }
+}
+
+impl Incoming {
+    fn fail(&mut self, why: String) {
+        if self.failure.is_none() {
+            tracing::error!("the assembly being prepared fails: {why}");
+            self.failure = Some(why);
+        }
+    }
+}
+
+/// The coordinator's link to `host` of `spec`. Opening one takes milliseconds (files, maps):
+/// never do it on the tick thread while the grid runs; hand it over with
+/// [`Coordinator::add_incoming_link`].
+pub fn link(
+    node: &Node<Threadsafe>,
+    spec: &GridSpec,
+    host: &str,
+) -> Result<HostLink, TransportError> {
+    // A tick's batch holds a release of each of its components, and a warm-up release.
+    let most = spec.components_of(host).len() + 1;
+    Ok(HostLink {
+        name: host.to_owned(),
+        generation: spec.host_generation(host),
+        release: wire::release_publisher(node, &spec.release_service(host), most)?,
+        wake: wire::wake_notifier(node, &spec.wake_service(host))?,
+        batch: Vec::with_capacity(most * core::mem::size_of::<Release>()),
+    })
+}
+
+/// The components of `spec`, with their hosts as positions in `host_names` (unknown: 0).
+fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
+    spec.components
+        .iter()
+        .enumerate()
+        .map(|(c, cs)| Comp {
+            period: cs.period.max(1),
+            host: host_names.iter().position(|h| *h == cs.host).unwrap_or(0),
+            fault_policy: cs.policy == OverrunPolicy::Fault,
+            sources: spec.sources(c),
+            pending: None,
+            ready: None,
+            valid_from: 0,
+            releases: 0,
+            overruns: 0,
+            in_a_row: 0,
+            late: 0,
+            failed: 0,
+            stale: 0,
+            exec_min: u64::MAX,
+            exec: Histogram::new(),
+            latency: Histogram::new(),
+        })
+        .collect()
+}
+
+/// Adds `notice` to the batch `link` sends (and wakes) at the end of the tick; false if the
+/// batch is full (it holds a release of each of the host's components and a warm-up).
+fn send_release(link: &mut HostLink, notice: &Release) -> bool {
+    let bytes = notice.as_bytes();
+    if link.batch.len() + bytes.len() > link.batch.capacity() {
+        tracing::warn!(
+            "release batch of host {} is full: a release is not sent",
+            link.name
+        );
+        return false;
+    }
+    link.batch.extend_from_slice(bytes);
+    true
+}
+
+/// The grid's clock and bookkeeping.
+pub struct Coordinator<W: Write> {
+    spec: GridSpec,
+    comps: Vec<Comp>,
+    hosts: Vec<HostLink>,
+    done: Sub<Threadsafe>,
+    /// Hosts notify it after each batch of done notices: the coordinator sleeps on it while it
+    /// waits for a due one.
+    done_wake: Listener<Threadsafe>,
+    recorder: Option<Recorder<W>>,
+    /// Scratch: the valid version of every component, for the recorder.
+    versions: Vec<u64>,
+    /// The next tick to run.
+    tick: u64,
+    missed: u64,
+    tick_error: Histogram,
+    fault: Option<String>,
+    /// Timer expirations so far (ticks run plus ticks missed).
+    expirations: u64,
+    /// How long to wait at a tick for a due component's late done notice before calling it
+    /// an overrun (absorbs the wake-up latency of the notice).
+    grace_ns: u64,
+    /// Every overrun (tick, component, the release still running) and stale release (its
+    /// tick twice), for the trace.
+    overrun_log: Vec<(u64, usize, u64, Miss)>,
+    /// Ticks and time at the last rate measurement, and the rate then.
+    rate: (u64, u64, f64),
+    /// The assembly being prepared, if one is.
+    incoming: Option<Incoming>,
+    /// Switches done: (generation, assembly, announced tick, tick it took over).
+    switches: Vec<(u16, String, u64, u64)>,
+    /// Host processes of replaced assemblies, to be stopped (module names).
+    retired: Vec<String>,
+    /// Links to hosts no longer released, to be dropped off the tick thread.
+    retired_links: Vec<HostLink>,
+    /// Scratch: the ledger's state text.
+    state_text: String,
+}
+
+/// An assembly being prepared while the current one runs.
+struct Incoming {
+    spec: GridSpec,
+    /// Its components, by index in its spec (those of the system are not used: the system's
+    /// components are the coordinator's own, whatever the assembly).
+    comps: Vec<Comp>,
+    /// Links to its hosts, opened one per tick.
+    hosts: Vec<HostLink>,
+    host_names: Vec<String>,
+    /// System hosts that loaded it and subscribed to its outputs.
+    ready: usize,
+    /// Which of its hosts answered a warm-up release.
+    answered: Vec<bool>,
+    /// Tracking from this tick; the switch at the second.
+    schedule: Option<(u64, u64)>,
+    /// The switch tick first announced (a late release near the switch postpones it).
+    first_at: u64,
+    /// Ticks between the last late release and the switch.
+    lead: u64,
+    failure: Option<String>,
+}
+
+/// Where a switch stands, for the coordinator's program and `modbot assembly`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SwitchState {
+    /// No assembly is being prepared.
+    Idle,
+    /// Preparing: the links to its hosts are opened, the system's hosts load it.
+    Preparing {
+        opened: usize,
+        hosts: usize,
+        ready: usize,
+        system_hosts: usize,
+        answered: usize,
+    },
+    /// Its components run alongside (tracking) from `from`; it takes over at `at`.
+    Announced { from: u64, at: u64 },
+}
+
+impl<W: Write> Coordinator<W> {
+    /// Opens the grid's services on `node`; with `trace`, records every output at every tick.
+    pub fn new(
+        node: &Node<Threadsafe>,
+        spec: GridSpec,
+        trace: Option<W>,
+    ) -> Result<Coordinator<W>, TransportError> {
+        let host_names = spec.hosts();
+        let hosts = host_names
+            .iter()
+            .map(|h| link(node, &spec, h))
+            .collect::<Result<Vec<_>, TransportError>>()?;
+        let comps = comps_of(&spec, &host_names);
+        let recorder = match trace {
+            Some(out) => Some(Recorder::new(node, &spec, out)?),
+            None => None,
+        };
+        Ok(Coordinator {
+            versions: vec![0; comps.len()],
+            comps,
+            hosts,
+            done: wire::done_subscriber(node)?,
+            done_wake: wire::done_wake_listener(node)?,
+            recorder,
+            spec,
+            tick: 0,
+            missed: 0,
+            tick_error: Histogram::new(),
+            fault: None,
+            expirations: 0,
+            grace_ns: 0,
+            overrun_log: Vec::new(),
+            rate: (0, 0, 0.0),
+            incoming: None,
+            switches: Vec::new(),
+            retired: Vec::new(),
+            retired_links: Vec::new(),
+            state_text: String::with_capacity(128),
+        })
+    }
+
+    /// Waits up to `grace_ns` at a tick for a due component's done notice before counting an
+    /// overrun.
+    pub fn with_grace(mut self, grace_ns: u64) -> Self {
+        self.grace_ns = grace_ns;
+        self
+    }
+
+    /// Before tick 0: sends every host `rounds` warm-up releases, one round at a time, and
+    /// waits (up to `timeout`) for each round's answers. Returns the hosts that did not answer.
+    pub fn warm_up(
+        &mut self,
+        rounds: u64,
+        timeout: core::time::Duration,
+    ) -> Result<usize, TransportError> {
+        let until = std::time::Instant::now() + timeout;
+        let mut silent = self.hosts.len();
+        for round in 0..rounds {
+            let ping = Release::new(round, 0, PING, &[]).map_err(|e| TransportError::Ipc {
+                op: "warm-up",
+                detail: e.to_string(),
+            })?;
+            for h in &mut self.hosts {
+                wire::send_bytes(&h.release, ping.as_bytes())?;
+                if let Err(e) = h.wake.notify() {
+                    tracing::debug!("wake-up not sent: {e:?}");
+                }
+            }
+            let mut answered = 0;
+            while answered < self.hosts.len() && std::time::Instant::now() < until {
+                match self.done.receive() {
+                    Ok(Some(sample)) => {
+                        if let Ok(batch) = Done::batch(sample.payload()) {
+                            answered += batch
+                                .filter(|d| d.component.get() == PING && d.tick.get() == round)
+                                .count();
+                        }
+                    }
+                    _ => std::thread::sleep(core::time::Duration::from_micros(100)),
+                }
+            }
+            silent = self.hosts.len() - answered;
+        }
+        Ok(silent)
+    }
+
+    /// Host `host` was restarted: the releases its components had running died with the old
+    /// process and will never report done. They are dropped, so each component is released
+    /// again at its next due tick (its outputs held meanwhile). Returns how many were dropped.
+    pub fn host_restarted(&mut self, host: &str) -> usize {
+        let Some(h) = self.hosts.iter().position(|x| x.name == host) else {
+            return 0;
+        };
+        let mut dropped = 0;
+        for comp in self.comps.iter_mut().filter(|c| c.host == h) {
+            if comp.pending.take().is_some() {
+                comp.failed += 1;
+                dropped += 1;
+            }
+        }
+        if dropped > 0 {
+            tracing::warn!("host {host} restarted: {dropped} release(s) lost with it");
+        }
+        dropped
+    }
+
+    /// Ticks run so far.
+    pub fn ticks(&self) -> u64 {
+        self.tick
+    }
+
+    /// Why the grid faulted, if it did.
+    pub fn fault(&self) -> Option<&str> {
+        self.fault.as_deref()
+    }
+
+    /// Waits for the next tick of `source` and runs it.
+    ///
+    /// A late wake-up that finds several ticks elapsed runs one logical tick and counts the
+    /// others as missed: the grid never runs ticks back to back to catch up, which would give
+    /// the components no time. The tick error is the lateness of the wake-up.
+    pub fn step(&mut self, source: &mut dyn TickSource) -> std::io::Result<()> {
+        let elapsed = source.wait()?;
+        let now = source.now_ns();
+        self.expirations += elapsed;
+        if self.tick == 0 {
+            self.rate = (0, now, 0.0);
+        }
+        let due = source.due_ns(self.expirations.saturating_sub(1));
+        self.tick_error.record(now.saturating_sub(due));
+        self.missed += elapsed.saturating_sub(1);
+        if now.saturating_sub(self.rate.1) >= 1_000_000_000 {
+            let ticks = self.tick - self.rate.0;
+            self.rate = (
+                self.tick,
+                now,
+                ticks as f64 * 1e9 / (now - self.rate.1) as f64,
+            );
+        }
+        self.run_tick(now)
+    }
+
+    /// Runs tick `self.tick` (the clock says `now_ns`).
+    pub fn run_tick(&mut self, now_ns: u64) -> std::io::Result<()> {
+        let n = self.tick;
+        self.take_done(n);
+        self.await_due(n);
+        for (c, comp) in self.comps.iter_mut().enumerate() {
+            comp.take_ready(n);
+            self.versions[c] = comp.valid_from;
+        }
+        if let Some(inc) = self.incoming.as_mut() {
+            inc.comps.iter_mut().for_each(|c| c.take_ready(n));
+        }
+        if let Some(rec) = self.recorder.as_mut() {
+            rec.tick(n, &self.versions)?;
+        }
+        if self
+            .incoming
+            .as_ref()
+            .is_some_and(|i| i.failure.is_none() && i.schedule.is_some_and(|(_, at)| at == n))
+        {
+            self.switch(n);
+        }
+        self.release_due(n, now_ns);
+        self.release_incoming(n, now_ns);
+        self.wake_hosts();
+        self.tick += 1;
+        Ok(())
+    }
+
+    /// Between ticks, while the grid waits (in lockstep, for an assembly being prepared):
+    /// takes the done notices that arrived (warm-up answers, hosts ready) and wakes the hosts
+    /// that were sent something.
+    pub fn between_ticks(&mut self) {
+        self.take_done(self.tick);
+        self.wake_hosts();
+    }
+
+    /// Sends every host the batch of releases it was given since, and wakes it: one sample
+    /// and one wake-up per host and tick.
+    fn wake_hosts(&mut self) {
+        let incoming = self.incoming.as_mut().map(|i| i.hosts.iter_mut());
+        for h in self.hosts.iter_mut().chain(incoming.into_iter().flatten()) {
+            if h.batch.is_empty() {
+                continue;
+            }
+            let sent = wire::send_bytes(&h.release, &h.batch);
+            h.batch.clear();
+            if let Err(e) = sent {
+                tracing::warn!("releases not sent to host {}: {e}", h.name);
+                continue;
+            }
+            if let Err(e) = h.wake.notify() {
+                tracing::debug!("wake-up not sent: {e:?}");
+            }
+        }
+    }
+
+    fn take_done(&mut self, n: u64) {
+        let base = self.base();
+        let current = self.spec.generation();
+        while let Ok(Some(sample)) = self.done.receive() {
+            let Ok(batch) = Done::batch(sample.payload()) else {
+                continue;
+            };
+            for done in batch {
+                self.take_one_done(n, base, current, done);
+            }
+        }
+    }
+
+    /// Takes one done notice at tick `n`.
+    fn take_one_done(&mut self, n: u64, base: usize, current: u16, done: &Done) {
+        let (c, g) = (done.component.get(), done.generation.get());
+        let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
+        if c == PING || c == READY {
+            if let Some(inc) = inc {
+                if c == READY && done.status.get() == Done::OK {
+                    inc.ready += 1;
+                } else if c == READY {
+                    inc.fail(
+                        "a host of the system's components could not load it (see its log)".into(),
+                    );
+                } else if let Some(a) = inc.answered.get_mut(done.tick.get() as usize) {
+                    *a = true;
+                }
+            }
+            return;
+        }
+        let c = usize::from(c);
+        let (comp, spec, incoming) = if c < base || g == current {
+            match self.comps.get_mut(c) {
+                Some(comp) => (comp, &self.spec, false),
+                None => return,
+            }
+        } else if let Some(inc) = inc {
+            match inc.comps.get_mut(c) {
+                Some(comp) => (comp, &inc.spec, true),
+                None => return,
+            }
+        } else {
+            return; // a replaced assembly's
+        };
+        let m = done.tick.get();
+        if comp.pending != Some(m) {
+            return;
+        }
+        comp.pending = None;
+        comp.exec.record(done.exec_ns.get());
+        comp.exec_min = comp.exec_min.min(done.exec_ns.get());
+        comp.latency.record(done.latency_ns.get());
+        let status = done.status.get();
+        if status == Done::STALE {
+            comp.stale += 1;
+            if !incoming && c < recorder::recorded(spec) {
+                self.overrun_log.push((m, c, m, Miss::Stale));
+            }
+        } else if status != Done::OK && status != Done::UNSAFE {
+            comp.failed += 1;
+        } else if n <= m + comp.period {
+            comp.ready = Some(m + comp.period);
+        } else {
+            comp.late += 1;
+        }
+        if status == Done::UNSAFE {
+            let name = &spec.components[c].name;
+            let why = format!("component {name} reports an unsafe state at tick {m}");
+            if incoming {
+                if let Some(inc) = self.incoming.as_mut() {
+                    inc.fail(why);
+                }
+            } else if self.fault.is_none() {
+                self.set_fault(why);
+            }
+        }
+    }
+
+    fn set_fault(&mut self, why: String) {
+        let why = match &self.spec.assembly {
+            Some(a) => format!(
+                "assembly {} faulted: {why}; the bus stops the drives",
+                a.name
+            ),
+            None => format!("{why}; the grid stops releasing"),
+        };
+        tracing::error!("{why}");
+        self.fault = Some(why);
+    }
+
+    /// The number of the system's own components, which run whatever the assembly (0 without
+    /// assemblies: a fault then stops every component).
+    fn base(&self) -> usize {
+        self.spec.assembly.as_ref().map_or(0, |a| a.base)
+    }
+
+    /// Whether a component due at `n` (of the running assembly unless it faulted — it is not
+    /// released then —, or of the incoming one once it runs alongside) still runs its
+    /// previous release.
+    fn due_pending(&self, n: u64) -> bool {
+        let late = |c: &Comp| n.is_multiple_of(c.period) && c.pending.is_some();
+        let awaited = if self.fault.is_some() {
+            self.base()
+        } else {
+            self.comps.len()
+        };
+        self.comps[..awaited].iter().any(late)
+            || self
+                .incoming
+                .as_ref()
+                .is_some_and(|i| i.schedule.is_some() && i.comps.iter().any(late))
+    }
+
+    /// Waits for the done notices of components due at `n` whose release still runs: in real
+    /// time for the grace (spinning for `spin_us` of it, then asleep on the done wake-up, never
+    /// keeping a core from the hosts), in lockstep until they are done.
+    fn await_due(&mut self, n: u64) {
+        let lockstep = self.spec.timing.clock == GridClock::Lockstep;
+        if (!lockstep && self.grace_ns == 0) || !self.due_pending(n) {
+            return;
+        }
+        let start = std::time::Instant::now();
+        let budget = if lockstep {
+            LOCKSTEP_STUCK
+        } else {
+            core::time::Duration::from_nanos(self.grace_ns)
+        };
+        let spin = core::time::Duration::from_micros(self.spec.timing.spin_us).min(budget);
+        while start.elapsed() < spin {
+            core::hint::spin_loop();
+            self.take_done(n);
+            if !self.due_pending(n) {
+                return;
+            }
+        }
+        loop {
+            // Taken before looking: a done notice sent after this wakes the wait below.
+            super::wait::drain(&self.done_wake);
+            self.take_done(n);
+            if !self.due_pending(n) {
+                return;
+            }
+            let left = budget.saturating_sub(start.elapsed());
+            if left.is_zero() || modbot_core::signals::termination_requested() {
+                if lockstep && left.is_zero() {
+                    tracing::error!(
+                        "lockstep: a release due at tick {n} is not done after {} s (a host \
+                         stopped or died): counted as an overrun",
+                        LOCKSTEP_STUCK.as_secs()
+                    );
+                }
+                return;
+            }
+            // In lockstep, look at the termination flag now and then.
+            let slice = if lockstep {
+                left.min(core::time::Duration::from_millis(100))
+            } else {
+                left
+            };
+            super::wait::wait(&self.done_wake, Some(slice));
+        }
+    }
+
+    fn release_due(&mut self, n: u64, now_ns: u64) {
+        let base = self.base();
+        let generation = self.spec.generation();
+        let mut versions = [0u64; MAX_SOURCES];
+        for c in 0..self.comps.len() {
+            let comp = &self.comps[c];
+            if !n.is_multiple_of(comp.period) || (self.fault.is_some() && c >= base) {
+                continue;
+            }
+            if let Some(m) = comp.pending {
+                let comp = &mut self.comps[c];
+                comp.overruns += 1;
+                comp.in_a_row += 1;
+                if c < recorder::recorded(&self.spec) {
+                    self.overrun_log.push((n, c, m, Miss::Overrun));
+                }
+                if comp.fault_policy && comp.in_a_row >= FAULT_AFTER && self.fault.is_none() {
+                    let name = &self.spec.components[c].name;
+                    let why = format!(
+                        "component {name} overran its deadline at tick {n} (released at {m})"
+                    );
+                    self.set_fault(why);
+                    if base == 0 {
+                        return;
+                    }
+                }
+                continue;
+            }
+            self.comps[c].in_a_row = 0;
+            let comp = &self.comps[c];
+            for (slot, &s) in versions.iter_mut().zip(&comp.sources) {
+                *slot = self.comps[s].valid_from;
+            }
+            let k = comp.sources.len().min(MAX_SOURCES);
+            let flags = if self.fault.is_some() {
+                Release::SAFE_STOP
+            } else {
+                0
+            };
+            let Ok(notice) = Release::new(n, now_ns, c as u16, &versions[..k]) else {
+                continue;
+            };
+            let notice = notice.with(generation, flags);
+            if send_release(&mut self.hosts[comp.host], &notice) {
+                let comp = &mut self.comps[c];
+                comp.pending = Some(n);
+                comp.releases += 1;
+            }
+        }
+    }
+
+    /// Releases the components of the assembly being prepared, once it is announced: to
+    /// track until their outputs are the ones the switch tick reads.
+    fn release_incoming(&mut self, n: u64, now_ns: u64) {
+        let base = self.base();
+        let Some(inc) = self.incoming.as_mut() else {
+            return;
+        };
+        let Some((from, mut at)) = inc.schedule else {
+            return;
+        };
+        if n < from || inc.failure.is_some() {
+            return;
+        }
+        // Tracking outputs are obeyed by nothing: an overrun is only counted (a fresh process
+        // is slow at first). A late release whose outputs the switch tick would read postpones
+        // the switch; `fault` applies once the assembly is live.
+        let late_near_switch = (base..inc.comps.len()).find(|&c| {
+            let x = &inc.comps[c];
+            n.is_multiple_of(x.period) && x.pending.is_some() && n + x.period >= at
+        });
+        if let Some(c) = late_near_switch {
+            let later = n + 2 * inc.spec.assembly_max_period() + inc.lead;
+            if later > inc.first_at + MAX_POSTPONE_TICKS {
+                let name = &inc.spec.components[c].name;
+                inc.fail(format!(
+                    "component {name} overran its deadline at tick {n} while it was prepared, \
+                     and the switch was postponed {} ticks already",
+                    at - inc.first_at
+                ));
+                return;
+            }
+            tracing::info!(
+                "component {} of the incoming assembly is late at tick {n}: the switch moves \
+                 from tick {at} to {later}",
+                inc.spec.components[c].name
+            );
+            at = later;
+            inc.schedule = Some((from, at));
+        }
+        let generation = inc.spec.generation();
+        let mut versions = [0u64; MAX_SOURCES];
+        for c in base..inc.comps.len() {
+            let comp = &inc.comps[c];
+            if !n.is_multiple_of(comp.period) {
+                continue;
+            }
+            if comp.pending.is_some() {
+                inc.comps[c].overruns += 1;
+                continue;
+            }
+            for (slot, &s) in versions.iter_mut().zip(&comp.sources) {
+                *slot = if s < base {
+                    self.comps[s].valid_from
+                } else {
+                    inc.comps[s].valid_from
+                };
+            }
+            let k = comp.sources.len().min(MAX_SOURCES);
+            let flags = if n + comp.period < at {
+                Release::TRACK
+            } else {
+                0
+            };
+            let Ok(notice) = Release::new(n, now_ns, c as u16, &versions[..k]) else {
+                continue;
+            };
+            let notice = notice.with(generation, flags);
+            if send_release(&mut inc.hosts[comp.host], &notice) {
+                let comp = &mut inc.comps[c];
+                comp.pending = Some(n);
+                comp.releases += 1;
+            }
+        }
+    }
+
+    /// At tick `n`, the announced one: the prepared assembly takes over. The system's
+    /// components read its outputs from this tick on, the replaced assembly is no longer
+    /// released (its hosts are listed in [`Coordinator::take_retired`]), and a fault ends.
+    fn switch(&mut self, n: u64) {
+        let Some(inc) = self.incoming.take() else {
+            return;
+        };
+        let base = self.base();
+        let old = self
+            .spec
+            .assembly
+            .as_ref()
+            .map(|a| a.generation)
+            .unwrap_or(0);
+        let old_hosts: Vec<String> = self
+            .hosts
+            .iter()
+            .filter(|h| h.generation != 0)
+            .map(|h| self.spec.host_module(&h.name))
+            .collect();
+        // Dropping a link unmaps shared memory (milliseconds): the old assembly's links are
+        // handed out with [`Coordinator::take_retired_links`] to be dropped off this thread.
+        let (keep, old_links): (Vec<HostLink>, Vec<HostLink>) = std::mem::take(&mut self.hosts)
+            .into_iter()
+            .partition(|h| h.generation == 0);
+        self.hosts = keep;
+        self.retired_links.extend(old_links);
+        let offset = self.hosts.len();
+        self.hosts.extend(inc.hosts);
+        self.comps.truncate(base);
+        for (c, comp) in self.comps.iter_mut().enumerate() {
+            comp.sources = inc.spec.sources(c);
+        }
+        self.comps
+            .extend(inc.comps.into_iter().skip(base).map(|mut c| {
+                c.host += offset;
+                c
+            }));
+        // Base comps' hosts keep their positions (the links of generation 0 come first and
+        // are never removed).
+        self.versions = vec![0; self.comps.len()];
+        self.spec = inc.spec;
+        let name = self
+            .spec
+            .assembly
+            .as_ref()
+            .map_or(String::new(), |a| a.name.clone());
+        let generation = self.spec.generation();
+        let announced = inc.schedule.map_or(n, |(_, at)| at);
+        self.switches.push((generation, name.clone(), announced, n));
+        if let Some(why) = self.fault.take() {
+            tracing::info!("the fault ends with the switch: {why}");
+        }
+        tracing::info!(
+            "tick {n}: assembly {name} (generation {generation}) took over from generation {old}"
+        );
+        self.retired.extend(old_hosts);
+    }
+
+    /// Begins preparing `spec` (a grid with the next assembly, of a new generation): its
+    /// components run alongside once [`Coordinator::announce`] is called.
+    pub fn begin_switch(&mut self, spec: GridSpec) -> Result<(), String> {
+        if self.incoming.is_some() {
+            return Err("an assembly is being prepared already".into());
+        }
+        if spec.generation() <= self.spec.generation() {
+            return Err(format!(
+                "generation {} is not newer than the running {}",
+                spec.generation(),
+                self.spec.generation()
+            ));
+        }
+        let host_names = spec.assembly_hosts();
+        let mut comps = comps_of(&spec, &host_names);
+        for c in comps.iter_mut().take(self.base()) {
+            c.host = usize::MAX;
+        }
+        self.incoming = Some(Incoming {
+            answered: vec![false; host_names.len()],
+            host_names,
+            comps,
+            hosts: Vec::new(),
+            ready: 0,
+            schedule: None,
+            first_at: 0,
+            lead: 0,
+            failure: None,
+            spec,
+        });
+        Ok(())
+    }
+
+    /// Takes the link to the next host of the assembly being prepared; a link that is not the
+    /// one expected (of another generation, or a host out of turn) is refused and returned.
+    pub fn add_incoming_link(&mut self, link: Box<HostLink>) -> Result<(), Box<HostLink>> {
+        let Some(inc) = self.incoming.as_mut() else {
+            return Err(link);
+        };
+        let expected = inc.host_names.get(inc.hosts.len());
+        if expected != Some(&link.name) || link.generation != inc.spec.host_generation(&link.name) {
+            return Err(link);
+        }
+        inc.hosts.push(*link);
+        Ok(())
+    }
+
+    /// Sends a warm-up release to every host of the assembly being prepared that has not
+    /// answered one yet.
+    pub fn ping_incoming(&mut self) {
+        let Some(inc) = self.incoming.as_mut() else {
+            return;
+        };
+        let generation = inc.spec.generation();
+        for (h, link) in inc.hosts.iter_mut().enumerate() {
+            if inc.answered.get(h) == Some(&false) {
+                if let Ok(ping) = Release::new(h as u64, 0, PING, &[]) {
+                    send_release(link, &ping.with(generation, 0));
+                }
+            }
+        }
+    }
+
+    /// The assembly being prepared runs alongside from the next tick and takes over at the
+    /// returned tick: after it tracked for the grid's `track_ticks`, and each of its
+    /// components was released twice (the longest period twice), plus `lead` ticks. A late
+    /// release near the switch postpones it (see [`Coordinator::switch_state`]).
+    pub fn announce(&mut self, lead: u64) -> Option<u64> {
+        // Its hosts subscribed to the system's outputs before now, and a subscriber gets only
+        // what is published after it: the first tracking release must name versions of the
+        // system's components published from now on (released at this tick or later).
+        let longest_base = self.comps[..self.base()]
+            .iter()
+            .map(|c| c.period)
+            .max()
+            .unwrap_or(1);
+        let from = self.tick + longest_base;
+        let track = self.spec.timing.track_ticks;
+        let inc = self.incoming.as_mut()?;
+        let at = from + track.max(2 * inc.spec.assembly_max_period()) + lead;
+        inc.schedule = Some((from, at));
+        inc.first_at = at;
+        inc.lead = lead;
+        Some(at)
+    }
+
+    /// Gives up the assembly being prepared; returns its hosts' module names.
+    pub fn abort_switch(&mut self) -> Vec<String> {
+        match self.incoming.take() {
+            Some(mut inc) => {
+                self.retired_links.append(&mut inc.hosts);
+                inc.host_names
+                    .iter()
+                    .map(|h| inc.spec.host_module(h))
+                    .collect()
+            }
+            None => Vec::new(),
+        }
+    }
+
+    /// Why the assembly being prepared cannot take over, once that is known.
+    pub fn switch_failure(&self) -> Option<&str> {
+        self.incoming.as_ref().and_then(|i| i.failure.as_deref())
+    }
+
+    /// Where the switch stands.
+    pub fn switch_state(&self) -> SwitchState {
+        match &self.incoming {
+            None => SwitchState::Idle,
+            Some(Incoming {
+                schedule: Some((from, at)),
+                ..
+            }) => SwitchState::Announced {
+                from: *from,
+                at: *at,
+            },
+            Some(inc) => SwitchState::Preparing {
+                opened: inc.hosts.len(),
+                hosts: inc.host_names.len(),
+                ready: inc.ready,
+                system_hosts: self.spec.base_hosts().len(),
+                answered: inc.answered.iter().filter(|a| **a).count(),
+            },
+        }
+    }
+
+    /// The switches done: (generation, assembly, announced tick, tick it took over).
+    pub fn switches(&self) -> &[(u16, String, u64, u64)] {
+        &self.switches
+    }
+
+    /// The module names of the hosts of replaced assemblies, to be stopped; each once.
+    /// The links to the hosts of the assembly that was replaced, to be dropped elsewhere.
+    pub fn take_retired_links(&mut self) -> Vec<HostLink> {
+        std::mem::take(&mut self.retired_links)
+    }
+
+    pub fn take_retired(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.retired)
+    }
+
+    /// The grid as it runs now.
+    pub fn spec(&self) -> &GridSpec {
+        &self.spec
+    }
+
+    /// Waits up to `timeout_ns` (by `now`) for the releases still running, then takes their
+    /// done notices; returns how many are still pending.
+    pub fn drain(&mut self, now: &dyn Fn() -> u64, timeout_ns: u64) -> usize {
+        let until = now() + timeout_ns;
+        loop {
+            self.take_done(self.tick);
+            let pending = self.comps.iter().filter(|c| c.pending.is_some()).count();
+            if pending == 0 || now() >= until {
+                return pending;
+            }
+            std::thread::sleep(core::time::Duration::from_micros(200));
+        }
+    }
+
+    /// Encodes the ledger as it stands into `out` (cleared first), as [`ledger::encode`] does
+    /// with [`Coordinator::ledger`]'s rows, without allocating once `out` and the state text
+    /// have the room: the tick thread does this every few hundred milliseconds.
+    pub fn encode_ledger(&mut self, done: bool, out: &mut Vec<u8>) {
+        out.clear();
+        let state = match (&self.fault, done) {
+            (Some(_), _) => "faulted",
+            (None, true) => "done",
+            (None, false) => "running",
+        };
+        self.state_text.clear();
+        self.state_text.push_str(state);
+        if self.spec.timing.clock == GridClock::Lockstep {
+            self.state_text.push_str(" in lockstep");
+        }
+        if let Some(a) = &self.spec.assembly {
+            use std::fmt::Write as _;
+            let _ = write!(
+                self.state_text,
+                " (assembly {}, generation {})",
+                a.name, a.generation
+            );
+        }
+        let (p50, p99, max) = ledger::p50_p99_max(&self.tick_error);
+        ledger::encode_grid(
+            out,
+            &self.state_text,
+            self.fault.as_deref().unwrap_or_default(),
+            [self.tick, self.missed],
+            self.rate.2,
+            [p50, p99, max],
+        );
+        for (c, s) in self.comps.iter().zip(&self.spec.components) {
+            let (e50, e99, emax) = ledger::p50_p99_max(&c.exec);
+            let (l50, l99, _) = ledger::p50_p99_max(&c.latency);
+            ledger::encode_component(
+                out,
+                [&s.name, &s.host],
+                c.period,
+                if c.fault_policy { "fault" } else { "hold" },
+                [
+                    c.releases,
+                    c.overruns,
+                    c.late,
+                    c.failed,
+                    c.stale,
+                    if c.exec.count() == 0 { 0 } else { c.exec_min },
+                    e50,
+                    e99,
+                    emax,
+                    l50,
+                    l99,
+                ],
+            );
+        }
+    }
+
+    /// The ledger as it stands, as rows (what [`Coordinator::encode_ledger`] encodes).
+    pub fn ledger(&mut self, done: bool) -> (GridRow, Vec<ComponentRow>) {
+        let mut bytes = Vec::new();
+        self.encode_ledger(done, &mut bytes);
+        // The encoding above is the decoder's own format: it always reads back.
+        ledger::decode(&bytes).unwrap_or_default()
+    }
+
+    /// Ends the run: the recorder's trace is flushed, with a line per overrun at its end
+    /// (`# overrun tick=T component=C release=M`); returns the versions it could not find.
+    pub fn finish(self) -> std::io::Result<u64> {
+        match self.recorder {
+            Some(rec) => {
+                let missing = rec.missing;
+                let mut out = rec.finish()?;
+                for &(t, c, m, miss) in &self.overrun_log {
+                    let Some(name) = self.spec.components.get(c).map(|x| &x.name) else {
+                        continue;
+                    };
+                    match miss {
+                        Miss::Overrun => {
+                            writeln!(out, "# overrun tick={t} component={name} release={m}")?
+                        }
+                        Miss::Stale => writeln!(out, "# stale tick={t} component={name}")?,
+                    }
+                }
+                out.flush()?;
+                Ok(missing)
+            }
+            None => Ok(0),
+        }
+    }
+}

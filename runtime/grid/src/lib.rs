@@ -1,0 +1,73 @@
+//! modbot-grid: the time grid — its component model, the checked description, the reference
+//! run of its logical execution time (LET) semantics, the coordinator and the hosts — and the
+//! bus ([`bus`]: CiA 402 drives, elastic-joint plant, the bus bridge), whose drives are grid
+//! components. Uses `modbot-core` and `modbot-transport`; reads no Lua (the descriptions are
+//! `modbot-system`'s).
+//!
+//! A grid is a set of *components* (FMI-style: named, typed inputs, outputs and parameters)
+//! on *host* processes, each released every k base ticks, and the *connections* from outputs
+//! to inputs. The coordinator ticks the base period and releases components; the hosts step
+//! them and publish their outputs. Released at tick n, a component reads its inputs as they
+//! were valid at n, and its outputs become valid at n + k, never earlier, so the values do not
+//! depend on how the processes were scheduled. This module is everything about that which is
+//! pure: the model, the checked description, and an in-process run that computes the values
+//! every real run must reproduce bit for bit.
+//!
+//! The grid is declared in the system description (`grid`, `component`, `connect`; see
+//! `modbot-system`) and arrives as [`GridSpec`] in `modbot_system::SystemSpec::grid`.
+//!
+//! # Layout
+//! - [`component`]: ports, parameters, the [`Component`] trait (initialise → step → terminate)
+//!   and the [`Registry`] of component types, which checks parameters and instantiates.
+//! - [`builtin`]: the built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`, `integrator`,
+//!   `delay`, `vec_gain`, `pack`, `sleeper`).
+//! - [`control`]: example controllers: `ptp`, `hold_position`, `feedforward`, `cascade`, `monitor`.
+//! - [`spec`]: the checked grid ([`GridSpec`]): components, hosts, periods in base ticks,
+//!   connections, and the *sources* of a component (the release notice's order); built from
+//!   declarations by [`GridSpec::build`].
+//! - [`reference`](mod@reference): the LET semantics computed in one thread ([`reference_run`],
+//!   [`reference_trace`]).
+//! - [`trace`]: the text format of a run's outputs, tick by tick ([`TraceWriter`]), which
+//!   the reference run and the real runs write so they can be compared.
+//!
+//! Across processes:
+//! - [`wire`]: the grid's iceoryx2 services (outputs, release and done notices, wake-ups).
+//! - [`versions`]: the versions of a component's outputs a reader keeps (hosts, recorder).
+//! - [`wait`]: sleeping on a wake-up with a deadline to the microsecond.
+//! - [`tick`]: where the base tick comes from (an absolute timerfd; a free-running source).
+//! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
+//! - [`host`]: a component host: steps its components on release, publishes their outputs.
+//! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
+//! - [`offload`]: a writer whose bytes a thread of normal priority writes out (the trace).
+//! - [`ledger`]: the overrun ledger as `modbot top` shows it.
+//! - [`bus`]: the drives on the bus and the bus bridge (its watchdog, safe stop, switches).
+//! - [`switch`]: swapping assemblies from a program (`modbot assembly switch`); the assembly
+//!   files are read by `modbot_system::load_assembly`.
+
+pub mod builtin;
+pub mod bus;
+pub mod component;
+pub mod control;
+pub mod coordinator;
+pub mod host;
+pub mod ledger;
+pub mod offload;
+pub mod recorder;
+pub mod reference;
+pub mod spec;
+pub mod switch;
+pub mod tick;
+pub mod trace;
+pub mod versions;
+pub mod wait;
+pub mod wire;
+
+pub use component::{
+    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
+    PortValue, Registry,
+};
+pub use reference::{reference_run, reference_trace, reference_trace_with, Overruns};
+pub use spec::{
+    ComponentSpec, Connection, GridClock, GridSpec, GridTiming, OverrunPolicy, PortRef,
+};
+pub use trace::TraceWriter;

@@ -1,0 +1,238 @@
+//! The reference run: the logical execution time (LET) semantics of a grid, computed in one
+//! thread, with no clock and no IPC. The coordinator and the component hosts must produce
+//! exactly these values, bit for bit, however the processes are scheduled.
+//!
+//! # Semantics
+//! The base tick is n = 0, 1, 2, …. A component of period k is released at every n with
+//! n % k == 0. Released at n, it reads for each input the output of its source that is valid
+//! at n, and its own outputs become valid at n + k, never earlier. Before its first outputs
+//! become valid (n < k), a component's outputs are the zero values of their types. So at tick
+//! n the valid outputs of X are those computed by X's release at the largest m with
+//! m + k_X ≤ n, or zeros if there is none.
+//!
+//! Within a tick the order of the releases does not matter: a release at n writes outputs
+//! valid from n + k > n, which no release at n can read. The run keeps two output buffers per
+//! component (valid now, and pending until n + k) so that this holds by construction; a test
+//! checks it by releasing in reverse order.
+
+use super::component::{Component, PortValue, Registry};
+use super::spec::GridSpec;
+use super::trace::TraceWriter;
+
+/// Runs `spec` for `ticks` base ticks. For n in 0..ticks, in that order: calls
+/// `sink(n, c, outputs valid at n)` for every component c in index order, then releases the
+/// components due at n with the inputs valid at n. Fails if a component cannot be
+/// instantiated (its error, naming the component).
+pub fn reference_run(
+    spec: &GridSpec,
+    registry: &Registry,
+    ticks: u64,
+    sink: &mut dyn FnMut(u64, usize, &[PortValue]),
+) -> Result<(), String> {
+    run(
+        spec,
+        registry,
+        ticks,
+        Order::Forward,
+        &Overruns::default(),
+        sink,
+    )
+}
+
+/// Overruns to replay: what the hold policy did in a real run, as its trace records them
+/// (`# overrun tick=T component=C release=M`, `# stale tick=M component=C`).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Overruns {
+    /// (component, release tick) of releases that finished late: the component stepped (its
+    /// state moved on) but its outputs never became valid.
+    pub late: std::collections::BTreeSet<(usize, u64)>,
+    /// (component, tick) of due ticks at which it was not released (still running) or its
+    /// release was not executed (stale).
+    pub skipped: std::collections::BTreeSet<(usize, u64)>,
+}
+
+impl Overruns {
+    /// Reads the overrun and stale lines of a trace of `spec`: `# overrun tick=T
+    /// component=C release=M` (release M finished late, and C was not released at T) and
+    /// `# stale tick=M component=C` (release M was not executed: an input's version was gone).
+    pub fn from_trace(spec: &GridSpec, trace: &str) -> Result<Overruns, String> {
+        let mut out = Overruns::default();
+        for line in trace.lines() {
+            let overrun = line.starts_with("# overrun ");
+            if !overrun && !line.starts_with("# stale ") {
+                continue;
+            }
+            let field = |key: &str| {
+                line.split_whitespace()
+                    .find_map(|w| w.strip_prefix(key))
+                    .ok_or_else(|| format!("'{line}' has no {key}"))
+            };
+            let number = |key: &str| -> Result<u64, String> {
+                field(key)?
+                    .parse()
+                    .map_err(|_| format!("bad {key} in '{line}'"))
+            };
+            let name = field("component=")?;
+            let c = spec
+                .components
+                .iter()
+                .position(|x| x.name == name)
+                .ok_or_else(|| format!("unknown component in '{line}'"))?;
+            let tick = number("tick=")?;
+            if overrun {
+                out.late.insert((c, number("release=")?));
+            }
+            out.skipped.insert((c, tick));
+        }
+        Ok(out)
+    }
+}
+
+/// The trace of the reference run with the overruns of a real run replayed, to compare with
+/// that run's trace (its `#` lines other than the header left out).
+pub fn reference_trace_with(
+    spec: &GridSpec,
+    registry: &Registry,
+    ticks: u64,
+    overruns: &Overruns,
+) -> Result<String, String> {
+    let mut writer = TraceWriter::new(Vec::new(), spec);
+    let mut failure = None;
+    run(
+        spec,
+        registry,
+        ticks,
+        Order::Forward,
+        overruns,
+        &mut |n, c, outputs| {
+            if let Err(e) = writer.tick(n, c, outputs) {
+                failure.get_or_insert(e);
+            }
+        },
+    )?;
+    if let Some(e) = failure {
+        return Err(e.to_string());
+    }
+    let bytes = writer.finish().map_err(|e| e.to_string())?;
+    Ok(String::from_utf8_lossy(&bytes).into_owned())
+}
+
+/// The trace ([`super::trace`]) of the reference run of `spec` for `ticks` ticks.
+///
+/// # Panics
+/// If a component cannot be instantiated (use [`reference_run`] to get the error instead).
+pub fn reference_trace(spec: &GridSpec, registry: &Registry, ticks: u64) -> String {
+    let mut writer = TraceWriter::new(Vec::new(), spec);
+    let mut failure = None;
+    let result = reference_run(spec, registry, ticks, &mut |n, c, outputs| {
+        if let Err(e) = writer.tick(n, c, outputs) {
+            failure.get_or_insert(e);
+        }
+    });
+    if let Err(e) = result {
+        panic!("reference run: {e}");
+    }
+    // Writing to a Vec only fails on a bad component index or output count, which the run
+    // never passes.
+    if let Some(e) = failure {
+        panic!("reference trace: {e}");
+    }
+    match writer.finish() {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(e) => panic!("reference trace: {e}"),
+    }
+}
+
+/// The order in which the components due at a tick are stepped: under LET it does not
+/// matter, which [`run`] lets a test show.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Order {
+    Forward,
+    Reverse,
+}
+
+/// One component's state in the run.
+struct Slot {
+    component: Box<dyn Component>,
+    period: u64,
+    /// The outputs valid now.
+    valid: Vec<PortValue>,
+    /// The outputs of the last release, valid from `pending_from`.
+    pending: Vec<PortValue>,
+    pending_from: Option<u64>,
+    /// The inputs of a release, gathered here (no allocation per release).
+    inputs: Vec<PortValue>,
+    /// For each input: the (component, output port) feeding it.
+    bindings: Vec<(usize, usize)>,
+}
+
+/// Runs `spec` for `ticks` base ticks in one thread, stepping the components due at a tick
+/// in `order` and replaying `overruns`; `sink(tick, component, outputs)` sees every release's
+/// outputs. [`reference_run`] is this in the forward order.
+pub fn run(
+    spec: &GridSpec,
+    registry: &Registry,
+    ticks: u64,
+    order: Order,
+    overruns: &Overruns,
+    sink: &mut dyn FnMut(u64, usize, &[PortValue]),
+) -> Result<(), String> {
+    let mut slots = Vec::with_capacity(spec.components.len());
+    for (index, c) in spec.components.iter().enumerate() {
+        let component = registry
+            .instantiate(&c.type_name, &c.params)
+            .map_err(|e| format!("component '{}': {e}", c.name))?;
+        let bindings = (0..c.info.inputs.len())
+            .map(|i| {
+                spec.source_of(index, i)
+                    .map(|p| (p.component, p.port))
+                    .ok_or_else(|| format!("component '{}': input {i} is not connected", c.name))
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        slots.push(Slot {
+            component,
+            period: c.period.max(1),
+            valid: c.info.zero_outputs(),
+            pending: c.info.zero_outputs(),
+            pending_from: None,
+            inputs: c.info.zero_inputs(),
+            bindings,
+        });
+    }
+    let count = slots.len();
+    for n in 0..ticks {
+        for (c, slot) in slots.iter_mut().enumerate() {
+            if slot.pending_from == Some(n) {
+                std::mem::swap(&mut slot.valid, &mut slot.pending);
+                slot.pending_from = None;
+            }
+            sink(n, c, &slot.valid);
+        }
+        for i in 0..count {
+            let c = match order {
+                Order::Forward => i,
+                Order::Reverse => count - 1 - i,
+            };
+            if n % slots[c].period != 0 || overruns.skipped.contains(&(c, n)) {
+                continue;
+            }
+            // Gather from the valid outputs: a release at n only writes `pending`.
+            let mut inputs = std::mem::take(&mut slots[c].inputs);
+            for (value, &(src, port)) in inputs.iter_mut().zip(&slots[c].bindings) {
+                value.assign(&slots[src].valid[port]);
+            }
+            let slot = &mut slots[c];
+            slot.component.step(n, &inputs, &mut slot.pending);
+            slot.inputs = inputs;
+            slot.pending_from = if overruns.late.contains(&(c, n)) {
+                None // finished too late: the outputs never became valid
+            } else {
+                Some(n + slot.period)
+            };
+        }
+    }
+    for slot in &mut slots {
+        slot.component.terminate();
+    }
+    Ok(())
+}

@@ -1,0 +1,661 @@
+//! The checked grid description: components on hosts, their periods and parameters, and the
+//! connections between their ports.
+//!
+//! [`GridSpec::build`] turns declarations ([`GridDecl`], [`ComponentDecl`], [`ConnectDecl`], as
+//! the system description's `grid`, `component` and `connect` say them) into a [`GridSpec`],
+//! with every check that needs the component types: known type, parameters, ports, exact port
+//! types, every input connected exactly once, at most [`MAX_SOURCES`] source components per
+//! component, periods that are whole multiples of the base tick. Errors carry the line of the
+//! offending declaration ([`GridError`]).
+
+use std::collections::HashMap;
+use std::time::Duration;
+
+use modbot_ipc_schema::grid::MAX_SOURCES;
+
+use super::component::{ComponentInfo, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS};
+use modbot_core::transport::check_name;
+
+/// The most components a grid may have (indices are 16 bits on the wire).
+pub const MAX_COMPONENTS: usize = 65535;
+/// The longest period, in base ticks.
+pub const MAX_PERIOD_TICKS: u64 = u32::MAX as u64;
+
+/// What the coordinator does when a component misses its deadline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OverrunPolicy {
+    /// Its previous outputs stay valid; the overrun is counted.
+    #[default]
+    Hold,
+    /// The assembly is faulted.
+    Fault,
+}
+
+impl OverrunPolicy {
+    /// The name used in descriptions: `hold` or `fault`.
+    pub fn name(self) -> &'static str {
+        match self {
+            OverrunPolicy::Hold => "hold",
+            OverrunPolicy::Fault => "fault",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<OverrunPolicy> {
+        match name {
+            "hold" => Some(OverrunPolicy::Hold),
+            "fault" => Some(OverrunPolicy::Fault),
+            _ => None,
+        }
+    }
+}
+
+/// A checked grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridSpec {
+    /// The base tick T: every period is a whole multiple of it.
+    pub base_period: Duration,
+    /// The coordinator's CPU affinity (empty: anywhere).
+    pub cpus: Vec<usize>,
+    /// The coordinator's SCHED_FIFO priority (none: the normal scheduler).
+    pub priority: Option<u8>,
+    /// Lock the coordinator's memory.
+    pub mlock: bool,
+    /// The components, in declaration order: their indices are the wire's component indices.
+    pub components: Vec<ComponentSpec>,
+    /// The connections, in declaration order.
+    pub connections: Vec<Connection>,
+    /// The line of the `grid` declaration.
+    pub line: u32,
+    /// Where the ticks come from, and how the coordinator waits for its hosts.
+    pub timing: GridTiming,
+    /// When the grid runs assemblies: which one this spec holds, and how to load others.
+    pub assembly: Option<Assembly>,
+}
+
+/// Where the base tick comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GridClock {
+    /// The coordinator's timerfd: tick n at start + n·T, whatever happens (the default).
+    #[default]
+    RealTime,
+    /// The coordinator advances to tick n + 1 only when every release due at n + 1 can be
+    /// made, as fast as the machine goes: no overruns by construction, byte-identical traces
+    /// whatever the load. A simulation mode: no drive would follow it in real time.
+    Lockstep,
+}
+
+impl GridClock {
+    pub fn name(self) -> &'static str {
+        match self {
+            GridClock::RealTime => "realtime",
+            GridClock::Lockstep => "lockstep",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<GridClock> {
+        match name {
+            "realtime" => Some(GridClock::RealTime),
+            "lockstep" => Some(GridClock::Lockstep),
+            _ => None,
+        }
+    }
+}
+
+/// How the grid keeps time: `grid { clock = ..., track_ticks = ..., spin_us = ... }`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GridTiming {
+    pub clock: GridClock,
+    /// An incoming assembly runs alongside (tracking) for at least this many ticks before it
+    /// takes over; its overruns in that time are counted but do not fail the switch (a fresh
+    /// process is slow at first: cold caches, first page touches).
+    pub track_ticks: u64,
+    /// How long the coordinator may spin at a tick for a due component's done notice before it
+    /// sleeps on the done wake-up (0: never spin; only worth it on a core of its own).
+    pub spin_us: u64,
+}
+
+/// Ticks an incoming assembly tracks by default before it takes over.
+pub const DEFAULT_TRACK_TICKS: u64 = 50;
+
+impl Default for GridTiming {
+    fn default() -> Self {
+        GridTiming {
+            clock: GridClock::RealTime,
+            track_ticks: DEFAULT_TRACK_TICKS,
+            spin_us: 0,
+        }
+    }
+}
+
+/// The assembly a [`GridSpec`] holds: its components follow the system's own (the bus), which
+/// stay when the assembly is swapped. Loaded by `modbot_system::load_assembly`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assembly {
+    /// Its name: the file `<dir>/<name>.lua`.
+    pub name: String,
+    /// Counts the assemblies loaded in a run, from 1: it names the assembly's services and
+    /// host processes, so an assembly being prepared never meets the one running.
+    pub generation: u16,
+    /// Where the assembly files are.
+    pub dir: std::path::PathBuf,
+    /// The number of the system's own components: indices below it are the system's.
+    pub base: usize,
+    /// The system's grid declarations, to combine with another assembly's.
+    pub decls: (GridDecl, Vec<ComponentDecl>, Vec<ConnectDecl>),
+    /// The description's variables (assembly files see them as `vars` too).
+    pub vars: Vec<(String, String)>,
+    /// The system description's file, for messages.
+    pub system_file: String,
+}
+
+/// The `assemblies = "dir", assembly = "first"` fields of `grid { ... }`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AssembliesDecl {
+    /// The directory of the assembly files, relative to the description's.
+    pub dir: String,
+    /// The assembly the system starts with.
+    pub first: String,
+}
+
+/// One component of the grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComponentSpec {
+    /// Its name: unique, a transport name (it names the output service `grid.out.<name>`).
+    pub name: String,
+    /// Its type in the [`Registry`].
+    pub type_name: String,
+    /// The host process that steps it.
+    pub host: String,
+    /// Its period in base ticks (≥ 1): released at every tick that is a multiple of it.
+    pub period: u64,
+    /// The complete parameters, including the automatic `base_period_s` and `period_s`.
+    pub params: Params,
+    /// What happens when it misses a deadline.
+    pub policy: OverrunPolicy,
+    /// Its ports with these parameters.
+    pub info: ComponentInfo,
+    /// The line of its `component` declaration.
+    pub line: u32,
+}
+
+/// An output feeding an input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Connection {
+    /// A component's output.
+    pub from: PortRef,
+    /// A component's input.
+    pub to: PortRef,
+    /// The line of the `connect` declaration.
+    pub line: u32,
+}
+
+/// A port: a component index and an output or input index (which, the context says).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct PortRef {
+    pub component: usize,
+    pub port: usize,
+}
+
+/// The `grid { ... }` declaration, read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridDecl {
+    pub base_period: Duration,
+    pub cpus: Vec<usize>,
+    pub priority: Option<u8>,
+    pub mlock: bool,
+    pub line: u32,
+    pub timing: GridTiming,
+    /// The grid runs swappable assemblies, starting with this one.
+    pub assemblies: Option<AssembliesDecl>,
+}
+
+/// A component's period as written.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Period {
+    /// `period = k`: base ticks.
+    Ticks(f64),
+    /// `period_s = x`: seconds.
+    Seconds(f64),
+}
+
+/// A `component "name" { ... }` declaration, read but not checked against its type.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComponentDecl {
+    pub name: String,
+    pub type_name: String,
+    pub host: String,
+    pub period: Period,
+    /// The parameters as written (without the automatic ones).
+    pub params: Params,
+    pub policy: OverrunPolicy,
+    pub line: u32,
+}
+
+/// A `connect "A.y -> B.u"` declaration: (component, port) on each side.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConnectDecl {
+    pub from: (String, String),
+    pub to: (String, String),
+    pub line: u32,
+}
+
+/// Why declarations are not a valid grid: the line (when there is one) and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GridError {
+    pub line: Option<u32>,
+    pub message: String,
+}
+
+fn at(line: u32, message: String) -> GridError {
+    GridError {
+        line: Some(line),
+        message,
+    }
+}
+
+/// The coordinator's module name.
+pub const COORDINATOR: &str = "coordinator";
+
+/// The module name of the process of `host` of assembly generation `generation` (0: a host of
+/// the system's own components, or of a grid without assemblies).
+pub fn host_module_of(host: &str, generation: u16) -> String {
+    match generation {
+        0 => format!("host_{host}"),
+        g => format!("host_{host}_g{g}"),
+    }
+}
+
+/// A host name: 1 to 32 characters of `a-z`, `0-9` and `_` (it names a process).
+pub fn check_host(host: &str) -> Result<(), String> {
+    let ok = (1..=32).contains(&host.len())
+        && host
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "host name '{host}' is invalid: use 1 to 32 characters of a-z, 0-9 and _"
+        ))
+    }
+}
+
+/// The period in base ticks, or why it is not a whole multiple of the base tick.
+fn ticks(period: Period, base: Duration) -> Result<u64, String> {
+    let base_s = base.as_secs_f64();
+    let (ratio, shown) = match period {
+        Period::Ticks(k) => (k, format!("{k} ticks ({} s)", k * base_s)),
+        Period::Seconds(s) => (s / base_s, format!("{s} s")),
+    };
+    if !ratio.is_finite() || ratio <= 0.0 {
+        return Err(format!("period must be positive, not {shown}"));
+    }
+    let k = ratio.round();
+    if (ratio - k).abs() > 1e-9 * k.max(1.0) || k < 1.0 {
+        return Err(format!(
+            "period {shown} is not a multiple of the base tick ({base_s} s)"
+        ));
+    }
+    if k > MAX_PERIOD_TICKS as f64 {
+        return Err(format!(
+            "period {shown} is too long (at most {MAX_PERIOD_TICKS} base ticks)"
+        ));
+    }
+    Ok(k as u64)
+}
+
+/// One component, checked against its type.
+fn component(
+    d: ComponentDecl,
+    base: Duration,
+    registry: &Registry,
+) -> Result<ComponentSpec, GridError> {
+    let fail = |m: String| at(d.line, format!("component '{}': {m}", d.name));
+    if check_name(&d.name).is_err() {
+        return Err(fail(
+            "the name is invalid: use 1 to 48 characters of a-z, A-Z, 0-9, _ and -".into(),
+        ));
+    }
+    check_host(&d.host).map_err(fail)?;
+    let period = ticks(d.period, base).map_err(fail)?;
+    if let Some(name) = AUTOMATIC_PARAMS.iter().find(|n| d.params.get(n).is_some()) {
+        return Err(fail(format!(
+            "param '{name}' is set automatically and cannot be given"
+        )));
+    }
+    let mut params = d.params;
+    params.set_timing(base.as_secs_f64(), period);
+    let params = registry.complete(&d.type_name, &params).map_err(fail)?;
+    let info = registry.info(&d.type_name, &params).map_err(fail)?;
+    Ok(ComponentSpec {
+        name: d.name,
+        type_name: d.type_name,
+        host: d.host,
+        period,
+        params,
+        policy: d.policy,
+        info,
+        line: d.line,
+    })
+}
+
+/// One connection, checked: both components and ports exist, and the types are equal.
+fn connect(
+    c: &ConnectDecl,
+    specs: &[ComponentSpec],
+    names: &HashMap<String, usize>,
+) -> Result<Connection, GridError> {
+    let find = |name: &str| {
+        names.get(name).copied().ok_or_else(|| {
+            let known: Vec<&str> = specs.iter().map(|s| s.name.as_str()).take(20).collect();
+            let more = if specs.len() > known.len() {
+                ", ..."
+            } else {
+                ""
+            };
+            at(
+                c.line,
+                format!(
+                    "connect {}.{} -> {}.{}: no component is named '{name}' (components: {}{more})",
+                    c.from.0,
+                    c.from.1,
+                    c.to.0,
+                    c.to.1,
+                    known.join(", ")
+                ),
+            )
+        })
+    };
+    let (from_c, to_c) = (find(&c.from.0)?, find(&c.to.0)?);
+    let (src, dst) = (&specs[from_c].info, &specs[to_c].info);
+    let no_port = |side: &str, (component, port): &(String, String), ports: &[PortDecl]| {
+        let names: Vec<&str> = ports.iter().map(|p| p.name).collect();
+        let names = if names.is_empty() {
+            "none".to_owned()
+        } else {
+            names.join(", ")
+        };
+        let message = format!("component '{component}' has no {side} '{port}' ({side}s: {names})");
+        at(c.line, message)
+    };
+    let from_p = src
+        .output(&c.from.1)
+        .ok_or_else(|| no_port("output", &c.from, &src.outputs))?;
+    let to_p = dst
+        .input(&c.to.1)
+        .ok_or_else(|| no_port("input", &c.to, &dst.inputs))?;
+    let (from_ty, to_ty) = (src.outputs[from_p].ty, dst.inputs[to_p].ty);
+    if from_ty != to_ty {
+        return Err(at(
+            c.line,
+            format!(
+                "{}.{} is {from_ty} but {}.{} is {to_ty}",
+                c.from.0, c.from.1, c.to.0, c.to.1
+            ),
+        ));
+    }
+    Ok(Connection {
+        from: PortRef {
+            component: from_c,
+            port: from_p,
+        },
+        to: PortRef {
+            component: to_c,
+            port: to_p,
+        },
+        line: c.line,
+    })
+}
+
+impl GridSpec {
+    /// The SCHED_FIFO priority of the hosts' serving threads: just below the coordinator's
+    /// tick thread, which must preempt them.
+    pub fn host_priority(&self) -> Option<u8> {
+        self.priority.map(|p| p.saturating_sub(1).max(1))
+    }
+
+    /// Checks the declarations against the component types of `registry`. Takes time linear
+    /// in the size of the description.
+    pub fn build(
+        grid: GridDecl,
+        components: Vec<ComponentDecl>,
+        connections: Vec<ConnectDecl>,
+        registry: &Registry,
+    ) -> Result<GridSpec, GridError> {
+        if grid.base_period.is_zero() {
+            return Err(at(grid.line, "grid: base_period must be positive".into()));
+        }
+        if components.is_empty() {
+            return Err(at(
+                grid.line,
+                "the grid has no components: add component \"name\" { type = ..., host = ... }"
+                    .into(),
+            ));
+        }
+        let mut specs: Vec<ComponentSpec> = Vec::with_capacity(components.len());
+        let mut names: HashMap<String, usize> = HashMap::with_capacity(components.len());
+        for d in components {
+            if specs.len() >= MAX_COMPONENTS {
+                let message = format!("too many components (at most {MAX_COMPONENTS})");
+                return Err(at(d.line, message));
+            }
+            if let Some(&first) = names.get(&d.name) {
+                let first = specs[first].line;
+                let message = format!(
+                    "component name '{}' is already declared at line {first}",
+                    d.name
+                );
+                return Err(at(d.line, message));
+            }
+            names.insert(d.name.clone(), specs.len());
+            specs.push(component(d, grid.base_period, registry)?);
+        }
+        // For every input, the connection feeding it.
+        let mut feeding: HashMap<PortRef, usize> = HashMap::with_capacity(connections.len());
+        let mut checked: Vec<Connection> = Vec::with_capacity(connections.len());
+        for c in &connections {
+            let connection = connect(c, &specs, &names)?;
+            if let Some(&first) = feeding.get(&connection.to) {
+                let first = &checked[first];
+                let source = &specs[first.from.component];
+                return Err(at(
+                    c.line,
+                    format!(
+                        "{}.{} is already connected (from {}.{} at line {})",
+                        c.to.0,
+                        c.to.1,
+                        source.name,
+                        source.info.outputs[first.from.port].name,
+                        first.line
+                    ),
+                ));
+            }
+            feeding.insert(connection.to, checked.len());
+            checked.push(connection);
+        }
+        for (index, c) in specs.iter().enumerate() {
+            let mut sources = Vec::with_capacity(c.info.inputs.len());
+            for (i, input) in c.info.inputs.iter().enumerate() {
+                let to = PortRef {
+                    component: index,
+                    port: i,
+                };
+                let Some(&k) = feeding.get(&to) else {
+                    return Err(at(
+                        c.line,
+                        format!(
+                            "component '{}': input '{}' is not connected: every input needs a \
+                             connect \"X.y -> {}.{}\"",
+                            c.name, input.name, c.name, input.name
+                        ),
+                    ));
+                };
+                sources.push(checked[k].from.component);
+            }
+            sources.sort_unstable();
+            sources.dedup();
+            if sources.len() > MAX_SOURCES {
+                return Err(at(
+                    c.line,
+                    format!(
+                        "component '{}' is fed by {} components; at most {MAX_SOURCES}",
+                        c.name,
+                        sources.len()
+                    ),
+                ));
+            }
+        }
+        Ok(GridSpec {
+            base_period: grid.base_period,
+            cpus: grid.cpus,
+            priority: grid.priority,
+            mlock: grid.mlock,
+            components: specs,
+            connections: checked,
+            line: grid.line,
+            timing: grid.timing,
+            assembly: None,
+        })
+    }
+
+    /// The assembly generation component `c` belongs to: 0 for the system's own components
+    /// and for every component of a grid without assemblies.
+    pub fn generation_of(&self, c: usize) -> u16 {
+        match &self.assembly {
+            Some(a) if c >= a.base => a.generation,
+            _ => 0,
+        }
+    }
+
+    /// The generation of this spec's assembly (0: none).
+    pub fn generation(&self) -> u16 {
+        self.assembly.as_ref().map_or(0, |a| a.generation)
+    }
+
+    /// The generation of the components on `host` (0: the system's own host).
+    pub fn host_generation(&self, host: &str) -> u16 {
+        (0..self.components.len())
+            .find(|&c| self.components[c].host == host)
+            .map_or(0, |c| self.generation_of(c))
+    }
+
+    /// The hosts of the system's own components (all hosts of a grid without assemblies).
+    pub fn base_hosts(&self) -> Vec<String> {
+        self.hosts()
+            .into_iter()
+            .filter(|h| self.host_generation(h) == 0)
+            .collect()
+    }
+
+    /// The hosts of the assembly's components.
+    pub fn assembly_hosts(&self) -> Vec<String> {
+        self.hosts()
+            .into_iter()
+            .filter(|h| self.host_generation(h) != 0)
+            .collect()
+    }
+
+    /// The iceoryx2 service of component `c`'s outputs.
+    pub fn out_service(&self, c: usize) -> String {
+        let name = &self.components[c].name;
+        match self.generation_of(c) {
+            0 => format!("grid.out.{name}"),
+            g => format!("grid.out.g{g}.{name}"),
+        }
+    }
+
+    /// The iceoryx2 service of `host`'s release notices.
+    pub fn release_service(&self, host: &str) -> String {
+        match self.host_generation(host) {
+            0 => format!("grid.release.{host}"),
+            g => format!("grid.release.g{g}.{host}"),
+        }
+    }
+
+    /// The iceoryx2 event that wakes `host`.
+    pub fn wake_service(&self, host: &str) -> String {
+        match self.host_generation(host) {
+            0 => format!("grid.wake.{host}"),
+            g => format!("grid.wake.g{g}.{host}"),
+        }
+    }
+
+    /// The module name of `host`'s process.
+    pub fn host_module(&self, host: &str) -> String {
+        host_module_of(host, self.host_generation(host))
+    }
+
+    /// The longest period of the assembly's components, in base ticks (1 without them).
+    pub fn assembly_max_period(&self) -> u64 {
+        (0..self.components.len())
+            .filter(|&c| self.generation_of(c) != 0)
+            .map(|c| self.components[c].period)
+            .max()
+            .unwrap_or(1)
+    }
+
+    /// The host processes, distinct, in order of first use.
+    pub fn hosts(&self) -> Vec<String> {
+        let mut hosts: Vec<String> = Vec::new();
+        for c in &self.components {
+            if !hosts.contains(&c.host) {
+                hosts.push(c.host.clone());
+            }
+        }
+        hosts
+    }
+
+    /// The components `host` steps, in index order.
+    pub fn components_of(&self, host: &str) -> Vec<usize> {
+        (0..self.components.len())
+            .filter(|&c| self.components[c].host == host)
+            .collect()
+    }
+
+    /// The index of the component named `name`.
+    pub fn component(&self, name: &str) -> Option<usize> {
+        self.components.iter().position(|c| c.name == name)
+    }
+
+    /// The output feeding input `i` of component `c`, if it is connected.
+    pub fn source_of(&self, c: usize, i: usize) -> Option<PortRef> {
+        let to = PortRef {
+            component: c,
+            port: i,
+        };
+        self.connections.iter().find(|k| k.to == to).map(|k| k.from)
+    }
+
+    /// The distinct components feeding `c`'s inputs, sorted by index: the "sources" of a
+    /// release notice, whose versions come in this order.
+    pub fn sources(&self, c: usize) -> Vec<usize> {
+        let mut sources: Vec<usize> = self
+            .connections
+            .iter()
+            .filter(|k| k.to.component == c)
+            .map(|k| k.from.component)
+            .collect();
+        sources.sort_unstable();
+        sources.dedup();
+        sources
+    }
+
+    /// For input `i` of component `c`: (the position of its source in [`sources`](Self::sources)
+    /// of `c`, the output port index in that source).
+    ///
+    /// # Panics
+    /// If the input is not connected (never in a spec from [`build`](Self::build)).
+    pub fn input_binding(&self, c: usize, i: usize) -> (usize, usize) {
+        let Some(from) = self.source_of(c, i) else {
+            panic!("input {i} of component {c} is not connected");
+        };
+        let sources = self.sources(c);
+        let position = sources.iter().position(|&s| s == from.component);
+        (position.unwrap_or(usize::MAX), from.port)
+    }
+
+    /// The types of `c`'s outputs, in port order (the layout of its output record).
+    pub fn output_types(&self, c: usize) -> Vec<PortType> {
+        self.components[c].info.output_types()
+    }
+}

@@ -1,0 +1,1108 @@
+//! The supervisor: starts a robot's module processes from its system description, watches
+//! them, brings them back per their restart policy, and stops them in order.
+//!
+//! - It sweeps what dead processes left of the domain, then spawns every module (each its own
+//!   process, in its own process group, killed if the supervisor dies) and waits until each has
+//!   announced itself with its first heartbeat.
+//! - Every module gets the same `MODBOT_EPOCH_NS`, the instant (CLOCK_MONOTONIC) the system
+//!   started, restarts included: the epoch of the system's simulated time ([`modbot_core::sim`]).
+//! - It keeps the domain's directory (who runs where, with which pid) and publishes it to the
+//!   modules whenever a module comes, goes or restarts; it cleans up after dead processes, so
+//!   the modules never scan or clean the domain themselves.
+//! - It watches exits (`waitpid`) and heartbeats: a module whose heartbeat stops for the
+//!   configured time is hung; it is killed and handled like a crash.
+//! - Restart policies (`never`, `on-failure`, `always`, with a maximum per window and an
+//!   exponential backoff) decide what comes back; a module that ends too often is failed, and
+//!   its policy says whether the rest keeps running.
+//! - It is itself a module of the domain, named `supervisor`: `status` answers the table that
+//!   `modbot ls` shows, `down` stops the system (`modbot down`); for the coordinator,
+//!   `spawn_host(host, assembly, generation)` starts the host process of an assembly being
+//!   prepared and `retire(module)` stops one of an assembly that was replaced (or failed to
+//!   prepare) and drops it from the table.
+//! - On SIGINT/SIGTERM, `down`, or when its time is up, it stops the modules in reverse order
+//!   (SIGTERM, then SIGKILL after the grace period) and removes the domain's shared memory.
+//!
+//! # Layout
+//! - [`env`]: what a module process learns from its environment.
+//! - `child`: spawning one module process and forwarding its output.
+//! - [`policy`]: restart decisions and exit reasons.
+//! - `relay`: calls of tools that hold no module address, made by the supervisor.
+//! - `roster`: the domain's directory, published to every module when it changes.
+//! - [`rt`]: CPU affinity and SCHED_FIFO for a module process.
+//! - [`status`]: the status rows and table.
+
+mod child;
+pub use modbot_transport::launch as env;
+pub mod policy;
+pub mod processes;
+mod relay;
+mod roster;
+pub mod rt;
+pub mod status;
+
+use core::time::Duration;
+use std::io::Write;
+use std::process::Child;
+use std::time::Instant;
+
+use crossbeam::channel::{unbounded, Receiver, Sender};
+use modbot_ipc_schema::directory::Listing;
+use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
+use modbot_ipc_schema::{Addr, Args, Value};
+use nix::sys::signal::{kill, Signal};
+use nix::unistd::Pid;
+use thiserror::Error;
+
+use child::LogLine;
+use modbot_core::clock::{Clock, MonotonicClock};
+use modbot_core::ctx::Ctx;
+use modbot_core::domain::Domain;
+use modbot_core::error::MethodError;
+use modbot_core::module::{Module, ModuleBuilder, Reply};
+use modbot_core::transport::ipc::{HeartbeatMonitor, IpcTransport};
+use modbot_core::transport::{Directory, ReceiveMode, TransportError};
+use modbot_system::{GiveUp, SystemSpec};
+use policy::{Decision, ExitReason, RestartTracker};
+use relay::Relay;
+use roster::Roster;
+use status::{Row, RunState};
+
+/// Why the supervisor could not start or run a system.
+#[derive(Debug, Error)]
+pub enum SupervisorError {
+    #[error("domain '{domain}' is in use by a running system (live modules: {modules}); stop it first with `modbot down --domain {domain}`")]
+    DomainInUse { domain: String, modules: String },
+    #[error("cannot start module '{module}' ({program}): {source}")]
+    Spawn {
+        module: String,
+        program: String,
+        source: std::io::Error,
+    },
+    #[error("module {module} ended before it announced itself ({reason})")]
+    EndedAtStart { module: String, reason: String },
+    #[error("module(s) {modules} did not announce themselves within {timeout_ms} ms")]
+    StartTimeout { modules: String, timeout_ms: u64 },
+    #[error("the description uses all 254 addresses; the supervisor needs one free address")]
+    NoAddressLeft,
+    #[error("domain: {0}")]
+    Domain(#[from] modbot_core::domain::DomainNameError),
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+    #[error(transparent)]
+    Module(#[from] modbot_core::error::ModuleError),
+}
+
+/// The longest the supervisor sleeps between looks at heartbeats and deadlines (calls to it
+/// and its children's ends wake it at once).
+const IDLE_WAIT: Duration = Duration::from_millis(20);
+
+/// How long to run.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Stop after this long (`--for`).
+    pub run_for: Option<Duration>,
+    /// Print the status table whenever a module changes state (the live view).
+    pub show_status: bool,
+}
+
+/// How the run ended.
+#[derive(Debug, Clone)]
+pub struct Summary {
+    /// Every module ran within its policy and stopped cleanly.
+    pub ok: bool,
+    /// The final status of every module.
+    pub rows: Vec<Row>,
+    /// What went wrong, one line each.
+    pub problems: Vec<String>,
+    /// How long the system ran.
+    pub ran_for: Duration,
+}
+
+/// The supervisor module's state, shared with its method handlers.
+#[derive(Debug, Default)]
+struct Shared {
+    rows: Vec<Row>,
+    down_requested: bool,
+    /// Host processes of assemblies to start or stop, in the order asked.
+    requests: Vec<HostRequest>,
+    /// Whether the system can start assembly hosts (it has a grid with assemblies).
+    hosts_allowed: bool,
+    /// Relayed calls that ended: their handles and the tools' answers.
+    relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum HostRequest {
+    Spawn {
+        host: String,
+        assembly: String,
+        generation: u16,
+    },
+    Retire(String),
+}
+
+/// One supervised module.
+struct Slot {
+    child: Option<Child>,
+    pid: u32,
+    state: RunState,
+    tracker: RestartTracker,
+    last_exit: Option<ExitReason>,
+    /// Why the supervisor killed it, when it did.
+    killed_for: Option<ExitReason>,
+    started_ns: u64,
+    /// When its last heartbeat arrived; 0 until the first.
+    last_beat_ns: u64,
+    restart_at_ns: u64,
+    counters: Counters,
+    /// The digest of its method names, from its heartbeats.
+    methods_digest: u32,
+    /// Asked to stop for good (a replaced assembly's host): its end is not a failure.
+    retiring: bool,
+    /// The threads forwarding its output: what it wrote last is shown before its end is.
+    log_readers: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Slot {
+    /// A module not started yet.
+    fn new(restart: modbot_system::RestartPolicy) -> Slot {
+        Slot {
+            child: None,
+            pid: 0,
+            state: RunState::Starting,
+            tracker: RestartTracker::new(restart),
+            last_exit: None,
+            killed_for: None,
+            started_ns: 0,
+            last_beat_ns: 0,
+            restart_at_ns: 0,
+            counters: Counters::default(),
+            methods_digest: 0,
+            retiring: false,
+            log_readers: Vec::new(),
+        }
+    }
+}
+
+/// A running system.
+pub struct Supervisor {
+    spec: SystemSpec,
+    domain: Domain,
+    slots: Vec<Slot>,
+    endpoint: Module<Shared>,
+    roster: Roster,
+    relay: Relay,
+    heartbeats: HeartbeatMonitor,
+    logs_tx: Sender<LogLine>,
+    logs: Receiver<LogLine>,
+    epoch: Instant,
+    /// The same instant on CLOCK_MONOTONIC, which every module gets as `MODBOT_EPOCH_NS`.
+    epoch_ns: u64,
+    name_width: usize,
+    problems: Vec<String>,
+    stop_failed: bool,
+    /// Counts changes of what the supervisor shows (a module's state, pid, methods); the live
+    /// table, the status rows and the directory each remember the count they last showed.
+    changes: u64,
+    table_shown: u64,
+    rows_shown: u64,
+    directory_shown: u64,
+    /// When the status rows that `status` answers were last built.
+    rows_built: Option<Instant>,
+    /// SIGCHLD tells when a child ended (else every child is looked at on every wake-up).
+    child_signal: bool,
+    /// When every child was last looked at regardless of SIGCHLD.
+    children_seen: Instant,
+    /// Modules that came up and the supervisor has no link to yet: it opens them a few at a
+    /// time while idle, so that the first calls it relays for a tool find them open.
+    to_connect: Vec<Addr>,
+}
+
+impl Supervisor {
+    /// Sweeps the domain, starts every module and waits until all have announced themselves.
+    pub fn start(spec: SystemSpec) -> Result<Supervisor, SupervisorError> {
+        let domain = Domain::new(&spec.domain)?;
+        let transport = IpcTransport::for_supervisor(&domain)?;
+        let directory = transport.scanned_directory();
+        let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
+        sweep(&domain, directory.as_ref(), &used)?;
+        let roster = Roster::new(&transport)?;
+        let relay = Relay::new(&transport)?;
+        let mut endpoint = open_endpoint(&transport, &used)?;
+        endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
+        let heartbeats = HeartbeatMonitor::new(&transport)?;
+        // A child's end interrupts the supervisor's wait and is looked for at once.
+        let child_signal = modbot_core::signals::install_child_handler();
+        if let Err(e) = &child_signal {
+            tracing::debug!("SIGCHLD handler: {e}; children are looked at on every wake-up");
+        }
+        let (logs_tx, logs) = unbounded();
+        let slots = spec
+            .modules
+            .iter()
+            .map(|m| Slot::new(m.restart.clone()))
+            .collect();
+        let name_width = spec.modules.iter().map(|m| m.name.len()).max().unwrap_or(4);
+        let mut sup = Supervisor {
+            spec,
+            domain,
+            slots,
+            endpoint,
+            roster,
+            relay,
+            heartbeats,
+            logs_tx,
+            logs,
+            epoch: Instant::now(),
+            epoch_ns: MonotonicClock.now_ns(),
+            name_width,
+            problems: Vec::new(),
+            stop_failed: false,
+            changes: 1,
+            table_shown: 0,
+            rows_shown: 0,
+            directory_shown: 0,
+            rows_built: None,
+            child_signal: child_signal.is_ok(),
+            children_seen: Instant::now(),
+            to_connect: Vec::new(),
+        };
+        sup.say(&format!(
+            "starting {} module(s) in domain '{}'",
+            sup.slots.len(),
+            sup.domain.name()
+        ));
+        for i in 0..sup.slots.len() {
+            if let Err(e) = sup.spawn(i) {
+                sup.shutdown();
+                return Err(e);
+            }
+        }
+        if let Err(e) = sup.await_announcements() {
+            sup.shutdown();
+            return Err(e);
+        }
+        sup.say(&format!(
+            "all {} module(s) up in {} ms",
+            sup.slots.len(),
+            sup.epoch.elapsed().as_millis()
+        ));
+        Ok(sup)
+    }
+
+    /// The domain the system runs in.
+    pub fn domain(&self) -> &Domain {
+        &self.domain
+    }
+
+    /// Supervises until SIGINT/SIGTERM, `modbot down`, the end of `opts.run_for`, or a failed
+    /// module whose policy stops the system; then stops everything and reports.
+    pub fn run(mut self, opts: &RunOptions) -> Summary {
+        if let Err(e) = modbot_core::signals::install_termination_handler() {
+            self.say(&format!("cannot handle SIGTERM/SIGINT: {e}"));
+        }
+
+        let started = Instant::now();
+        let mut last_table = Instant::now() - Duration::from_secs(1);
+        loop {
+            self.serve();
+            self.handle_host_requests();
+            self.watch();
+            self.forward_logs();
+            if opts.show_status
+                && self.changes != self.table_shown
+                && last_table.elapsed() > Duration::from_millis(200)
+            {
+                self.table_shown = self.changes;
+                last_table = Instant::now();
+                self.print_table();
+            }
+            if modbot_core::signals::termination_requested() {
+                self.say("termination requested: stopping");
+                break;
+            }
+            if self.endpoint.state().down_requested {
+                self.say("`modbot down` requested: stopping");
+                break;
+            }
+            if self.stop_failed {
+                self.say("a failed module stops the system: stopping");
+                break;
+            }
+            if opts.run_for.is_some_and(|d| started.elapsed() >= d) {
+                self.say("run time is up: stopping");
+                break;
+            }
+            // Calls and SIGCHLD wake the loop; otherwise it looks at heartbeats and deadlines
+            // every IDLE_WAIT.
+            if let Err(e) = self.endpoint.wait(self.idle_wait()) {
+                tracing::debug!("supervisor wait: {e}");
+            }
+        }
+        let ran_for = started.elapsed();
+        self.shutdown();
+        let rows = self.rows();
+        let ok = self.problems.is_empty();
+        Summary {
+            ok,
+            rows,
+            problems: std::mem::take(&mut self.problems),
+            ran_for,
+        }
+    }
+
+    /// How long the loop may sleep: [`IDLE_WAIT`], or less if a restart is due sooner.
+    fn idle_wait(&self) -> Duration {
+        let now = self.now_ns();
+        self.slots
+            .iter()
+            .filter(|s| s.state == RunState::Restarting)
+            .map(|s| Duration::from_nanos(s.restart_at_ns.saturating_sub(now)))
+            .chain([IDLE_WAIT])
+            .min()
+            .unwrap_or(IDLE_WAIT)
+    }
+
+    /// Starts and stops the assembly hosts the coordinator asked for.
+    fn handle_host_requests(&mut self) {
+        let requests = std::mem::take(&mut self.endpoint.state_mut().requests);
+        for request in requests {
+            match request {
+                HostRequest::Spawn {
+                    host,
+                    assembly,
+                    generation,
+                } => {
+                    if let Err(e) = self.spawn_host(&host, &assembly, generation) {
+                        self.say(&format!(
+                            "cannot start host {host} of assembly {assembly}: {e}"
+                        ));
+                    }
+                }
+                HostRequest::Retire(name) => self.retire(&name),
+            }
+        }
+    }
+
+    fn spawn_host(&mut self, host: &str, assembly: &str, generation: u16) -> Result<(), String> {
+        let Some(template) = self.spec.host_template.clone() else {
+            return Err("the system has no assemblies".into());
+        };
+        let name = modbot_grid::spec::host_module_of(host, generation);
+        if let Some(i) = self.spec.modules.iter().position(|m| m.name == name) {
+            if self.slots[i].state != RunState::Retired {
+                return Err(format!("module {name} exists already"));
+            }
+        }
+        let own = self.endpoint.addr().0;
+        let busy: Vec<u8> = self
+            .spec
+            .modules
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, s)| s.state != RunState::Retired || s.child.is_some())
+            .map(|(m, _)| m.addr)
+            .collect();
+        let addr = (Addr::FIRST..=Addr::LAST)
+            .rev()
+            .find(|a| *a != own && !busy.contains(a))
+            .ok_or("no address is free")?;
+        let mut m = template;
+        m.name = name.clone();
+        m.addr = addr;
+        m.args.extend([
+            "--host".to_owned(),
+            host.to_owned(),
+            "--assembly".to_owned(),
+            assembly.to_owned(),
+            "--generation".to_owned(),
+            generation.to_string(),
+        ]);
+        let slot = Slot::new(m.restart.clone());
+        // A retired slot is reused, so that a run of many swaps keeps a short table.
+        let reuse = self
+            .slots
+            .iter()
+            .position(|s| s.state == RunState::Retired && s.child.is_none());
+        let i = match reuse {
+            Some(i) => {
+                self.spec.modules[i] = m;
+                self.slots[i] = slot;
+                i
+            }
+            None => {
+                self.spec.modules.push(m);
+                self.slots.push(slot);
+                self.spec.modules.len() - 1
+            }
+        };
+        self.name_width = self.name_width.max(name.len());
+        self.spawn(i).map_err(|e| {
+            self.slots[i].state = RunState::Retired;
+            e.to_string()
+        })?;
+        self.say(&format!(
+            "{name}: host {host} of assembly {assembly} (generation {generation}) started"
+        ));
+        Ok(())
+    }
+
+    /// Stops module `name` for good (SIGTERM; SIGKILL after the grace period, by `watch`).
+    fn retire(&mut self, name: &str) {
+        let Some(i) = self.spec.modules.iter().position(|m| m.name == name) else {
+            return;
+        };
+        let slot = &mut self.slots[i];
+        slot.retiring = true;
+        slot.restart_at_ns = self.epoch.elapsed().as_nanos() as u64
+            + self.spec.supervision.stop_grace.as_nanos() as u64;
+        match &slot.child {
+            Some(_) => {
+                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGCONT);
+                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGTERM);
+            }
+            None => slot.state = RunState::Retired,
+        }
+        self.changes += 1;
+    }
+
+    fn now_ns(&self) -> u64 {
+        self.epoch.elapsed().as_nanos() as u64
+    }
+
+    /// A line of the supervisor's own, on stdout.
+    fn say(&self, text: &str) {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{:>w$} | {text}", "modbot", w = self.name_width);
+    }
+
+    fn print_table(&mut self) {
+        let table = status::table(&self.rows());
+        let mut out = std::io::stdout().lock();
+        let _ = write!(out, "{table}");
+    }
+
+    fn rows(&self) -> Vec<Row> {
+        self.spec
+            .modules
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, s)| s.state != RunState::Retired)
+            .map(|(m, s)| Row {
+                name: m.name.clone(),
+                addr: m.addr,
+                state: s.state.name().to_owned(),
+                pid: if s.child.is_some() { s.pid } else { 0 },
+                restarts: s.tracker.total,
+                last_exit: s
+                    .last_exit
+                    .as_ref()
+                    .map(ToString::to_string)
+                    .unwrap_or_default(),
+                counters: s.counters,
+            })
+            .collect()
+    }
+
+    fn spawn(&mut self, i: usize) -> Result<(), SupervisorError> {
+        let m = &self.spec.modules[i];
+        let (child, log_readers) = child::spawn(
+            i,
+            m,
+            &self.domain,
+            &self.spec.supervision,
+            self.epoch_ns,
+            &self.logs_tx,
+        )
+        .map_err(|source| SupervisorError::Spawn {
+            module: m.name.clone(),
+            program: m.program.display().to_string(),
+            source,
+        })?;
+        let pid = child.id();
+        let now = self.now_ns();
+        let slot = &mut self.slots[i];
+        slot.child = Some(child);
+        slot.log_readers = log_readers;
+        slot.pid = pid;
+        slot.state = RunState::Starting;
+        slot.started_ns = now;
+        slot.last_beat_ns = 0;
+        slot.killed_for = None;
+        self.changes += 1;
+        Ok(())
+    }
+
+    fn await_announcements(&mut self) -> Result<(), SupervisorError> {
+        let timeout = self.spec.supervision.start_timeout;
+        let deadline = Instant::now() + timeout;
+        loop {
+            self.serve();
+            self.watch();
+            self.forward_logs();
+            let ended = self
+                .spec
+                .modules
+                .iter()
+                .zip(&self.slots)
+                .find(|(_, s)| matches!(s.state, RunState::Down | RunState::Failed));
+            if let Some((m, s)) = ended {
+                return Err(SupervisorError::EndedAtStart {
+                    module: m.name.clone(),
+                    reason: s
+                        .last_exit
+                        .as_ref()
+                        .map(ToString::to_string)
+                        .unwrap_or_default(),
+                });
+            }
+            if self.slots.iter().all(|s| s.state == RunState::Running) {
+                return Ok(());
+            }
+            if modbot_core::signals::termination_requested() || Instant::now() >= deadline {
+                let missing: Vec<&str> = self
+                    .spec
+                    .modules
+                    .iter()
+                    .zip(&self.slots)
+                    .filter(|(_, s)| s.state != RunState::Running)
+                    .map(|(m, _)| m.name.as_str())
+                    .collect();
+                return Err(SupervisorError::StartTimeout {
+                    modules: missing.join(", "),
+                    timeout_ms: timeout.as_millis() as u64,
+                });
+            }
+            let _ = self.endpoint.wait(Duration::from_millis(5));
+        }
+    }
+
+    /// Serves the supervisor's own calls (`status`, `down`) and keeps its phone book fresh.
+    fn serve(&mut self) {
+        if self.changes != self.directory_shown || self.roster.changed() {
+            self.directory_shown = self.changes;
+            self.publish_directory();
+        }
+        // The rows `status` answers: at once after a change, else fresh counters 4 times a
+        // second (building them for hundreds of modules on every wake-up costs).
+        if self
+            .rows_built
+            .is_none_or(|t| t.elapsed() >= Duration::from_millis(250))
+            || self.changes != self.rows_shown
+        {
+            self.rows_shown = self.changes;
+            self.rows_built = Some(Instant::now());
+            let rows = self.rows();
+            self.endpoint.state_mut().rows = rows;
+        }
+        self.relay.serve(&mut self.endpoint);
+        for _ in 0..64 {
+            match self.endpoint.poll_once() {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => {
+                    tracing::debug!("supervisor receive: {e}");
+                    break;
+                }
+            }
+        }
+        self.endpoint.housekeeping();
+        self.relay.serve(&mut self.endpoint);
+        // A link costs about a millisecond to open: a few per wake-up.
+        for _ in 0..4 {
+            let Some(addr) = self.to_connect.pop() else {
+                break;
+            };
+            if let Err(e) = self.endpoint.ctx().connect(addr) {
+                tracing::debug!("no link to module {addr} yet: {e}");
+            }
+        }
+    }
+
+    /// Heartbeats, exits, hangs and due restarts.
+    fn watch(&mut self) {
+        let now = self.now_ns();
+        let mut beats: Vec<(u8, u32, ModuleState, Counters, u32)> = Vec::new();
+        let drained = self.heartbeats.drain(&mut |bytes| {
+            if let Ok(hb) = Heartbeat::parse(bytes) {
+                beats.push((
+                    hb.addr().0,
+                    hb.pid(),
+                    hb.state(),
+                    hb.counters(),
+                    hb.methods_digest(),
+                ));
+            }
+        });
+        if let Err(e) = drained {
+            tracing::debug!("heartbeats: {e}");
+        }
+        let own = self.endpoint.addr().0;
+        for (addr, pid, state, counters, digest) in beats {
+            let mine = self
+                .spec
+                .modules
+                .iter()
+                .zip(&self.slots)
+                .position(|(m, s)| {
+                    m.addr == addr && (s.child.is_some() || s.state != RunState::Retired)
+                });
+            let Some(i) = mine else {
+                if addr != own {
+                    self.roster
+                        .beat_of_other(Addr(addr), pid, state, digest, now);
+                }
+                continue;
+            };
+            let slot = &mut self.slots[i];
+            if slot.child.is_none() || slot.pid != pid {
+                continue; // a beat of an earlier incarnation, still in the queue
+            }
+            slot.last_beat_ns = now;
+            slot.counters = counters;
+            if slot.methods_digest != digest {
+                slot.methods_digest = digest;
+                self.changes += 1;
+            }
+            if slot.state == RunState::Starting && state == ModuleState::Running {
+                slot.state = RunState::Running;
+                self.changes += 1;
+                // Its start (loading, opening channels: milliseconds to seconds of work) ran
+                // at normal priority; now that it is up, its real-time settings apply, so a
+                // process starting beside a running grid never holds up the grid's threads.
+                let m = &self.spec.modules[i];
+                for w in rt::apply(pid, &m.cpus, m.priority) {
+                    self.say(&format!("warning: {}: {w}", m.name));
+                }
+                let name = self.spec.modules[i].name.clone();
+                self.say(&format!("{name} is up (pid {pid})"));
+                self.to_connect.push(Addr(addr));
+            }
+        }
+        self.roster.check_others(
+            now,
+            self.spec.supervision.heartbeat_timeout.as_nanos() as u64,
+        );
+        // Children are looked at when SIGCHLD said one ended (and once a second, in case a
+        // signal was lost), not with one `waitpid` per module on every wake-up.
+        let ended = !self.child_signal
+            || modbot_core::signals::take_child_ended()
+            || self.children_seen.elapsed() >= Duration::from_secs(1);
+        if ended {
+            self.children_seen = Instant::now();
+        }
+        for i in 0..self.slots.len() {
+            if ended || self.slots[i].killed_for.is_some() {
+                self.check_exit(i, now);
+            }
+            self.check_hang(i, now);
+            let slot = &self.slots[i];
+            if slot.state == RunState::Restarting && now >= slot.restart_at_ns {
+                if let Err(e) = self.spawn(i) {
+                    self.say(&format!("{e}"));
+                    self.give_up(i, format!("{e}"));
+                }
+            }
+        }
+    }
+
+    fn check_exit(&mut self, i: usize, now: u64) {
+        let slot = &mut self.slots[i];
+        let Some(child) = slot.child.as_mut() else {
+            return;
+        };
+        let status = match child.try_wait() {
+            Ok(Some(status)) => status,
+            Ok(None) => return,
+            Err(e) => {
+                tracing::debug!("waitpid: {e}");
+                return;
+            }
+        };
+        slot.child = None;
+        let reason = slot.killed_for.take().unwrap_or_else(|| reason_of(status));
+        self.flush_output_of(i);
+        // The dead process's ports would keep "receiving" until cleaned: clean them now, and
+        // tell its peers it is gone.
+        self.roster.reap();
+        self.publish_directory();
+        if self.slots[i].retiring {
+            self.slots[i].state = RunState::Retired;
+            self.changes += 1;
+            return;
+        }
+        let name = self.spec.modules[i].name.clone();
+        let decision = self.slots[i].tracker.on_exit(&reason, now);
+        let slot = &mut self.slots[i];
+        slot.last_exit = Some(reason.clone());
+        self.changes += 1;
+        match decision {
+            Decision::RestartAt(at) => {
+                slot.state = RunState::Restarting;
+                slot.restart_at_ns = at;
+                let line = format!(
+                    "{name} ended ({reason}); restart {} in {} ms",
+                    slot.tracker.total,
+                    (at - now) / 1_000_000
+                );
+                self.say(&line);
+            }
+            Decision::StayDown => {
+                slot.state = RunState::Down;
+                self.say(&format!(
+                    "{name} ended ({reason}); not restarted (its policy)"
+                ));
+                if reason.is_failure() {
+                    self.problems
+                        .push(format!("{name}: {reason}, not restarted"));
+                }
+            }
+            Decision::GiveUp => {
+                let window = self.spec.modules[i].restart.window;
+                let max = self.spec.modules[i].restart.max_restarts;
+                self.give_up(
+                    i,
+                    format!(
+                        "ended ({reason}) after {max} restarts within {} s",
+                        window.as_secs_f64()
+                    ),
+                );
+            }
+        }
+    }
+
+    fn give_up(&mut self, i: usize, why: String) {
+        let m = &self.spec.modules[i];
+        let name = m.name.clone();
+        let stop = m.restart.give_up == GiveUp::StopSystem;
+        self.slots[i].state = RunState::Failed;
+        self.changes += 1;
+        self.say(&format!(
+            "{name} FAILED: {why}; {}",
+            if stop {
+                "stopping the system"
+            } else {
+                "the other modules keep running"
+            }
+        ));
+        self.problems.push(format!("{name} failed: {why}"));
+        if stop {
+            self.stop_failed = true;
+        }
+    }
+
+    fn check_hang(&mut self, i: usize, now: u64) {
+        let sup = &self.spec.supervision;
+        let slot = &mut self.slots[i];
+        if slot.child.is_none() || slot.killed_for.is_some() {
+            return;
+        }
+        if slot.retiring {
+            if now >= slot.restart_at_ns {
+                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGKILL);
+                slot.killed_for = Some(ExitReason::Stopped(-1));
+            }
+            return;
+        }
+        let reason = match slot.state {
+            RunState::Running => {
+                let silent = now.saturating_sub(slot.last_beat_ns);
+                (silent >= sup.heartbeat_timeout.as_nanos() as u64).then_some(ExitReason::Hung {
+                    silent_ms: silent / 1_000_000,
+                })
+            }
+            RunState::Starting => {
+                let waited = now.saturating_sub(slot.started_ns);
+                (waited >= sup.start_timeout.as_nanos() as u64).then_some(ExitReason::NoStart {
+                    waited_ms: waited / 1_000_000,
+                })
+            }
+            _ => None,
+        };
+        if let Some(reason) = reason {
+            let name = &self.spec.modules[i].name;
+            let pid = slot.pid;
+            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGKILL);
+            // A stopped process must be continued for the kill to complete at once.
+            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGCONT);
+            let line = format!("{name} (pid {pid}): {reason}");
+            slot.killed_for = Some(reason);
+            self.say(&line);
+        }
+    }
+
+    fn forward_logs(&mut self) {
+        let mut out = std::io::stdout().lock();
+        while let Ok(LogLine { module, line }) = self.logs.try_recv() {
+            let name = self
+                .spec
+                .modules
+                .get(module)
+                .map_or("?", |m| m.name.as_str());
+            let _ = writeln!(out, "{name:>w$} | {line}", w = self.name_width);
+        }
+    }
+
+    /// Shows what module `i`, which ended, wrote last: its output threads end when its pipes
+    /// close (waited for up to 200 ms: a process it left behind may hold them open).
+    fn flush_output_of(&mut self, i: usize) {
+        let deadline = Instant::now() + Duration::from_millis(200);
+        while self.slots[i].log_readers.iter().any(|r| !r.is_finished())
+            && Instant::now() < deadline
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        self.slots[i].log_readers.retain(|r| !r.is_finished());
+        self.forward_logs();
+    }
+
+    /// Stops every module in reverse order and removes the domain's shared memory.
+    fn shutdown(&mut self) {
+        let grace = self.spec.supervision.stop_grace;
+        for i in (0..self.slots.len()).rev() {
+            let Some(mut child) = self.slots[i].child.take() else {
+                if self.slots[i].state == RunState::Restarting {
+                    self.slots[i].state = RunState::Stopped;
+                }
+                continue;
+            };
+            let name = self.spec.modules[i].name.clone();
+            let pid = Pid::from_raw(child.id() as i32);
+            let _ = kill(pid, Signal::SIGCONT);
+            let _ = kill(pid, Signal::SIGTERM);
+            let deadline = Instant::now() + grace;
+            let status = loop {
+                match child.try_wait() {
+                    Ok(Some(status)) => break Some(status),
+                    Ok(None) if Instant::now() < deadline => {
+                        self.forward_logs();
+                        std::thread::sleep(Duration::from_millis(2));
+                    }
+                    Ok(None) => {
+                        let _ = child.kill();
+                        let status = child.wait().ok();
+                        self.problems.push(format!(
+                            "{name}: did not stop within {} ms of SIGTERM; killed",
+                            grace.as_millis()
+                        ));
+                        break status;
+                    }
+                    Err(_) => break None,
+                }
+            };
+            self.flush_output_of(i);
+            let slot = &mut self.slots[i];
+            slot.state = RunState::Stopped;
+            if let Some(status) = status {
+                let code = match reason_of(status) {
+                    ExitReason::Exited(c) => c,
+                    ExitReason::Signaled(s) => 128 + s,
+                    _ => -1,
+                };
+                if code != 0 {
+                    self.problems
+                        .push(format!("{name}: {} on SIGTERM", reason_of(status)));
+                }
+                slot.last_exit = Some(ExitReason::Stopped(code));
+            }
+            // The modules still running stop calling this one.
+            self.publish_directory();
+        }
+        self.forward_logs();
+        self.roster.reap();
+    }
+
+    /// Publishes the directory if anything in it changed: every module process that runs (it
+    /// is "running" from its first heartbeat), and the supervisor itself.
+    fn publish_directory(&mut self) {
+        let mut listings: Vec<Listing> = self
+            .spec
+            .modules
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, s)| s.child.is_some() && s.pid != 0)
+            .map(|(m, s)| Listing {
+                addr: Addr(m.addr),
+                mode: m.mode.code() as u8,
+                state: match s.state {
+                    RunState::Running if !s.retiring => ModuleState::Running,
+                    RunState::Starting => ModuleState::Starting,
+                    _ => ModuleState::Stopping,
+                },
+                pid: s.pid,
+                methods_digest: s.methods_digest,
+                name: m.name.clone(),
+            })
+            .collect();
+        listings.push(Listing {
+            addr: self.endpoint.addr(),
+            mode: self.endpoint.mode().code() as u8,
+            state: ModuleState::Running,
+            pid: std::process::id(),
+            methods_digest: self.endpoint.methods_digest(),
+            name: "supervisor".into(),
+        });
+        self.roster.publish(listings);
+    }
+}
+
+impl Drop for Supervisor {
+    fn drop(&mut self) {
+        // Modules still running (an error path): stop them before the endpoint goes.
+        if self.slots.iter().any(|s| s.child.is_some()) {
+            self.shutdown();
+        }
+        // The endpoint and the heartbeat monitor are dropped after this body; the caller
+        // removes the domain's files once they are gone (see `modbot up`).
+    }
+}
+
+/// Opens the supervisor's own module endpoint at the highest address the description leaves
+/// free (a tool such as `modbot ls` may hold one for a moment: then the next one).
+fn open_endpoint(transport: &IpcTransport, used: &[u8]) -> Result<Module<Shared>, SupervisorError> {
+    let mut last = SupervisorError::NoAddressLeft;
+    for addr in (Addr::FIRST..=Addr::LAST)
+        .rev()
+        .filter(|a| !used.contains(a))
+    {
+        let opened = ModuleBuilder::new("supervisor", addr)
+            .mode(ReceiveMode::Blocking)
+            .method("status", status_method)
+            .method("down", down_method)
+            .method("spawn_host", spawn_host_method)
+            .method("retire", retire_method)
+            .on_done(relay::on_done)
+            .open(transport.clone(), Shared::default());
+        match opened {
+            Ok(m) => return Ok(m),
+            Err(modbot_core::error::ModuleError::Open {
+                source: TransportError::AddressTaken { .. },
+                ..
+            }) => continue,
+            Err(modbot_core::error::ModuleError::Open {
+                source: TransportError::NameTaken { pid, .. },
+                ..
+            }) => {
+                return Err(SupervisorError::DomainInUse {
+                    domain: transport.domain().name().to_owned(),
+                    modules: format!("supervisor (pid {pid})"),
+                })
+            }
+            Err(e) => last = e.into(),
+        }
+    }
+    Err(last)
+}
+
+/// Refuses a domain where another system runs (a live supervisor, or live modules at the
+/// addresses this description needs); cleans what dead processes left, and removes the
+/// domain's files if nothing of it lives.
+fn sweep(domain: &Domain, dir: &dyn Directory, used: &[u8]) -> Result<(), SupervisorError> {
+    // A tool may be starting in the domain while we look (`modbot ls` polling for the system to
+    // come up): only files older than this look are removed, so what it creates meanwhile stays.
+    let before = std::time::SystemTime::now();
+    let mut conflicts = Vec::new();
+    let mut live = 0;
+    dir.list(&mut |p| {
+        if p.alive {
+            live += 1;
+            if p.name == "supervisor" || used.contains(&p.addr.0) {
+                conflicts.push(format!("{} at address {} (pid {})", p.name, p.addr, p.pid));
+            }
+        }
+    })?;
+    if !conflicts.is_empty() {
+        return Err(SupervisorError::DomainInUse {
+            domain: domain.name().to_owned(),
+            modules: conflicts.join(", "),
+        });
+    }
+    let reaped = dir.reap_dead();
+    let removed = if live == 0 {
+        domain.remove_files_older_than(before)
+    } else {
+        0
+    };
+    if reaped + removed > 0 {
+        tracing::info!(
+            "swept domain '{}': {reaped} dead node(s), {removed} stale file(s)",
+            domain.name()
+        );
+    }
+    Ok(())
+}
+
+fn reason_of(status: std::process::ExitStatus) -> ExitReason {
+    use std::os::unix::process::ExitStatusExt;
+    match (status.code(), status.signal()) {
+        (Some(code), _) => ExitReason::Exited(code),
+        (None, Some(sig)) => ExitReason::Signaled(sig),
+        (None, None) => ExitReason::Exited(-1),
+    }
+}
+
+fn status_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let mut bytes = Vec::with_capacity(64 * shared.rows.len());
+    for r in &shared.rows {
+        r.encode(&mut bytes);
+    }
+    reply.push(Value::Bytes(&bytes));
+    Ok(())
+}
+
+fn down_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    shared.down_requested = true;
+    Ok(())
+}
+
+fn spawn_host_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let (host, assembly, generation) = (args.text(0)?, args.text(1)?, args.i64(2)?);
+    if !shared.hosts_allowed {
+        return Err(MethodError::Failed(
+            "this system has no assemblies: no host can be started".into(),
+        ));
+    }
+    let generation = u16::try_from(generation)
+        .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
+    modbot_grid::spec::check_host(host).map_err(MethodError::Failed)?;
+    modbot_system::assembly::check_assembly_name(assembly).map_err(MethodError::Failed)?;
+    shared.requests.push(HostRequest::Spawn {
+        host: (*host).to_owned(),
+        assembly: (*assembly).to_owned(),
+        generation,
+    });
+    Ok(())
+}
+
+fn retire_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let name = args.text(0)?;
+    if !shared.hosts_allowed || !name.starts_with("host_") || !name.contains("_g") {
+        return Err(MethodError::Failed(format!(
+            "only the host of an assembly can be retired, not {name}"
+        )));
+    }
+    shared
+        .requests
+        .push(HostRequest::Retire((*name).to_owned()));
+    Ok(())
+}

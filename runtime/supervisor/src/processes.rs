@@ -1,0 +1,188 @@
+//! The processes of a grid: one component host per host name, and the coordinator. The
+//! supervisor starts them like modules — hosts first, the coordinator last, so that every
+//! host listens before the first tick — and they load the same system description.
+
+use std::path::Path;
+
+use modbot_core::transport::ReceiveMode;
+use modbot_system::{ModuleSpec, ProgramResolver, Restart, RestartPolicy, SystemSpec};
+
+pub use modbot_grid::spec::COORDINATOR;
+/// The program of the coordinator.
+pub const COORDINATOR_PROGRAM: &str = "modbot-coordinator";
+/// The program of a component host.
+pub const HOST_PROGRAM: &str = "modbot-host";
+/// The host whose components the bus bridge process steps: it owns the drives.
+pub const BUS_HOST: &str = "bus";
+/// The program of the bus bridge.
+pub const BUS_PROGRAM: &str = "modbot-bus";
+
+/// The module name of host `host` of the system's own components, or of a grid without
+/// assemblies (an assembly's hosts: [`modbot_grid::GridSpec::host_module`]).
+pub fn host_module(host: &str) -> String {
+    modbot_grid::spec::host_module_of(host, 0)
+}
+
+/// The program of host `host`: the bus bridge for [`BUS_HOST`], else the generic host.
+pub fn host_program(host: &str) -> &'static str {
+    if host == BUS_HOST {
+        BUS_PROGRAM
+    } else {
+        HOST_PROGRAM
+    }
+}
+
+/// How the grid of a run is driven.
+#[derive(Debug, Clone, Default)]
+pub struct GridRun {
+    /// Stop after this many base ticks (then the coordinator stops the system).
+    pub ticks: Option<u64>,
+    /// Write every output at every tick here (with assemblies: of the system's own
+    /// components).
+    pub trace: Option<std::path::PathBuf>,
+    /// Run the grid in lockstep (see [`modbot_grid::GridClock::Lockstep`]).
+    pub lockstep: bool,
+    /// Assembly switches at given ticks: (tick, assembly).
+    pub switches: Vec<(u64, String)>,
+}
+
+/// Adds the grid's processes to `spec`'s modules, if it has a grid. `file` and `vars` are
+/// what the processes load the description from.
+pub fn add_processes(
+    spec: &mut SystemSpec,
+    resolver: &dyn ProgramResolver,
+    file: &Path,
+    vars: &[(String, String)],
+    run: &GridRun,
+) -> Result<(), String> {
+    let Some(grid) = spec.grid.clone() else {
+        if run.ticks.is_some() || run.trace.is_some() || run.lockstep || !run.switches.is_empty() {
+            return Err(format!(
+                "{}: --ticks, --trace, --lockstep and --switch need a grid, and the description has none",
+                file.display()
+            ));
+        }
+        return Ok(());
+    };
+    let file = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
+    let mut common = vec!["--system".to_owned(), file.display().to_string()];
+    for (k, v) in vars {
+        common.push("--var".into());
+        common.push(format!("{k}={v}"));
+    }
+    if run.lockstep {
+        common.push("--lockstep".into());
+    }
+    if !run.switches.is_empty() && grid.assembly.is_none() {
+        return Err(format!(
+            "{}: --switch needs a grid with assemblies (grid {{ assemblies = ..., assembly = ... }})",
+            file.display()
+        ));
+    }
+    let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
+    let mut next_addr = || {
+        let a = (1..=253u8).rev().find(|a| !used.contains(a));
+        if let Some(a) = a {
+            used.push(a);
+        }
+        a
+    };
+    let program = |name: &str| {
+        resolver.resolve(name).ok_or_else(|| {
+            format!(
+                "{}:{}: the grid needs the program '{name}', which is not found ({})",
+                spec.file.display(),
+                grid.line,
+                resolver.searched(name)
+            )
+        })
+    };
+    let policy = RestartPolicy {
+        when: Restart::OnFailure,
+        ..RestartPolicy::default()
+    };
+    // Every host's module, but for its name, address, program and host arguments.
+    let template = ModuleSpec {
+        name: String::new(),
+        addr: 0,
+        program: program(HOST_PROGRAM)?,
+        program_name: HOST_PROGRAM.into(),
+        args: common.clone(),
+        restart: policy.clone(),
+        cpus: Vec::new(),
+        // A grid process puts only its serving thread under SCHED_FIFO itself
+        // (`GridSpec::host_priority`); its other threads stay at normal priority.
+        priority: None,
+        mlock: grid.mlock,
+        env: Vec::new(),
+        mode: ReceiveMode::Blocking,
+        groups: Vec::new(),
+        line: grid.line,
+    };
+    let mut added = Vec::new();
+    for host in grid.hosts() {
+        let name = grid.host_module(&host);
+        if spec.modules.iter().any(|m| m.name == name) {
+            return Err(format!(
+                "{}:{}: module name '{name}' is taken; the grid's host '{host}' needs it",
+                spec.file.display(),
+                grid.line
+            ));
+        }
+        let mut args = common.clone();
+        args.extend(["--host".to_owned(), host.clone()]);
+        if let (Some(a), g @ 1..) = (&grid.assembly, grid.host_generation(&host)) {
+            args.extend([
+                "--assembly".to_owned(),
+                a.name.clone(),
+                "--generation".to_owned(),
+                g.to_string(),
+            ]);
+        }
+        added.push(ModuleSpec {
+            name,
+            addr: next_addr().ok_or("no address left for the grid's hosts")?,
+            program: program(host_program(&host))?,
+            program_name: host_program(&host).into(),
+            args,
+            ..template.clone()
+        });
+    }
+    if grid.assembly.is_some() {
+        // The hosts of assemblies swapped in later: the supervisor adds the host, the
+        // assembly and its generation.
+        spec.host_template = Some(template);
+    }
+    let mut args = common;
+    if let Some(n) = run.ticks {
+        args.extend(["--ticks".to_owned(), n.to_string()]);
+    }
+    if let Some(t) = &run.trace {
+        let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
+        args.extend(["--trace".to_owned(), t.display().to_string()]);
+    }
+    for (tick, name) in &run.switches {
+        args.extend(["--switch".to_owned(), format!("{tick}:{name}")]);
+    }
+    added.push(ModuleSpec {
+        name: COORDINATOR.into(),
+        addr: next_addr().ok_or("no address left for the coordinator")?,
+        program: program(COORDINATOR_PROGRAM)?,
+        program_name: COORDINATOR_PROGRAM.into(),
+        args,
+        restart: RestartPolicy {
+            when: Restart::Never,
+            ..RestartPolicy::default()
+        },
+        cpus: grid.cpus.clone(),
+        // The coordinator puts its tick thread under SCHED_FIFO itself, and nothing else.
+        priority: None,
+        mlock: grid.mlock,
+        env: Vec::new(),
+        mode: ReceiveMode::Blocking,
+        groups: Vec::new(),
+        line: grid.line,
+    });
+    spec.modules.extend(added);
+    Ok(())
+}

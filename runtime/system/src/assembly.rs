@@ -1,0 +1,162 @@
+//! Assembly files: a control structure the time grid can swap while the robot runs (MoRC's
+//! Assembly).
+//!
+//! A system whose grid says `assemblies = "DIR", assembly = "NAME"` keeps its own components
+//! (the bus) and adds those of one assembly, the file `DIR/NAME.lua` next to the description.
+//! An assembly file is sandboxed Lua like a description, with `vars`, and declares only
+//! `component` and `connect`; it connects its components to the system's ports (as in
+//! `connect "robot.motor_position -> hold.start"`). Its components run on hosts of their own:
+//! a host of the system's components cannot take them.
+//!
+//! [`load_assembly`] evaluates a file and checks it together with the system's components
+//! (types, parameters, every input connected once); an error names the assembly file and line.
+
+use std::path::Path;
+
+use super::{lua, SystemError};
+use modbot_grid::spec::{Assembly, GridSpec};
+use modbot_grid::Registry;
+
+/// Lines of assembly declarations are offset by this while the combined grid is checked, so
+/// an error can say which file it is in.
+const LINE_OFFSET: u32 = 1 << 28;
+
+pub use modbot_grid::switch::check_assembly_name;
+
+/// The assemblies in `dir`, sorted: the names of its `*.lua` files.
+pub fn assembly_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().into_string().ok()?;
+            let stem = name.strip_suffix(".lua")?;
+            check_assembly_name(stem).ok().map(|_| stem.to_owned())
+        })
+        .collect();
+    names.sort();
+    names
+}
+
+/// The grid of `system` (a spec of a grid with assemblies) with the assembly `name` in place
+/// of its current one, as generation `generation`.
+pub fn load_assembly(
+    system: &GridSpec,
+    name: &str,
+    generation: u16,
+    registry: &Registry,
+) -> Result<GridSpec, SystemError> {
+    let Some(current) = &system.assembly else {
+        return Err(SystemError::new(
+            "",
+            None,
+            "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }",
+        ));
+    };
+    let system_file = current.system_file.as_str();
+    check_assembly_name(name).map_err(|m| SystemError::new(system_file, None, m))?;
+    let path = current.dir.join(format!("{name}.lua"));
+    let file = path.display().to_string();
+    let source = match std::fs::read(&path) {
+        Ok(bytes) => String::from_utf8(bytes)
+            .map_err(|_| SystemError::new(&file, None, "the assembly file is not UTF-8 text"))?,
+        Err(e) => {
+            let known = assembly_names(&current.dir);
+            let message = if e.kind() == std::io::ErrorKind::NotFound {
+                format!(
+                    "no assembly named '{name}' in {} (assemblies: {})",
+                    current.dir.display(),
+                    if known.is_empty() {
+                        "none".to_owned()
+                    } else {
+                        known.join(", ")
+                    }
+                )
+            } else {
+                format!("cannot read the assembly file: {e}")
+            };
+            return Err(SystemError::new(&file, None, message));
+        }
+    };
+    let decls = lua::evaluate(&file, &source, &current.vars)?;
+    let stray = [
+        decls.domain.as_ref().map(|d| d.1),
+        decls.supervision.as_ref().map(|s| s.1),
+        decls.modules.first().map(|m| m.line),
+        decls.groups.first().map(|g| g.line),
+        decls.grid.as_ref().map(|g| g.line),
+    ];
+    if let Some(line) = stray.into_iter().flatten().min() {
+        return Err(SystemError::new(
+            &file,
+            Some(line),
+            "an assembly file declares only component and connect (the domain, modules, \
+             supervision and the grid belong to the system description)",
+        ));
+    }
+    let (grid, base_components, base_connections) = current.decls.clone();
+    let base_hosts: Vec<&str> = base_components.iter().map(|c| c.host.as_str()).collect();
+    if let Some(c) = decls
+        .components
+        .iter()
+        .find(|c| base_hosts.contains(&c.host.as_str()))
+    {
+        return Err(SystemError::new(
+            &file,
+            Some(c.line),
+            format!(
+                "component '{}': host '{}' runs the system's own components; give the \
+                 assembly's components hosts of their own",
+                c.name, c.host
+            ),
+        ));
+    }
+    if decls.components.is_empty() {
+        return Err(SystemError::new(
+            &file,
+            None,
+            "the assembly has no components: add component \"name\" { type = ..., host = ... }",
+        ));
+    }
+    let base = base_components.len();
+    let mut components = base_components.clone();
+    components.extend(decls.components.into_iter().map(|mut c| {
+        c.line += LINE_OFFSET;
+        c
+    }));
+    let mut connections = base_connections.clone();
+    connections.extend(decls.connections.into_iter().map(|mut c| {
+        c.line += LINE_OFFSET;
+        c
+    }));
+    let mut spec =
+        GridSpec::build(grid.clone(), components, connections, registry).map_err(|e| {
+            match e.line {
+                Some(l) if l >= LINE_OFFSET => {
+                    SystemError::new(&file, Some(l - LINE_OFFSET), e.message)
+                }
+                line => SystemError::new(system_file, line, e.message),
+            }
+        })?;
+    for c in spec.components.iter_mut().skip(base) {
+        c.line -= LINE_OFFSET;
+    }
+    for c in spec.connections.iter_mut() {
+        if c.line >= LINE_OFFSET {
+            c.line -= LINE_OFFSET;
+        }
+    }
+    // How the grid keeps time is the running system's (`modbot up --lockstep` included).
+    spec.timing = system.timing;
+    spec.assembly = Some(Assembly {
+        name: name.to_owned(),
+        generation,
+        dir: current.dir.clone(),
+        base,
+        decls: (grid, base_components, base_connections),
+        vars: current.vars.clone(),
+        system_file: current.system_file.clone(),
+    });
+    Ok(spec)
+}

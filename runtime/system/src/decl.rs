@@ -1,0 +1,385 @@
+//! What one declaration says, read from its Lua values.
+//!
+//! Each function here takes the value a declaration was called with and returns the Rust value
+//! or a message naming the declaration and the field ("module 'sonar': field 'args' must be a
+//! list of strings"); `lua` adds the file and the line. Checks that need more than one
+//! declaration (duplicates, group members) are in `validate`.
+//!
+//! Tables are read with raw access (no metamethods run) and every key must be a known field,
+//! so a typo is an error rather than a silently ignored setting.
+
+use std::path::PathBuf;
+
+use mlua::{Lua, Value};
+
+use super::read::{
+    coerce, integer, integer_in, list, seconds, show, string, string_list, text, Fields,
+};
+use super::{GiveUp, GroupSpec, ModuleSpec, Restart, RestartPolicy, Supervision};
+use modbot_core::transport::{check_name, ReceiveMode};
+use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl};
+
+/// Everything the description declared, in order, before the cross-checks.
+#[derive(Debug, Default)]
+pub(super) struct Declarations {
+    /// The `domain` declaration and its line.
+    pub domain: Option<(String, u32)>,
+    /// The `supervision` declaration and its line.
+    pub supervision: Option<(Supervision, u32)>,
+    /// The `module` declarations in order (the start order).
+    pub modules: Vec<ModuleDecl>,
+    /// The `group` declarations in order; members are not checked yet.
+    pub groups: Vec<GroupSpec>,
+    /// The `grid` declaration.
+    pub grid: Option<GridDecl>,
+    /// The `component` declarations in order (their indices on the grid).
+    pub components: Vec<ComponentDecl>,
+    /// The `connect` declarations in order.
+    pub connections: Vec<ConnectDecl>,
+}
+
+/// A `module` declaration: a [`ModuleSpec`] whose program is not looked up yet and whose
+/// groups are not known yet (the fields mean what they mean there).
+#[derive(Debug)]
+pub(super) struct ModuleDecl {
+    pub name: String,
+    pub addr: u8,
+    pub program: String,
+    pub args: Vec<String>,
+    pub restart: RestartPolicy,
+    pub cpus: Vec<usize>,
+    pub priority: Option<u8>,
+    pub mlock: bool,
+    pub env: Vec<(String, String)>,
+    pub mode: ReceiveMode,
+    pub line: u32,
+}
+
+impl ModuleDecl {
+    /// The module, with its program found at `program` and its groups.
+    pub fn into_spec(self, program: PathBuf, groups: Vec<String>) -> ModuleSpec {
+        ModuleSpec {
+            name: self.name,
+            addr: self.addr,
+            program,
+            program_name: self.program,
+            args: self.args,
+            restart: self.restart,
+            cpus: self.cpus,
+            priority: self.priority,
+            mlock: self.mlock,
+            env: self.env,
+            mode: self.mode,
+            groups,
+            line: self.line,
+        }
+    }
+}
+
+const MODULE_FIELDS: &[&str] = &[
+    "addr", "program", "args", "restart", "cpus", "priority", "mlock", "env", "mode",
+];
+const SUPERVISION_FIELDS: &[&str] = &[
+    "start_timeout",
+    "heartbeat_timeout",
+    "heartbeat_period",
+    "stop_grace",
+];
+const RESTART_FIELDS: &[&str] = &[
+    "policy",
+    "max_restarts",
+    "window",
+    "backoff",
+    "max_backoff",
+    "give_up",
+];
+
+/// The largest CPU index an affinity mask can hold (the kernel's `CPU_SETSIZE` - 1).
+const MAX_CPU: i64 = 1023;
+
+/// The argument of `domain "name"`.
+pub(super) fn domain(v: &Value) -> Result<String, String> {
+    let name = text(v).ok_or_else(|| {
+        format!(
+            "domain must be given a name, as in domain \"robot\", not {}",
+            show(v)
+        )
+    })?;
+    modbot_core::Domain::new(&name).map_err(|e| e.to_string())?;
+    Ok(name)
+}
+
+/// The argument of `module "name"` or `group "name"` (`what` is "module" or "group").
+pub(super) fn name(what: &str, v: &Value) -> Result<String, String> {
+    let name = text(v).ok_or_else(|| {
+        format!(
+            "{what} must be given a name, as in {what} \"sonar\" {{ ... }}, not {}",
+            show(v)
+        )
+    })?;
+    if check_name(&name).is_err() {
+        return Err(format!(
+            "{what} name '{name}' is invalid: use 1 to 48 characters of a-z, A-Z, 0-9, _ and -"
+        ));
+    }
+    Ok(name)
+}
+
+/// The table of `supervision { ... }`.
+pub(super) fn supervision(v: &Value) -> Result<Supervision, String> {
+    let what = "supervision";
+    let mut fields = Fields::read(what, v, SUPERVISION_FIELDS)?;
+    let mut sut = Supervision::default();
+    if let Some(v) = fields.take("start_timeout") {
+        sut.start_timeout = seconds(what, "start_timeout", &v, false)?;
+    }
+    if let Some(v) = fields.take("heartbeat_timeout") {
+        sut.heartbeat_timeout = seconds(what, "heartbeat_timeout", &v, false)?;
+    }
+    if let Some(v) = fields.take("heartbeat_period") {
+        sut.heartbeat_period = seconds(what, "heartbeat_period", &v, false)?;
+    }
+    if let Some(v) = fields.take("stop_grace") {
+        sut.stop_grace = seconds(what, "stop_grace", &v, true)?;
+    }
+    if sut.heartbeat_period >= sut.heartbeat_timeout / 2 {
+        return Err(format!(
+            "supervision: heartbeat_period ({:?}) must be less than half of heartbeat_timeout \
+             ({:?}), so that one late heartbeat does not make a module look hung",
+            sut.heartbeat_period, sut.heartbeat_timeout
+        ));
+    }
+    Ok(sut)
+}
+
+/// The table of `module "name" { ... }`, declared at `line`.
+pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<ModuleDecl, String> {
+    let what = format!("module '{name}'");
+    let what = what.as_str();
+    let mut fields = Fields::read(what, v, MODULE_FIELDS)?;
+    let addr = match fields.take("addr") {
+        Some(v) => integer_in(what, "addr", &v, 1, 254)?,
+        None => return Err(format!("{what}: field 'addr' is required (1 to 254)")),
+    };
+    let program = match fields.take("program") {
+        Some(v) => string(what, "program", &v)?,
+        None => return Err(format!("{what}: field 'program' is required")),
+    };
+    if program.is_empty() || program.contains('\0') {
+        return Err(format!("{what}: field 'program' must name a program"));
+    }
+    let args = match fields.take("args") {
+        Some(v) => string_list(lua, what, "args", &v)?,
+        None => Vec::new(),
+    };
+    let restart = match fields.take("restart") {
+        Some(v) => restart(name, &v)?,
+        None => RestartPolicy::default(),
+    };
+    let (cpus, priority, mlock) = realtime(what, &mut fields)?;
+    let env = match fields.take("env") {
+        Some(v) => env(lua, what, &v)?,
+        None => Vec::new(),
+    };
+    let mode = match fields.take("mode") {
+        Some(v) => match text(&v).as_deref() {
+            Some("blocking") => ReceiveMode::Blocking,
+            Some("busy" | "busy-poll") => ReceiveMode::BusyPoll,
+            _ => {
+                return Err(format!(
+                    "{what}: field 'mode' must be \"blocking\" or \"busy\", not {}",
+                    show(&v)
+                ))
+            }
+        },
+        None => ReceiveMode::Blocking,
+    };
+    Ok(ModuleDecl {
+        name: name.to_owned(),
+        // The range was checked above.
+        addr: u8::try_from(addr).unwrap_or(u8::MAX),
+        program,
+        args,
+        restart,
+        cpus,
+        priority: priority.map(|p| u8::try_from(p).unwrap_or(u8::MAX)),
+        mlock,
+        env,
+        mode,
+        line,
+    })
+}
+
+/// The list of `group "name" { "member", ... }`.
+pub(super) fn group_members(name: &str, v: &Value) -> Result<Vec<String>, String> {
+    let what = format!("group '{name}'");
+    let items = list(&what, "members", v).map_err(|_| {
+        format!(
+            "group '{name}' must be given a list of module names, as in group \"{name}\" \
+             {{ \"sonar\", \"mobility\" }}, not {}",
+            show(v)
+        )
+    })?;
+    let mut members: Vec<String> = Vec::with_capacity(items.len());
+    for (i, item) in items.iter().enumerate() {
+        let member = text(item).ok_or_else(|| {
+            format!(
+                "group '{name}': member {} must be a module name, not {}",
+                i + 1,
+                show(item)
+            )
+        })?;
+        if members.contains(&member) {
+            return Err(format!("group '{name}': '{member}' is listed twice"));
+        }
+        members.push(member);
+    }
+    if members.is_empty() {
+        return Err(format!("group '{name}' has no members"));
+    }
+    Ok(members)
+}
+
+/// `restart = "policy"` or `restart = { policy = ..., ... }` of module `module`.
+fn restart(module: &str, v: &Value) -> Result<RestartPolicy, String> {
+    let when = |v: &Value| match text(v) {
+        Some(s) => Restart::from_name(&s).ok_or_else(|| {
+            format!(
+                "restart policy '{s}' for module '{module}': expected never, on-failure or always"
+            )
+        }),
+        None => Err(format!(
+            "module '{module}': restart policy must be never, on-failure or always, not {}",
+            show(v)
+        )),
+    };
+    let mut sut = RestartPolicy::default();
+    match v {
+        Value::Table(_) => {
+            let what = format!("module '{module}': restart");
+            let what = what.as_str();
+            let mut fields = Fields::read(what, v, RESTART_FIELDS)?;
+            if let Some(v) = fields.take("policy") {
+                sut.when = when(&v)?;
+            }
+            if let Some(v) = fields.take("max_restarts") {
+                let n = integer_in(what, "max_restarts", &v, 0, i64::from(u32::MAX))?;
+                sut.max_restarts = u32::try_from(n).unwrap_or(u32::MAX);
+            }
+            if let Some(v) = fields.take("window") {
+                sut.window = seconds(what, "window", &v, false)?;
+            }
+            if let Some(v) = fields.take("backoff") {
+                sut.backoff = seconds(what, "backoff", &v, true)?;
+            }
+            if let Some(v) = fields.take("max_backoff") {
+                sut.max_backoff = seconds(what, "max_backoff", &v, true)?;
+            }
+            if let Some(v) = fields.take("give_up") {
+                sut.give_up = text(&v)
+                    .as_deref()
+                    .and_then(GiveUp::from_name)
+                    .ok_or_else(|| {
+                        format!(
+                            "{what}: field 'give_up' must be \"keep-others\" or \"stop-system\", not {}",
+                            show(&v)
+                        )
+                    })?;
+            }
+            if sut.max_backoff < sut.backoff {
+                return Err(format!(
+                    "{what}: max_backoff ({:?}) must not be less than backoff ({:?})",
+                    sut.max_backoff, sut.backoff
+                ));
+            }
+        }
+        Value::String(_) => sut.when = when(v)?,
+        _ => {
+            return Err(format!(
+                "module '{module}': field 'restart' must be a policy name or a table, not {}",
+                show(v)
+            ))
+        }
+    }
+    Ok(sut)
+}
+
+/// `cpus = { 0, 2 }`: sorted, without repeats.
+/// The real-time fields a module and the grid share: `cpus`, `priority` (SCHED_FIFO 1..=99)
+/// and `mlock`.
+pub(super) fn realtime(
+    what: &str,
+    fields: &mut Fields,
+) -> Result<(Vec<usize>, Option<i64>, bool), String> {
+    let cpus = match fields.take("cpus") {
+        Some(v) => cpus(what, &v)?,
+        None => Vec::new(),
+    };
+    let priority = match fields.take("priority") {
+        Some(v) => Some(integer_in(what, "priority", &v, 1, 99)?),
+        None => None,
+    };
+    let mlock = match fields.take("mlock") {
+        Some(Value::Boolean(b)) => b,
+        Some(v) => {
+            return Err(format!(
+                "{what}: field 'mlock' must be true or false, not {}",
+                show(&v)
+            ))
+        }
+        None => false,
+    };
+    Ok((cpus, priority, mlock))
+}
+
+pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
+    let bad = || {
+        format!(
+            "{what}: field 'cpus' must be a list of CPU indices 0 to {MAX_CPU}, not {}",
+            show(v)
+        )
+    };
+    let mut cpus = Vec::new();
+    for item in list(what, "cpus", v).map_err(|_| bad())? {
+        match integer(&item) {
+            Some(cpu) if (0..=MAX_CPU).contains(&cpu) => {
+                cpus.push(usize::try_from(cpu).unwrap_or(usize::MAX))
+            }
+            _ => {
+                return Err(format!(
+                    "{what}: field 'cpus' must be a list of CPU indices 0 to {MAX_CPU}, and {} is not one",
+                    show(&item)
+                ))
+            }
+        }
+    }
+    cpus.sort_unstable();
+    cpus.dedup();
+    Ok(cpus)
+}
+
+/// `env = { NAME = "value" }`: sorted by name.
+fn env(lua: &Lua, what: &str, v: &Value) -> Result<Vec<(String, String)>, String> {
+    let bad = || format!("{what}: field 'env' must be a table of NAME = \"value\"");
+    let Value::Table(table) = v else {
+        return Err(bad());
+    };
+    let mut env = Vec::new();
+    for pair in table.pairs::<Value, Value>() {
+        let (key, value) = pair.map_err(|e| format!("{what}: {e}"))?;
+        let key = text(&key).ok_or_else(bad)?;
+        if key.is_empty() || key.contains(['=', '\0']) {
+            return Err(format!(
+                "{what}: '{key}' cannot be an environment variable name"
+            ));
+        }
+        let value = coerce(lua, &value)
+            .ok_or_else(|| format!("{what}: env {key} must be a string, not {}", show(&value)))?;
+        if value.contains('\0') {
+            return Err(format!("{what}: env {key} contains a NUL character"));
+        }
+        env.push((key, value));
+    }
+    env.sort();
+    Ok(env)
+}

@@ -1,0 +1,317 @@
+//! The grid's declarations: their Lua functions and what each one says.
+//!
+//! ```lua
+//! grid { base_period = 0.001, cpus = { 0 }, priority = 80, mlock = true }   -- at most once
+//! grid { clock = "lockstep", track_ticks = 50, spin_us = 0 }                -- timing, optional
+//! component "A" { type = "counter", host = "h1", period = 1, params = { start = 0 } }
+//! component "B" { type = "gain", host = "h2", period_s = 0.002, params = { k = 0.5 }, policy = "fault" }
+//! connect "A.y -> B.u"                                                         -- or connect("A.y", "B.u")
+//! ```
+//!
+//! Like `decl`, each reader checks only what its own table says (field names, value types);
+//! the checks that need the component types or other declarations (parameters, ports, periods
+//! against the base tick, connections) are [`modbot_grid::GridSpec::build`]'s, called by
+//! `validate`.
+
+use std::time::Duration;
+
+use mlua::{Lua, MultiValue, Table, Value};
+
+use super::decl::{self, realtime};
+use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
+use super::read::{integer_in, list, show, string, text, Fields};
+use modbot_grid::component::{ParamValue, Params};
+use modbot_grid::spec::{
+    AssembliesDecl, ComponentDecl, ConnectDecl, GridClock, GridDecl, GridTiming, OverrunPolicy,
+    Period, MAX_COMPONENTS,
+};
+
+const GRID_FIELDS: &[&str] = &[
+    "base_period",
+    "cpus",
+    "priority",
+    "mlock",
+    "assemblies",
+    "assembly",
+    "clock",
+    "track_ticks",
+    "spin_us",
+];
+const COMPONENT_FIELDS: &[&str] = &["type", "host", "period", "period_s", "params", "policy"];
+/// The base period when `grid {}` does not say.
+const DEFAULT_BASE_PERIOD: Duration = Duration::from_millis(1);
+/// At most this many `connect` declarations (they are kept outside Lua's memory limit).
+const MAX_CONNECTIONS: usize = 1 << 18;
+
+/// Adds `grid`, `component` and `connect` to `globals`.
+pub(super) fn register(lua: &Lua, globals: &Table, record: &Shared) -> mlua::Result<()> {
+    globals.raw_set("grid", grid_fn(lua, record)?)?;
+    globals.raw_set("component", component_fn(lua, record)?)?;
+    globals.raw_set("connect", connect_fn(lua, record)?)?;
+    Ok(())
+}
+
+/// `grid { ... }`.
+fn grid_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let grid = one_arg(&args, "grid { base_period = 0.001 }")
+            .and_then(|v| grid(line, v))
+            .map_err(|m| fail(&record, line, m))?;
+        let first = record.borrow().decls.grid.as_ref().map(|g| g.line);
+        if let Some(first) = first {
+            let message = format!("grid is already declared at line {first}");
+            return Err(fail(&record, line, message));
+        }
+        record.borrow_mut().decls.grid = Some(grid);
+        Ok(())
+    })
+}
+
+/// `component "name"`, which returns the function that takes the component's table.
+fn component_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let usage = "component \"A\" { type = \"gain\", host = \"h1\", params = { k = 2 } }";
+        let name = one_arg(&args, usage)
+            .and_then(|v| decl::name("component", v))
+            .map_err(|m| fail(&record, line, m))?;
+        let index = open_body(&record, "component", &name, line, MAX_COMPONENTS)?;
+        let record = record.clone();
+        lua.create_function(move |_, args: MultiValue| {
+            given(&record, index);
+            let component = one_arg(&args, usage)
+                .and_then(|v| component(&name, line, v))
+                .map_err(|m| fail(&record, line, m))?;
+            record.borrow_mut().decls.components.push(component);
+            Ok(())
+        })
+    })
+}
+
+/// `connect "A.y -> B.u"` or `connect("A.y", "B.u")`.
+fn connect_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let connection = connect(line, &args).map_err(|m| fail(&record, line, m))?;
+        if record.borrow().decls.connections.len() >= MAX_CONNECTIONS {
+            let message = format!("too many connect declarations (at most {MAX_CONNECTIONS})");
+            return Err(fail(&record, line, message));
+        }
+        record.borrow_mut().decls.connections.push(connection);
+        Ok(())
+    })
+}
+
+/// The table of `grid { ... }`, declared at `line`.
+fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
+    let what = "grid";
+    let mut fields = Fields::read(what, v, GRID_FIELDS)?;
+    let base_period = match fields.take("base_period") {
+        Some(v) => base_period(&v)?,
+        None => DEFAULT_BASE_PERIOD,
+    };
+    let (cpus, priority, mlock) = realtime(what, &mut fields)?;
+    let assemblies = match (fields.take("assemblies"), fields.take("assembly")) {
+        (Some(dir), Some(first)) => Some(AssembliesDecl {
+            dir: string(what, "assemblies", &dir)?,
+            first: string(what, "assembly", &first)?,
+        }),
+        (None, None) => None,
+        _ => {
+            return Err(
+                "grid: give both 'assemblies' (the directory of the assembly files) and \
+                 'assembly' (the one to start with), or neither"
+                    .into(),
+            )
+        }
+    };
+    let mut timing = GridTiming::default();
+    if let Some(v) = fields.take("clock") {
+        let name = string(what, "clock", &v)?;
+        timing.clock = GridClock::from_name(&name).ok_or_else(|| {
+            format!("grid: field 'clock' must be \"realtime\" or \"lockstep\", not \"{name}\"")
+        })?;
+    }
+    if let Some(v) = fields.take("track_ticks") {
+        timing.track_ticks = integer_in(what, "track_ticks", &v, 0, 1_000_000)? as u64;
+    }
+    if let Some(v) = fields.take("spin_us") {
+        timing.spin_us = integer_in(what, "spin_us", &v, 0, 1_000_000)? as u64;
+    }
+    Ok(GridDecl {
+        assemblies,
+        timing,
+        base_period,
+        cpus,
+        // The range was checked above.
+        priority: priority.map(|p| u8::try_from(p).unwrap_or(u8::MAX)),
+        mlock,
+        line,
+    })
+}
+
+/// `base_period = seconds`, rounded to whole nanoseconds.
+fn base_period(v: &Value) -> Result<Duration, String> {
+    let secs = number(v).unwrap_or(f64::NAN);
+    if !(secs.is_finite() && secs > 0.0 && secs <= 3600.0) {
+        return Err(format!(
+            "grid: field 'base_period' must be a positive number of seconds (at most 3600), not {}",
+            show(v)
+        ));
+    }
+    let nanos = (secs * 1e9).round() as u64;
+    if nanos == 0 {
+        return Err(format!("grid: base_period {secs} s is shorter than 1 ns"));
+    }
+    Ok(Duration::from_nanos(nanos))
+}
+
+/// The table of `component "name" { ... }`, declared at `line`.
+fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, String> {
+    let what = format!("component '{name}'");
+    let what = what.as_str();
+    let mut fields = Fields::read(what, v, COMPONENT_FIELDS)?;
+    let type_name = match fields.take("type") {
+        Some(v) => string(what, "type", &v)?,
+        None => return Err(format!("{what}: field 'type' is required")),
+    };
+    let host = match fields.take("host") {
+        Some(v) => string(what, "host", &v)?,
+        None => {
+            return Err(format!(
+                "{what}: field 'host' is required (the host process)"
+            ))
+        }
+    };
+    let period = match (fields.take("period"), fields.take("period_s")) {
+        (Some(_), Some(_)) => {
+            return Err(format!(
+                "{what}: give 'period' (base ticks) or 'period_s' (seconds), not both"
+            ))
+        }
+        (Some(v), None) => Period::Ticks(number(&v).ok_or_else(|| {
+            format!(
+                "{what}: field 'period' must be a number of base ticks, not {}",
+                show(&v)
+            )
+        })?),
+        (None, Some(v)) => Period::Seconds(number(&v).ok_or_else(|| {
+            format!(
+                "{what}: field 'period_s' must be a number of seconds, not {}",
+                show(&v)
+            )
+        })?),
+        (None, None) => Period::Ticks(1.0),
+    };
+    let params = match fields.take("params") {
+        Some(v) => params(what, &v)?,
+        None => Params::new(),
+    };
+    let policy = match fields.take("policy") {
+        Some(v) => text(&v)
+            .as_deref()
+            .and_then(OverrunPolicy::from_name)
+            .ok_or_else(|| {
+                format!(
+                    "{what}: field 'policy' must be \"hold\" or \"fault\", not {}",
+                    show(&v)
+                )
+            })?,
+        None => OverrunPolicy::Hold,
+    };
+    Ok(ComponentDecl {
+        name: name.to_owned(),
+        type_name,
+        host,
+        period,
+        params,
+        policy,
+        line,
+    })
+}
+
+/// `params = { name = value, ... }`: booleans, integers (i64), other numbers (f64), strings
+/// and lists of numbers (f64 lists), sorted by name. Their names and types are checked
+/// against the component type later.
+fn params(what: &str, v: &Value) -> Result<Params, String> {
+    let Value::Table(table) = v else {
+        return Err(format!(
+            "{what}: field 'params' must be a table of name = value, not {}",
+            show(v)
+        ));
+    };
+    let mut params = Vec::new();
+    for pair in table.pairs::<Value, Value>() {
+        let (key, value) = pair.map_err(|e| format!("{what}: {e}"))?;
+        let Some(name) = text(&key) else {
+            return Err(format!(
+                "{what}: params are written name = value, and [{}] = {} is not",
+                show(&key),
+                show(&value)
+            ));
+        };
+        let bad = || {
+            format!(
+                "{what}: param '{name}' must be a boolean, a number, a string or a list of \
+                 numbers, not {}",
+                show(&value)
+            )
+        };
+        let value = match &value {
+            Value::Boolean(b) => ParamValue::Bool(*b),
+            Value::Integer(i) => ParamValue::I64(*i),
+            Value::Number(x) => ParamValue::F64(*x),
+            Value::String(_) => ParamValue::Text(text(&value).ok_or_else(bad)?),
+            Value::Table(_) => {
+                let items = list(what, &name, &value).map_err(|_| bad())?;
+                let numbers: Option<Vec<f64>> = items.iter().map(number).collect();
+                ParamValue::F64s(numbers.ok_or_else(bad)?)
+            }
+            _ => return Err(bad()),
+        };
+        params.push((name, value));
+    }
+    // Lua's iteration order is not stable across runs: sort, so the spec is.
+    params.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(params.into_iter().collect())
+}
+
+/// The arguments of `connect`, declared at `line`.
+fn connect(line: u32, args: &MultiValue) -> Result<ConnectDecl, String> {
+    let usage = "write connect \"A.y -> B.u\" or connect(\"A.y\", \"B.u\")";
+    let texts: Option<Vec<String>> = args.iter().map(text).collect();
+    let (from, to) = match texts.as_deref() {
+        Some([one]) => match one.split_once("->") {
+            Some((from, to)) => (endpoint(from.trim())?, endpoint(to.trim())?),
+            None => return Err(format!("connect: '{one}' has no '->': {usage}")),
+        },
+        Some([from, to]) => (endpoint(from)?, endpoint(to)?),
+        _ => return Err(format!("connect takes an output and an input: {usage}")),
+    };
+    Ok(ConnectDecl { from, to, line })
+}
+
+/// `"A.y"` as (component, port).
+fn endpoint(text: &str) -> Result<(String, String), String> {
+    match text.split_once('.') {
+        Some((c, p)) if !c.is_empty() && !p.is_empty() && !p.contains(['.', ' ']) => {
+            Ok((c.to_owned(), p.to_owned()))
+        }
+        _ => Err(format!(
+            "connect: '{text}' is not component.port (as in \"A.y\")"
+        )),
+    }
+}
+
+/// A Lua number (integer or float) as f64.
+fn number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Integer(i) => Some(*i as f64),
+        Value::Number(x) => Some(*x),
+        _ => None,
+    }
+}

@@ -1,0 +1,218 @@
+//! The checks across declarations, and the program lookup: declarations become a
+//! [`SystemSpec`].
+//!
+//! Errors are reported in file order as far as possible: the domain first (it has no line when
+//! it is missing), then module by module, then the groups, then the grid (whose checks are
+//! [`GridSpec::build`]'s).
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+use std::path::Path;
+
+use super::assembly::load_assembly;
+use super::decl::{Declarations, ModuleDecl};
+use super::{ProgramResolver, SystemError, SystemSpec};
+use modbot_grid::spec::{Assembly, ComponentDecl, ConnectDecl, GridDecl};
+use modbot_grid::{GridSpec, Registry};
+
+/// Checks `decls` (from the file `file`), finds every module's program and checks the grid
+/// against the component types of `registry`.
+pub(super) fn build(
+    file: &str,
+    decls: Declarations,
+    resolver: &dyn ProgramResolver,
+    registry: &Registry,
+    vars: &[(String, String)],
+) -> Result<SystemSpec, SystemError> {
+    let error = |line: u32, message: String| SystemError::new(file, Some(line), message);
+    let Some((domain, _)) = decls.domain else {
+        return Err(SystemError::new(
+            file,
+            None,
+            "no domain declared: add a line such as domain \"robot\"",
+        ));
+    };
+    if decls.grid.is_none() {
+        let first = (decls.components.first().map(|c| c.line))
+            .or_else(|| decls.connections.first().map(|c| c.line));
+        if let Some(line) = first {
+            return Err(error(
+                line,
+                "there is no grid for the components: declare it, as in grid { base_period = 0.001 }"
+                    .into(),
+            ));
+        }
+    }
+
+    let mut names: HashMap<&str, u32> = HashMap::new();
+    let mut addrs: HashMap<u8, (&str, u32)> = HashMap::new();
+    for m in &decls.modules {
+        if let Some(first) = names.insert(&m.name, m.line) {
+            return Err(error(
+                m.line,
+                format!(
+                    "module name '{}' is already declared at line {first}",
+                    m.name
+                ),
+            ));
+        }
+        if let Some((other, first)) = addrs.insert(m.addr, (&m.name, m.line)) {
+            return Err(error(
+                m.line,
+                format!(
+                    "address {} is already used by '{other}' (line {first})",
+                    m.addr
+                ),
+            ));
+        }
+    }
+    if decls.modules.is_empty() && decls.grid.is_none() {
+        return Err(SystemError::new(
+            file,
+            None,
+            "nothing to run: declare at least one module \"name\" { addr = ..., program = ... } \
+             or a grid { ... } with its components",
+        ));
+    }
+
+    let mut group_lines: HashMap<&str, u32> = HashMap::new();
+    for g in &decls.groups {
+        if let Some(first) = group_lines.insert(&g.name, g.line) {
+            return Err(error(
+                g.line,
+                format!("group '{}' is already declared at line {first}", g.name),
+            ));
+        }
+        if let Some(unknown) = g.members.iter().find(|m| !names.contains_key(m.as_str())) {
+            return Err(error(
+                g.line,
+                format!(
+                    "group '{}': no module is named '{unknown}' (modules: {})",
+                    g.name,
+                    module_list(&decls.modules)
+                ),
+            ));
+        }
+    }
+
+    let mut programs: Vec<PathBuf> = Vec::with_capacity(decls.modules.len());
+    for m in &decls.modules {
+        match resolver.resolve(&m.program) {
+            Some(path) => programs.push(path),
+            None => {
+                return Err(error(
+                    m.line,
+                    format!(
+                        "unknown program '{}' for module '{}': {}",
+                        m.program,
+                        m.name,
+                        resolver.searched(&m.program)
+                    ),
+                ))
+            }
+        }
+    }
+
+    let grid = match decls.grid {
+        Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
+            file,
+            grid,
+            decls.components,
+            decls.connections,
+            registry,
+            vars,
+        )?),
+        Some(grid) => Some(
+            GridSpec::build(grid, decls.components, decls.connections, registry)
+                .map_err(|e| SystemError::new(file, e.line, e.message))?,
+        ),
+        None => None,
+    };
+
+    let groups = decls.groups;
+    let modules = decls
+        .modules
+        .into_iter()
+        .zip(programs)
+        .map(|(m, program)| {
+            let member_of = groups
+                .iter()
+                .filter(|g| g.members.contains(&m.name))
+                .map(|g| g.name.clone())
+                .collect();
+            m.into_spec(program, member_of)
+        })
+        .collect();
+    Ok(SystemSpec {
+        file: PathBuf::from(file),
+        domain,
+        supervision: decls.supervision.map(|s| s.0).unwrap_or_default(),
+        modules,
+        groups,
+        grid,
+        host_template: None,
+    })
+}
+
+/// The grid of a description with assemblies: its own components and the first assembly's.
+fn with_assemblies(
+    file: &str,
+    grid: GridDecl,
+    components: Vec<ComponentDecl>,
+    connections: Vec<ConnectDecl>,
+    registry: &Registry,
+    vars: &[(String, String)],
+) -> Result<GridSpec, SystemError> {
+    let Some(decl) = grid.assemblies.clone() else {
+        return GridSpec::build(grid, components, connections, registry)
+            .map_err(|e| SystemError::new(file, e.line, e.message));
+    };
+    let here = Path::new(file).parent().unwrap_or(Path::new(""));
+    let dir = here.join(&decl.dir);
+    if !dir.is_dir() {
+        return Err(SystemError::new(
+            file,
+            Some(grid.line),
+            format!(
+                "grid: the assemblies directory '{}' is not found (looked at {})",
+                decl.dir,
+                dir.display()
+            ),
+        ));
+    }
+    let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
+    let line = grid.line;
+    let unloaded = GridSpec {
+        base_period: grid.base_period,
+        cpus: grid.cpus.clone(),
+        priority: grid.priority,
+        mlock: grid.mlock,
+        components: Vec::new(),
+        connections: Vec::new(),
+        line,
+        timing: grid.timing,
+        assembly: Some(Assembly {
+            name: String::new(),
+            generation: 0,
+            dir,
+            base: components.len(),
+            decls: (grid, components, connections),
+            vars: vars.to_vec(),
+            system_file: file.to_owned(),
+        }),
+    };
+    load_assembly(&unloaded, &decl.first, 1, registry).map_err(|mut e| {
+        if e.file.is_empty() {
+            e.file = file.to_owned();
+            e.line = Some(line);
+        }
+        e
+    })
+}
+
+/// The declared module names, for a message.
+fn module_list(modules: &[ModuleDecl]) -> String {
+    let names: Vec<&str> = modules.iter().map(|m| m.name.as_str()).collect();
+    names.join(", ")
+}
