@@ -18,6 +18,7 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-grid-processes", "modules/grid", 7),
     ("modbot", ".", 8),
     ("modbot-benches", "benches", 8),
+    ("modbot-example-first-module", "examples/first_module", 3),
 ];
 
 /// The names in the `[dependencies]` of the manifest in `dir` (dev-dependencies are tests'

@@ -109,4 +109,6 @@ pub enum ModuleError {
     Definition(String),
     #[error(transparent)]
     Transport(#[from] TransportError),
+    #[error(transparent)]
+    Domain(#[from] crate::domain::DomainNameError),
 }

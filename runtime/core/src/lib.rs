@@ -17,12 +17,14 @@
 //! - [`run`]: the default application controller (main loop, signals, receive modes).
 //! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
 //! - [`sim`]: the simulated time all processes of a system share (`MODBOT_EPOCH_NS`).
+//! - [`cli`]: the command line every module program takes ([`ModuleArgs`]).
 //! - [`tool`]: how a tool (the CLI) reaches a running system, also when every address is taken.
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 //! - [`transport`], [`domain`]: re-exported from `modbot-transport`.
 
 pub mod blackboard;
 pub mod calls;
+pub mod cli;
 pub mod clock;
 pub mod ctx;
 pub mod error;
@@ -41,9 +43,11 @@ pub use modbot_transport::domain;
 
 pub use blackboard::Blackboard;
 pub use calls::{CallHandle, CallOptions, RetryPolicy};
+pub use cli::ModuleArgs;
 pub use ctx::Ctx;
 pub use domain::Domain;
 pub use error::{CallError, MethodError, ModuleError};
+pub use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
 pub use module::{Module, ModuleBuilder, Reply, Report};
 pub use run::run;
 pub use sim::SimTime;

@@ -537,7 +537,8 @@ end
 
 #[test]
 fn grid_demo_example_loads_and_runs_the_same_twice() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/grid_demo.lua");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/grid_demo.lua");
     let sut = load(&path, &|_: &str| None).unwrap().grid.unwrap();
     assert!(sut.components.len() >= 3);
     let registry = Registry::builtin();

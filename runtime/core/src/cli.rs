@@ -1,0 +1,54 @@
+//! The command line every module program takes — `--domain`, `--name`, `--addr`, `--mode`,
+//! what a supervisor passes the processes it starts (the rest of what it tells them is in the
+//! environment: [`crate::transport::launch`]). Flatten [`ModuleArgs`] into a program's own
+//! `clap` parser.
+
+use clap::Args;
+
+use crate::domain::Domain;
+use crate::error::ModuleError;
+use crate::transport::ipc::IpcTransport;
+use crate::transport::ReceiveMode;
+
+/// The options every module program takes.
+#[derive(Debug, Clone, Args)]
+pub struct ModuleArgs {
+    /// The system's domain: every module of one robot uses the same.
+    #[arg(long, env = "MODBOT_DOMAIN", default_value = "default")]
+    pub domain: String,
+    /// The module's name in the phone book.
+    #[arg(long)]
+    pub name: Option<String>,
+    /// The module's 8-bit address (1..=254).
+    #[arg(long)]
+    pub addr: Option<u8>,
+    /// How to wait for frames: `blocking` (sleep until woken) or `busy` (spin on a core).
+    #[arg(long, default_value = "blocking", value_parser = ["blocking", "busy"])]
+    pub mode: String,
+}
+
+impl ModuleArgs {
+    /// The receive mode asked for.
+    pub fn receive_mode(&self) -> ReceiveMode {
+        if self.mode == "busy" {
+            ReceiveMode::BusyPoll
+        } else {
+            ReceiveMode::Blocking
+        }
+    }
+
+    /// The iceoryx2 transport of the domain.
+    pub fn transport(&self) -> Result<IpcTransport, ModuleError> {
+        Ok(IpcTransport::new(&Domain::new(&self.domain)?)?)
+    }
+
+    /// The name given, else `default`.
+    pub fn name_or(&self, default: &str) -> String {
+        self.name.clone().unwrap_or_else(|| default.to_owned())
+    }
+
+    /// The address given, else `default`.
+    pub fn addr_or(&self, default: u8) -> u8 {
+        self.addr.unwrap_or(default)
+    }
+}
