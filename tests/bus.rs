@@ -37,11 +37,27 @@ fn a_lost_coordinator_brings_every_drive_to_quick_stop_within_three_ticks() {
         .ls_field("coordinator", "PID")
         .and_then(|p| p.parse().ok())
         .expect("the coordinator runs");
-    let before = bus_ledger(&sut);
-    assert!(
-        !before.contains("SAFE STOP"),
-        "no safe stop before the kill:\n{before}"
-    );
+    // A machine that starves the coordinator for three periods (a loaded 2-core VM does)
+    // stops the drives before the kill: that is the watchdog doing its job, not what this
+    // test measures. Recover with a switch to `hold` (it resets the drives) and look again.
+    let mut recovered = 0;
+    loop {
+        let before = bus_ledger(&sut);
+        if !before.contains("SAFE STOP") {
+            break;
+        }
+        recovered += 1;
+        assert!(
+            recovered <= 5,
+            "a safe stop before every kill attempt:\n{before}"
+        );
+        println!("safe stop before the kill (the machine starved the coordinator): recovering");
+        sut.modbot_ok(&["assembly", "switch", "hold", "--timeout", "60"]);
+        sut.wait_for("every drive enabled again", Duration::from_secs(30), || {
+            let ledger = bus_ledger(&sut);
+            !ledger.contains("SAFE STOP") && all_axes(&ledger, "operation enabled")
+        });
+    }
     sut.signal(coordinator, Signal::SIGKILL);
     sut.wait_for("every drive in quick stop", Duration::from_secs(10), || {
         all_axes(&bus_ledger(&sut), "quick stop active")

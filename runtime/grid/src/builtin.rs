@@ -22,7 +22,7 @@ use std::time::Duration;
 
 use super::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Registry, BASE_PERIOD_S, PERIOD_S,
+    PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
 /// Adds every built-in type to `registry`.
@@ -124,7 +124,7 @@ struct Counter {
 }
 
 impl Component for Counter {
-    fn step(&mut self, _: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
         self.y = self.y.wrapping_add(1);
         outputs[0] = PortValue::I64(self.y);
     }
@@ -142,7 +142,8 @@ struct Ramp {
 }
 
 impl Component for Ramp {
-    fn step(&mut self, tick: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, rel: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         put(&mut outputs[0], self.slope * tick as f64 * self.dt);
     }
 }
@@ -161,7 +162,8 @@ struct Sine {
 }
 
 impl Component for Sine {
-    fn step(&mut self, tick: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, rel: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         let y = self.amplitude * (2.0 * PI * self.freq * tick as f64 * self.dt).sin();
         put(&mut outputs[0], y);
     }
@@ -179,7 +181,7 @@ struct Gain {
 }
 
 impl Component for Gain {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         put(&mut outputs[0], self.k * inputs[0].as_f64());
     }
 }
@@ -191,7 +193,7 @@ fn sum_info(_: &Params) -> Result<ComponentInfo, String> {
 struct Sum;
 
 impl Component for Sum {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         put(&mut outputs[0], inputs[0].as_f64() + inputs[1].as_f64());
     }
 }
@@ -212,7 +214,7 @@ struct Integrator {
 }
 
 impl Component for Integrator {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         self.y += inputs[0].as_f64() * self.h;
         put(&mut outputs[0], self.y);
     }
@@ -235,7 +237,7 @@ struct Delay {
 }
 
 impl Component for Delay {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         put(&mut outputs[0], self.last);
         self.last = inputs[0].as_f64();
     }
@@ -272,7 +274,7 @@ struct VecGain {
 }
 
 impl Component for VecGain {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         if let (PortValue::F64s(y), PortValue::F64s(u)) = (&mut outputs[0], &inputs[0]) {
             for (y, u) in y.iter_mut().zip(u) {
                 *y = self.k * u;
@@ -290,7 +292,7 @@ fn pack_info(_: &Params) -> Result<ComponentInfo, String> {
 struct Pack;
 
 impl Component for Pack {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         if let PortValue::F64s(v) = &mut outputs[0] {
             v[0] = inputs[0].as_f64();
             v[1] = inputs[1].as_f64();
@@ -335,14 +337,15 @@ struct Sleeper {
 }
 
 impl Component for Sleeper {
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         if (self.at == Some(tick) || self.live) && !self.sleep.is_zero() {
             std::thread::sleep(self.sleep);
         }
         put(&mut outputs[0], inputs[0].as_f64());
     }
 
-    fn track(&mut self, _tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn track(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         if self.tracking > 0 && !self.sleep.is_zero() {
             self.tracking -= 1;
             std::thread::sleep(self.sleep);
@@ -362,7 +365,7 @@ mod tests {
         let mut outputs = info.zero_outputs();
         let mut seen = Vec::new();
         for (tick, inputs) in ticks {
-            sut.step(*tick, inputs, &mut outputs);
+            sut.step(&Released::at(*tick), inputs, &mut outputs);
             seen.push(outputs[0].clone());
         }
         sut.terminate();

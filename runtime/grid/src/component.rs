@@ -311,6 +311,31 @@ impl ComponentInfo {
     }
 }
 
+/// A release as the component it steps sees it: the tick, and what the release says beside.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Released {
+    /// The tick the component is released at.
+    pub tick: u64,
+    /// The assembly generation of the release (0 in a grid without assemblies).
+    pub generation: u16,
+    /// The release's flags (`modbot_ipc_schema::grid::Release::SAFE_STOP`: the running
+    /// assembly faulted; `TRACK`: the component tracks).
+    pub flags: u16,
+    /// The host's clock when it took the release, ns of CLOCK_MONOTONIC (the reference run:
+    /// the tick's nominal time): for a component that drives hardware with a watchdog.
+    pub now_ns: u64,
+}
+
+impl Released {
+    /// A release at `tick` and nothing more (generation 0, no flags, the clock at 0).
+    pub fn at(tick: u64) -> Released {
+        Released {
+            tick,
+            ..Released::default()
+        }
+    }
+}
+
 /// A component instance, with the FMI-style lifecycle: instantiate (the [`Registry`]) →
 /// initialise → step(tick)… → terminate.
 pub trait Component: Send {
@@ -321,17 +346,18 @@ pub trait Component: Send {
         Ok(())
     }
 
-    /// Released at `tick`: `inputs` are the values valid at `tick` (in input port order, of
+    /// Released at `rel.tick`: `inputs` are the values valid then (in input port order, of
     /// the declared types); write every output (`outputs` hold the declared types, arrays at
-    /// their lengths). Runs in the real-time path: must not allocate, block or read a clock.
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]);
+    /// their lengths). Runs in the real-time path: must not allocate, block or read a clock
+    /// (the host's is `rel.now_ns`), and gets everything else it needs in `at`.
+    fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]);
 
-    /// Released at `tick` while its assembly is being prepared: nothing obeys the outputs yet,
-    /// and the component should follow the current state so that it takes over without a
-    /// jump (bumpless: a trajectory generator rests where the robot is commanded to be). The
-    /// same rules as [`Component::step`]; by default it is a step.
-    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        self.step(tick, inputs, outputs);
+    /// Released while its assembly is being prepared: nothing obeys the outputs yet, and the
+    /// component should follow the current state so that it takes over without a jump
+    /// (bumpless: a trajectory generator rests where the robot is commanded to be). The same
+    /// rules as [`Component::step`]; by default it is a step.
+    fn track(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        self.step(rel, inputs, outputs);
     }
 
     /// Whether the component reports an unsafe state after its last step (a monitor's

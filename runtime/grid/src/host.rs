@@ -24,7 +24,7 @@ use modbot_ipc_schema::grid::{
 };
 use zerocopy::IntoBytes;
 
-use super::component::{Component, Registry};
+use super::component::{Component, Registry, Released};
 use super::spec::GridSpec;
 use super::versions::{self, Versions};
 use super::wire::{self, Pub, Sub, Threadsafe};
@@ -65,17 +65,6 @@ struct Preparing {
     /// Per hosted component, its sources: opened on a thread of their own (milliseconds each,
     /// which the serving thread must not spend).
     opening: std::sync::mpsc::Receiver<Result<Vec<Vec<Source>>, TransportError>>,
-}
-
-thread_local! {
-    /// The generation and flags of the release being served on this thread.
-    static SERVING: core::cell::Cell<(u16, u16)> = const { core::cell::Cell::new((0, 0)) };
-}
-
-/// The assembly generation and the flags ([`Release::TRACK`], [`Release::SAFE_STOP`]) of the
-/// release whose step is running on this thread: for components that act on them, the bus.
-pub fn serving() -> (u16, u16) {
-    SERVING.with(|s| s.get())
 }
 
 /// The components of one host, and its notice channels.
@@ -497,12 +486,17 @@ impl Host {
             let done = Done::new(n, c as u16, Done::STALE, 0, 0).of_generation(generation);
             return self.push_done(&done);
         }
-        SERVING.with(|s| s.set((generation, release.flags.get())));
         let start = now();
+        let rel = Released {
+            tick: n,
+            generation,
+            flags: release.flags.get(),
+            now_ns: start,
+        };
         if release.has(Release::TRACK) {
-            h.component.track(n, &h.inputs, &mut h.outputs);
+            h.component.track(&rel, &h.inputs, &mut h.outputs);
         } else {
-            h.component.step(n, &h.inputs, &mut h.outputs);
+            h.component.step(&rel, &h.inputs, &mut h.outputs);
         }
         let end = now();
         let outputs = &h.outputs;

@@ -15,7 +15,7 @@
 //! component (valid now, and pending until n + k) so that this holds by construction; a test
 //! checks it by releasing in reverse order.
 
-use super::component::{Component, PortValue, Registry};
+use super::component::{Component, PortValue, Registry, Released};
 use super::spec::GridSpec;
 use super::trace::TraceWriter;
 
@@ -177,6 +177,7 @@ pub fn run(
     overruns: &Overruns,
     sink: &mut dyn FnMut(u64, usize, &[PortValue]),
 ) -> Result<(), String> {
+    let base_ns = u64::try_from(spec.base_period.as_nanos()).unwrap_or(u64::MAX);
     let mut slots = Vec::with_capacity(spec.components.len());
     for (index, c) in spec.components.iter().enumerate() {
         let component = registry
@@ -222,7 +223,13 @@ pub fn run(
                 value.assign(&slots[src].valid[port]);
             }
             let slot = &mut slots[c];
-            slot.component.step(n, &inputs, &mut slot.pending);
+            let rel = Released {
+                tick: n,
+                generation: spec.generation_of(c),
+                flags: 0,
+                now_ns: n.saturating_mul(base_ns),
+            };
+            slot.component.step(&rel, &inputs, &mut slot.pending);
             slot.inputs = inputs;
             slot.pending_from = if overruns.late.contains(&(c, n)) {
                 None // finished too late: the outputs never became valid

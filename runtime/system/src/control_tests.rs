@@ -1,7 +1,7 @@
 //! The example controllers in a loop from a description: ptp → feedforward → cascade → a
 //! test plant, watched by the monitor.
 
-use modbot_grid::component::{ComponentInfo, Params, PortValue, Registry};
+use modbot_grid::component::{ComponentInfo, Params, PortValue, Registry, Released};
 use modbot_grid::control::{
     array, array_mut, array_ports, axes, axes_decl, per_axis, per_axis_decl, positive,
 };
@@ -26,7 +26,7 @@ fn goal_info(p: &Params) -> Result<ComponentInfo, String> {
 struct Goal(Vec<f64>);
 
 impl Component for Goal {
-    fn step(&mut self, _: u64, _: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
         array_mut(&mut outputs[0]).copy_from_slice(&self.0);
     }
 }
@@ -52,7 +52,7 @@ struct Plant {
 }
 
 impl Component for Plant {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         for (i, tau) in array(&inputs[0]).iter().enumerate() {
             self.qd[i] += tau / self.inertia[i] * self.h;
             self.q[i] += self.qd[i] * self.h;

@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use super::*;
-use modbot_grid::component::{Component, ComponentInfo, PortDecl};
+use modbot_grid::component::{Component, ComponentInfo, PortDecl, Released};
 use modbot_grid::{OverrunPolicy, ParamValue, PortRef, PortType, PortValue};
 
 fn load_text(source: &str) -> Result<SystemSpec, SystemError> {
@@ -371,7 +371,7 @@ fn wide_info(_: &modbot_grid::Params) -> Result<ComponentInfo, String> {
 struct Wide;
 
 impl Component for Wide {
-    fn step(&mut self, _: u64, _: &[PortValue], _: &mut [PortValue]) {}
+    fn step(&mut self, _: &Released, _: &[PortValue], _: &mut [PortValue]) {}
 }
 
 #[test]

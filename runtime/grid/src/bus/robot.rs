@@ -28,10 +28,9 @@ use super::plant::PlantParams;
 use super::sim::SimBackend;
 use crate::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Registry, PERIOD_S,
+    PortValue, Registry, Released, PERIOD_S,
 };
 use crate::control::handover;
-use modbot_core::clock::{Clock, MonotonicClock};
 use modbot_ipc_schema::grid::Release;
 
 /// Registers `bus` and `drive_enable`.
@@ -134,22 +133,20 @@ fn slice(v: &PortValue) -> &[f64] {
 }
 
 impl Component for Bus {
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let at = |port: usize, i: usize| slice(&inputs[port]).get(i).copied().unwrap_or(0.0);
-        let now = MonotonicClock.now_ns();
-        let (generation, flags) = crate::host::serving();
+    fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let input = |port: usize, i: usize| slice(&inputs[port]).get(i).copied().unwrap_or(0.0);
         let served = Served {
-            tick,
-            generation,
-            safe_stop: flags & Release::SAFE_STOP != 0,
+            tick: rel.tick,
+            generation: rel.generation,
+            safe_stop: rel.flags & Release::SAFE_STOP != 0,
         };
         let mut b = bridge::lock(&self.bridge);
-        b.serve_release(now, &served, |i| AxisCommand {
-            controlword: at(0, i).clamp(0.0, 65535.0) as u16,
-            mode: at(1, i).clamp(-128.0, 127.0) as i8,
-            target_position: at(2, i),
-            target_velocity: at(3, i),
-            target_torque: at(4, i),
+        b.serve_release(rel.now_ns, &served, |i| AxisCommand {
+            controlword: input(0, i).clamp(0.0, 65535.0) as u16,
+            mode: input(1, i).clamp(-128.0, 127.0) as i8,
+            target_position: input(2, i),
+            target_velocity: input(3, i),
+            target_torque: input(4, i),
         });
         let actuals = b.actuals();
         let (outputs, forwarded) = outputs.split_at_mut(BUS_OUT.len().min(outputs.len()));
@@ -225,7 +222,7 @@ struct Enable {
 }
 
 impl Component for Enable {
-    fn step(&mut self, _tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let status = slice(&inputs[0]);
         let (cw, rest) = outputs.split_at_mut(1);
         let (PortValue::F64s(cw), PortValue::F64s(mode)) = (&mut cw[0], &mut rest[0]) else {

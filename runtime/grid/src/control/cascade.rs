@@ -19,7 +19,7 @@ use super::{
     array, array_mut, array_ports, at, axes, axes_decl, non_negative, per_axis, per_axis_decl,
     positive,
 };
-use crate::component::{Component, ComponentInfo, Params, PortValue, PERIOD_S};
+use crate::component::{Component, ComponentInfo, Params, PortValue, Released, PERIOD_S};
 
 pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
     let n = axes(p)?;
@@ -72,7 +72,7 @@ impl Cascade {
 }
 
 impl Component for Cascade {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let [q_ref, qd_ref, tau_ff, q, qd] = [0, 1, 2, 3, 4].map(|k| array(&inputs[k]));
         let tau = array_mut(&mut outputs[0]);
         for (i, tau) in tau.iter_mut().enumerate() {

@@ -25,7 +25,7 @@ use super::{
     per_axis_decl, per_axis_default, positive,
 };
 use crate::component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortValue,
+    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortValue, Released,
 };
 
 /// The 0-based axes of the shoulder and the elbow.
@@ -81,7 +81,7 @@ impl Feedforward {
 }
 
 impl Component for Feedforward {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let (q, qd, qdd) = (array(&inputs[0]), array(&inputs[1]), array(&inputs[2]));
         let tau = array_mut(&mut outputs[0]);
         for (i, tau) in tau.iter_mut().enumerate() {

@@ -202,7 +202,11 @@ mod harness {
         pub fn step(&mut self, tick: u64, inputs: &[&[f64]]) -> &[PortValue] {
             let inputs: Vec<PortValue> =
                 inputs.iter().map(|x| PortValue::F64s(x.to_vec())).collect();
-            self.sut.step(tick, &inputs, &mut self.outputs);
+            self.sut.step(
+                &crate::component::Released::at(tick),
+                &inputs,
+                &mut self.outputs,
+            );
             &self.outputs
         }
 
@@ -210,7 +214,11 @@ mod harness {
         pub fn track(&mut self, tick: u64, inputs: &[&[f64]]) -> &[PortValue] {
             let inputs: Vec<PortValue> =
                 inputs.iter().map(|x| PortValue::F64s(x.to_vec())).collect();
-            self.sut.track(tick, &inputs, &mut self.outputs);
+            self.sut.track(
+                &crate::component::Released::at(tick),
+                &inputs,
+                &mut self.outputs,
+            );
             &self.outputs
         }
 

@@ -20,7 +20,7 @@
 //! [q_min, q_max] that excludes 0 trips at once.
 
 use super::{array, array_ports, at, axes, axes_decl, finite, per_axis, per_axis_decl, positive};
-use crate::component::{Component, ComponentInfo, Params, PortDecl, PortType, PortValue};
+use crate::component::{Component, ComponentInfo, Params, PortDecl, PortType, PortValue, Released};
 
 /// The codes of `code`.
 pub const OK: i64 = 0;
@@ -109,7 +109,7 @@ impl Monitor {
 }
 
 impl Component for Monitor {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         if self.tripped.is_none() {
             let [q, qd, q_ref] = [0, 1, 2].map(|k| array(&inputs[k]));
             self.tripped = self.check(q, qd, q_ref);

@@ -61,7 +61,7 @@ use super::{
 };
 use crate::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, BASE_PERIOD_S, PERIOD_S,
+    PortValue, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
 /// Within this of the goal (rad, rad/s, rad/s²) the filtered outputs have settled.
@@ -554,7 +554,8 @@ impl Ptp {
 }
 
 impl Component for Ptp {
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         self.command(tick, inputs, outputs);
         self.write_handover(tick, &mut outputs[4]);
     }
@@ -562,7 +563,8 @@ impl Component for Ptp {
     /// Rests where the robot will be commanded to be when it takes over (the handover it
     /// reads, else `start` carried ahead: see [`Lead`]); the first goal it sees after that is
     /// new, so it then moves from there.
-    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn track(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         let mut ahead = std::mem::take(&mut self.ahead);
         let taken = self.handover(inputs);
         let extrapolated = ahead.track(array(&inputs[1]));
@@ -688,14 +690,16 @@ impl Hold {
 }
 
 impl Component for Hold {
-    fn step(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         self.command(tick, inputs, outputs);
         self.write_handover(tick, &mut outputs[3]);
     }
 
     /// Follows the handover it reads, else `start` carried ahead (see [`Lead`]), until it
     /// takes over, then holds there.
-    fn track(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn track(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let tick = rel.tick;
         let taken = self.handover(inputs);
         let extrapolated = self.ahead.track(array(&inputs[0]));
         let ahead = match taken {

@@ -12,7 +12,7 @@
 use super::{array_mut, array_ports, axes, axes_decl};
 use crate::component::{
     Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, PERIOD_S,
+    PortValue, Released, PERIOD_S,
 };
 
 /// Seconds without a reading of `done` = false after which a goal counts as reached.
@@ -88,7 +88,7 @@ impl Waypoints {
 }
 
 impl Component for Waypoints {
-    fn step(&mut self, _: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let done = matches!(inputs[0], PortValue::Bool(true));
         self.since_goal += 1;
         if !done {
@@ -136,22 +136,22 @@ mod tests {
     fn it_moves_on_once_the_generator_moved_and_arrived_and_dwelt() {
         let (mut sut, mut out) = waypoints(0.002);
         let (moving, arrived) = ([PortValue::Bool(false)], [PortValue::Bool(true)]);
-        sut.step(0, &moving, &mut out);
+        sut.step(&Released::at(0), &moving, &mut out);
         assert_eq!(goal(&out), [0.0, 0.0]);
         for t in 1..=2 {
-            sut.step(t, &arrived, &mut out);
+            sut.step(&Released::at(t), &arrived, &mut out);
             assert_eq!(goal(&out), [0.0, 0.0], "dwelling at tick {t}");
         }
-        sut.step(3, &arrived, &mut out);
+        sut.step(&Released::at(3), &arrived, &mut out);
         assert_eq!(goal(&out), [1.0, -1.0]);
         // Done still reads true from before the new goal: not arrived yet.
         for t in 5..100 {
-            sut.step(t, &arrived, &mut out);
+            sut.step(&Released::at(t), &arrived, &mut out);
         }
         assert_eq!(goal(&out), [1.0, -1.0]);
-        sut.step(100, &moving, &mut out);
+        sut.step(&Released::at(100), &moving, &mut out);
         for t in 101..=103 {
-            sut.step(t, &arrived, &mut out);
+            sut.step(&Released::at(t), &arrived, &mut out);
         }
         assert_eq!(goal(&out), [0.0, 0.0], "round and round");
     }
@@ -161,10 +161,10 @@ mod tests {
         let (mut sut, mut out) = waypoints(0.0);
         let arrived = [PortValue::Bool(true)];
         for t in 0..499 {
-            sut.step(t, &arrived, &mut out);
+            sut.step(&Released::at(t), &arrived, &mut out);
         }
         assert_eq!(goal(&out), [0.0, 0.0]);
-        sut.step(500, &arrived, &mut out);
+        sut.step(&Released::at(500), &arrived, &mut out);
         assert_eq!(goal(&out), [1.0, -1.0]);
     }
 
