@@ -246,6 +246,17 @@ pub struct GridError {
     pub message: String,
 }
 
+impl std::fmt::Display for GridError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "line {line}: {}", self.message),
+            None => f.write_str(&self.message),
+        }
+    }
+}
+
+impl std::error::Error for GridError {}
+
 fn at(line: u32, message: String) -> GridError {
     GridError {
         line: Some(line),
@@ -265,19 +276,61 @@ pub fn host_module_of(host: &str, generation: u16) -> String {
     }
 }
 
-/// A host name: 1 to 32 characters of `a-z`, `0-9` and `_` (it names a process).
+/// What a grid process is, read from its module name (the inverse of [`host_module_of`] and
+/// [`COORDINATOR`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GridRole<'a> {
+    Coordinator,
+    /// The host process of `host`, of assembly generation `generation` (0: of the system's
+    /// own components, or of a grid without assemblies).
+    Host {
+        host: &'a str,
+        generation: u16,
+    },
+}
+
+impl GridRole<'_> {
+    /// The role of the process named `module`; `None` for a module that is no grid process.
+    pub fn of(module: &str) -> Option<GridRole<'_>> {
+        if module == COORDINATOR {
+            return Some(GridRole::Coordinator);
+        }
+        let name = module.strip_prefix("host_")?;
+        let (host, generation) = match generation_suffix(name) {
+            Some((host, g)) => (host, g),
+            None => (name, 0),
+        };
+        check_host(host).ok()?;
+        Some(GridRole::Host { host, generation })
+    }
+}
+
+/// `NAME_gN` → (NAME, N) for N ≥ 1.
+fn generation_suffix(name: &str) -> Option<(&str, u16)> {
+    let (host, g) = name.rsplit_once("_g")?;
+    let generation: u16 = g.parse().ok().filter(|&g| g > 0)?;
+    (g == generation.to_string()).then_some((host, generation))
+}
+
+/// A host name: 1 to 32 characters of `a-z`, `0-9` and `_` (it names a process), not ending
+/// in `_g` and a number (that names an assembly's generation: see [`GridRole`]).
 pub fn check_host(host: &str) -> Result<(), String> {
-    let ok = (1..=32).contains(&host.len())
-        && host
-            .bytes()
-            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_');
-    if ok {
+    if is_plain_name(host) && generation_suffix(host).is_none() {
         Ok(())
     } else {
         Err(format!(
-            "host name '{host}' is invalid: use 1 to 32 characters of a-z, 0-9 and _"
+            "host name '{host}' is invalid: use 1 to 32 characters of a-z, 0-9 and _, not \
+             ending in _g and a number"
         ))
     }
+}
+
+/// 1 to 32 characters of `a-z`, `0-9` and `_`: a name that is also a file or process name.
+pub fn is_plain_name(name: &str) -> bool {
+    (1..=32).contains(&name.len())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_')
 }
 
 /// The period in base ticks, or why it is not a whole multiple of the base tick.
@@ -657,5 +710,47 @@ impl GridSpec {
     /// The types of `c`'s outputs, in port order (the layout of its output record).
     pub fn output_types(&self, c: usize) -> Vec<PortType> {
         self.components[c].info.output_types()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{host_module_of, GridError, GridRole, COORDINATOR};
+
+    #[test]
+    fn a_grid_process_is_told_by_its_module_name_and_nothing_else_is_one() {
+        for (host, generation) in [("ctrl", 0), ("ctrl", 7), ("bus", 0), ("a_g", 2), ("g2", 0)] {
+            let name = host_module_of(host, generation);
+            assert_eq!(
+                GridRole::of(&name),
+                Some(GridRole::Host { host, generation }),
+                "{name}"
+            );
+        }
+        assert_eq!(GridRole::of(COORDINATOR), Some(GridRole::Coordinator));
+        for other in [
+            "sonar",
+            "host_",
+            "host_Ctl",
+            "host_a.b",
+            "hosts_a",
+            "coordinator2",
+        ] {
+            assert_eq!(GridRole::of(other), None, "{other}");
+        }
+    }
+
+    #[test]
+    fn a_grid_error_says_its_line() {
+        let e = GridError {
+            line: Some(3),
+            message: "bad".into(),
+        };
+        assert_eq!(e.to_string(), "line 3: bad");
+        let e: Box<dyn std::error::Error> = Box::new(GridError {
+            line: None,
+            message: "x".into(),
+        });
+        assert_eq!(e.to_string(), "x");
     }
 }

@@ -172,9 +172,13 @@ pub fn switch(
 
 /// An assembly name: 1 to 32 characters of `a-z`, `0-9` and `_` (it names a file).
 pub fn check_assembly_name(name: &str) -> Result<(), String> {
-    super::spec::check_host(name).map_err(|_| {
-        format!("assembly name '{name}' is invalid: use 1 to 32 characters of a-z, 0-9 and _")
-    })
+    if super::spec::is_plain_name(name) {
+        Ok(())
+    } else {
+        Err(format!(
+            "assembly name '{name}' is invalid: use 1 to 32 characters of a-z, 0-9 and _"
+        ))
+    }
 }
 
 /// `TICK:NAME`, a switch to assembly NAME at tick TICK (`modbot up --switch`).

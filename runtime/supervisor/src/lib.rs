@@ -41,6 +41,7 @@ pub mod rt;
 pub mod status;
 
 use core::time::Duration;
+use modbot_grid::spec::GridRole;
 use std::io::Write;
 use std::process::Child;
 use std::time::Instant;
@@ -1096,7 +1097,11 @@ fn retire_method(
     _: &mut Reply,
 ) -> Result<(), MethodError> {
     let name = args.text(0)?;
-    if !shared.hosts_allowed || !name.starts_with("host_") || !name.contains("_g") {
+    let of_an_assembly = matches!(
+        GridRole::of(name),
+        Some(GridRole::Host { generation, .. }) if generation > 0
+    );
+    if !shared.hosts_allowed || !of_an_assembly {
         return Err(MethodError::Failed(format!(
             "only the host of an assembly can be retired, not {name}"
         )));

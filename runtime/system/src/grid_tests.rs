@@ -479,6 +479,10 @@ fn bad_component_fields_are_refused() {
         ("type = \"ramp\", host = \"H1\"", "host name 'H1' is invalid"),
         ("type = \"ramp\", host = \"\"", "host name '' is invalid"),
         (
+            "type = \"ramp\", host = \"ctrl_g2\"",
+            "host name 'ctrl_g2' is invalid: use 1 to 32 characters of a-z, 0-9 and _, not ending in _g and a number",
+        ),
+        (
             "type = \"ramp\", host = \"a_very_long_host_name_of_33_chars\"",
             "host name 'a_very_long_host_name_of_33_chars' is invalid",
         ),
