@@ -113,6 +113,71 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 image.truncate(len);
                 image
             }
+            "release" => {
+                use modbot_ipc_schema::grid::Release;
+                use zerocopy::IntoBytes;
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let versions: Vec<u64> = field(&desc, "versions")
+                    .split(',')
+                    .map(|v| v.parse().unwrap())
+                    .collect();
+                let notice =
+                    Release::new(n("tick"), n("released"), n("component") as u16, &versions)
+                        .unwrap()
+                        .with(n("generation") as u16, n("flags") as u16);
+                let bytes = notice.as_bytes().to_vec();
+                let back = Release::batch(&bytes).unwrap().next().unwrap();
+                assert_eq!(back.versions().collect::<Vec<_>>(), versions);
+                assert!(back.has(Release::SAFE_STOP) && !back.has(Release::TRACK));
+                bytes
+            }
+            "done" => {
+                use modbot_ipc_schema::grid::Done;
+                use zerocopy::IntoBytes;
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let notice = Done::new(
+                    n("tick"),
+                    n("component") as u16,
+                    n("status") as u16,
+                    n("exec"),
+                    n("latency"),
+                )
+                .of_generation(n("generation") as u16);
+                let bytes = notice.as_bytes().to_vec();
+                let back = Done::batch(&bytes).unwrap().next().unwrap();
+                assert_eq!(
+                    (back.status.get(), back.latency_ns.get()),
+                    (Done::STALE, n("latency"))
+                );
+                bytes
+            }
+            "prepare" => {
+                use modbot_ipc_schema::grid::Prepare;
+                use zerocopy::IntoBytes;
+                let notice = Prepare::new(
+                    field(&desc, "generation").parse().unwrap(),
+                    field(&desc, "name"),
+                )
+                .unwrap();
+                let bytes = notice.as_bytes().to_vec();
+                assert_eq!(
+                    Prepare::parse(&bytes).unwrap().name(),
+                    Some(field(&desc, "name"))
+                );
+                bytes
+            }
+            "out" => {
+                use modbot_ipc_schema::grid::{OutHeader, OUT_HEADER_LEN};
+                use zerocopy::IntoBytes;
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let header = OutHeader {
+                    valid_from: n("valid_from").into(),
+                    release: n("release").into(),
+                };
+                let bytes = header.as_bytes().to_vec();
+                assert_eq!(bytes.len(), OUT_HEADER_LEN);
+                bytes
+            }
             "snapshot" => {
                 let layout = SnapshotLayout::new(vec![
                     ItemSpec {
