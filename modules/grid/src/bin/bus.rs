@@ -5,17 +5,17 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_grid_processes::grid_args::load_assembly;
 use modbot_grid_processes::grid_args::GridArgs;
-use modbot_grid_processes::service_thread::serve_module;
+use modbot_grid_processes::host_process::{HostArgs, HostProcess};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
 use modbot_runtime::bus::{PlantParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
-use modbot_runtime::grid::host::Host;
 use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
-use modbot_runtime::{signals, Ctx, MethodError, ModuleBuilder, Reply};
+use modbot_runtime::{Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
 /// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`);
@@ -102,45 +102,48 @@ fn main() -> std::process::ExitCode {
 fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
-    let grid = cli.grid.load()?;
-    let bus = grid
-        .components
-        .iter()
-        .find(|c| c.host == cli.host && c.type_name == "bus")
-        .ok_or_else(|| anyhow::anyhow!("host '{}' has no component of type 'bus'", cli.host))?;
-    anyhow::ensure!(
-        bus.period == 1,
-        "component '{}': the bus is served every tick: give it period 1",
-        bus.name
-    );
-    let axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
-    let period_ns = grid.base_period.as_nanos() as u64;
-    let bridge = Bridge::new(
-        Box::new(SimBackend::new(axes, PlantParams::default())),
-        period_ns,
-    );
-    let shared = Arc::new(Mutex::new(
-        if grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep {
-            bridge.lockstep()
-        } else {
-            bridge
-        },
-    ));
-    bridge::process_bridge()
-        .set(shared.clone())
-        .map_err(|_| anyhow::anyhow!("the bus bridge was set twice"))?;
-    let transport = cli.module.transport()?;
-    let node = Arc::new(transport.threadsafe_node(&format!("grid.host.{}", cli.host))?);
-    let mut host = Host::new(&node, &grid, &Registry::builtin(), &cli.host)?;
-    signals::install_termination_handler()?;
-    // Listening on the grid, the bus announces itself: its module (the ledger, switches and
-    // block methods) runs on a thread of its own, so a method call never delays a cycle.
-    let name = cli
-        .module
-        .name
-        .clone()
-        .unwrap_or_else(|| host_module(&cli.host));
-    let (addr, mode) = (cli.module.addr.unwrap_or(199), cli.module.receive_mode());
+    let host_name = cli.host.clone();
+    let args = HostArgs {
+        module: cli.module,
+        grid: cli.grid,
+        host: cli.host,
+    };
+    let mut axes = 0;
+    let mut shared = None;
+    // The drives are made before the host's components: the `bus` component drives them.
+    let mut p = HostProcess::start(args, &Registry::builtin(), |grid| {
+        let bus = grid
+            .components
+            .iter()
+            .find(|c| c.host == host_name && c.type_name == "bus")
+            .ok_or_else(|| anyhow::anyhow!("host '{host_name}' has no component of type 'bus'"))?;
+        anyhow::ensure!(
+            bus.period == 1,
+            "component '{}': the bus is served every tick: give it period 1",
+            bus.name
+        );
+        axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
+        let period_ns = grid.base_period.as_nanos() as u64;
+        let bridge = Bridge::new(
+            Box::new(SimBackend::new(axes, PlantParams::default())),
+            period_ns,
+        );
+        let made = Arc::new(Mutex::new(
+            if grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep {
+                bridge.lockstep()
+            } else {
+                bridge
+            },
+        ));
+        bridge::process_bridge()
+            .set(made.clone())
+            .map_err(|_| anyhow::anyhow!("the bus bridge was set twice"))?;
+        shared = Some(made);
+        Ok(())
+    })?;
+    let shared = shared.ok_or_else(|| anyhow::anyhow!("no bus bridge was made"))?;
+    // Its module (the ledger, switches and block methods) on a thread of its own, so a method
+    // call never delays a cycle.
     let view = Arc::new(Mutex::new(BusView::default()));
     let (block, blocks) = std::sync::mpsc::channel();
     let ledger = Ledger {
@@ -148,22 +151,18 @@ fn run() -> anyhow::Result<()> {
         block,
         axes,
     };
-    let service = serve_module(move || {
-        Ok(ModuleBuilder::new(&name, addr)
-            .mode(mode)
+    let declare = |module: ModuleBuilder<Ledger>| {
+        module
             .method("bus", bus_method)
             .method("switches", switches_method)
             .method("block", block_method)
-            .open(transport, ledger)?)
-    })?;
-    // `grid { mlock = true }`: locked before the clocked work begins.
-    modbot_runtime::supervisor::env::apply_mlockall();
-    modbot_runtime::supervisor::rt::real_time_thread(grid.host_priority(), "serving thread");
+    };
+    let service = p.serve(host_module(p.host_name()), 199, declare, ledger)?;
     let now = || MonotonicClock.now_ns();
     // The bus sleeps on its wake-up until released, or until its watchdog must look (the
     // silence reaching three periods; a deadline to the microsecond), whichever comes first.
-    while !signals::termination_requested() && !service.is_finished() {
-        if host.serve(&now)? == 0 {
+    while HostProcess::running(&service) {
+        if p.host.serve(&now)? == 0 {
             // Nothing waits to be served: only now may the watchdog judge the silence (after
             // a slow moment of this process, a release may be waiting that it has not seen).
             let next = {
@@ -178,13 +177,11 @@ fn run() -> anyhow::Result<()> {
                 b.next_look_ns(now())
             };
             // Idle: a bounded piece of an assembly's preparation, then sleep.
-            host.prepare_step(&node, modbot_grid_processes::grid_args::load_assembly)?;
+            p.host.prepare_step(&p.node, load_assembly)?;
             // At most 5 ms at a time, to look at the termination flag.
-            host.wait(Some(Duration::from_nanos(next.clamp(1_000, 5_000_000))));
+            p.host
+                .wait(Some(Duration::from_nanos(next.clamp(1_000, 5_000_000))));
         }
     }
-    match service.join() {
-        Ok(result) => result,
-        Err(_) => anyhow::bail!("the service thread panicked"),
-    }
+    p.finish(service)
 }

@@ -1,0 +1,120 @@
+//! What every host process of the grid does around its clocked work — `modbot-host` and the
+//! bus bridge `modbot-bus` are this plus their loop: load the grid, open the node, make the
+//! host's components, serve the process's module on a thread of normal priority, then make
+//! this thread the real-time one.
+
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use clap::Args;
+use iceoryx2::prelude::Node;
+use modbot_modules::common::ModuleArgs;
+use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::host::Host;
+use modbot_runtime::grid::wire::Threadsafe;
+use modbot_runtime::grid::GridSpec;
+use modbot_runtime::{signals, IpcTransport, ModuleBuilder};
+
+use crate::grid_args::GridArgs;
+use crate::service_thread::serve_module;
+
+/// The command line of a host process: the module's options, the grid's, and the host.
+#[derive(Debug, Args)]
+pub struct HostArgs {
+    #[command(flatten)]
+    pub module: ModuleArgs,
+    #[command(flatten)]
+    pub grid: GridArgs,
+    /// The host name whose components this process steps.
+    #[arg(long)]
+    pub host: String,
+}
+
+/// A host process, set up: its grid loaded, its components made, listening on the grid.
+pub struct HostProcess {
+    pub grid: GridSpec,
+    pub node: Arc<Node<Threadsafe>>,
+    pub host: Host,
+    args: HostArgs,
+    transport: Option<IpcTransport>,
+}
+
+impl HostProcess {
+    /// Loads the grid, hands it to `before` (the bus bridge makes its drives there), opens the
+    /// node and makes the components of `--host` with `registry`; installs the termination
+    /// handler.
+    pub fn start(
+        args: HostArgs,
+        registry: &Registry,
+        before: impl FnOnce(&GridSpec) -> anyhow::Result<()>,
+    ) -> anyhow::Result<HostProcess> {
+        let grid = args.grid.load()?;
+        before(&grid)?;
+        let transport = args.module.transport()?;
+        let node = Arc::new(transport.threadsafe_node(&format!("grid.host.{}", args.host))?);
+        let host = Host::new(&node, &grid, registry, &args.host)?;
+        signals::install_termination_handler()?;
+        Ok(HostProcess {
+            grid,
+            node,
+            host,
+            args,
+            transport: Some(transport),
+        })
+    }
+
+    /// The host name it steps.
+    pub fn host_name(&self) -> &str {
+        &self.args.host
+    }
+
+    /// Announces the process: its module (`--name`, else `default_name`; `--addr`, else
+    /// `default_addr`), as `declare` builds it, served with `state` on a thread of normal
+    /// priority, so that a method call never delays the clocked work. Then locks memory if
+    /// the grid asks (`grid { mlock = true }`) and makes this thread the real-time one.
+    pub fn serve<S: Send + 'static>(
+        &mut self,
+        default_name: String,
+        default_addr: u8,
+        declare: impl FnOnce(ModuleBuilder<S>) -> ModuleBuilder<S> + Send + 'static,
+        state: S,
+    ) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
+        let name = self.args.module.name.clone().unwrap_or(default_name);
+        let (addr, mode) = (
+            self.args.module.addr_or(default_addr),
+            self.args.module.receive_mode(),
+        );
+        let transport = self
+            .transport
+            .take()
+            .ok_or_else(|| anyhow::anyhow!("the module of this host is served already"))?;
+        let service = serve_module(move || {
+            Ok(declare(ModuleBuilder::new(&name, addr).mode(mode)).open(transport, state)?)
+        })?;
+        modbot_runtime::supervisor::env::apply_mlockall();
+        modbot_runtime::supervisor::rt::real_time_thread(
+            self.grid.host_priority(),
+            "serving thread",
+        );
+        Ok(service)
+    }
+
+    /// Whether the clocked work goes on: no termination asked, the module still served.
+    pub fn running(service: &JoinHandle<anyhow::Result<()>>) -> bool {
+        !signals::termination_requested() && !service.is_finished()
+    }
+
+    /// Ends the process: reports releases not executed, and the service thread's result.
+    pub fn finish(self, service: JoinHandle<anyhow::Result<()>>) -> anyhow::Result<()> {
+        if self.host.stale > 0 {
+            tracing::warn!(
+                "{} release(s) not executed: an input's version was gone",
+                self.host.stale
+            );
+        }
+        match service.join() {
+            Ok(result) => result,
+            Err(_) => anyhow::bail!("the service thread panicked"),
+        }
+    }
+}
