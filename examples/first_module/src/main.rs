@@ -37,7 +37,11 @@ fn added(_: &mut Counter, ctx: &mut Ctx, _: CallHandle, answer: Result<&Args, &C
     }
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    modbot_core::cli::exit("modbot-first-module", run())
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let cli: Cli = clap::Parser::parse();
     let bb = Blackboard::builder()
         .item("total", OwnedValue::I64(0))

@@ -52,3 +52,28 @@ impl ModuleArgs {
         self.addr.unwrap_or(default)
     }
 }
+
+/// Ends a module program: `Ok` exits 0; an error is one line on stderr — `PROGRAM: what went
+/// wrong: its causes` — and exit status 1, never a backtrace (a panic keeps its backtrace:
+/// that is a bug, not a refusal).
+pub fn exit(
+    program: &str,
+    result: Result<(), Box<dyn std::error::Error>>,
+) -> std::process::ExitCode {
+    let Err(e) = result else {
+        return std::process::ExitCode::SUCCESS;
+    };
+    let mut line = format!("{program}: {e}");
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        // thiserror's transparent errors repeat their source's text: say it once.
+        if !line.ends_with(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        cause = c.source();
+    }
+    eprintln!("{line}");
+    std::process::ExitCode::from(1)
+}

@@ -22,6 +22,34 @@ pub const ICEORYX2_ROOT: &str = "/dev/shm/iceoryx2/";
 #[error("invalid domain name '{0}': use 1 to 40 characters of a-z, 0-9 and _")]
 pub struct DomainNameError(pub String);
 
+/// Shared memory another user owns, closed to this process.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum DomainAccessError {
+    /// The domain's files belong to another user: that user started the system.
+    #[error(
+        "permission denied: domain '{domain}' belongs to uid {owner} (run as that user): {} is \
+         closed to uid {user}",
+        path.display()
+    )]
+    Domain {
+        domain: String,
+        owner: u32,
+        user: u32,
+        path: std::path::PathBuf,
+    },
+    /// iceoryx2's directory, shared by every domain of the machine, belongs to another user.
+    #[error(
+        "permission denied: {} (iceoryx2's directory, shared by every domain) belongs to uid \
+         {owner} and is closed to uid {user}: run as that user",
+        path.display()
+    )]
+    Directory {
+        owner: u32,
+        user: u32,
+        path: std::path::PathBuf,
+    },
+}
+
 /// A domain and the settings its modules share.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Domain {
@@ -75,6 +103,80 @@ impl Domain {
         collect_with_prefix(Path::new("/dev/shm"), &prefix, &mut found);
         collect_with_prefix(Path::new("/tmp/iceoryx2"), &prefix, &mut found);
         found
+    }
+
+    /// Whether this process may use the domain: `Err` names the user it belongs to when
+    /// iceoryx2's directory or a file of the domain is closed to this process's user (another
+    /// user started the system). Looked at before anything is created, so a refused start
+    /// leaves nothing behind.
+    pub fn check_access(&self) -> Result<(), DomainAccessError> {
+        use nix::unistd::{access, AccessFlags};
+        use std::os::unix::fs::MetadataExt;
+        let root = Path::new(ICEORYX2_ROOT.trim_end_matches('/'));
+        let dirs = [
+            root.to_path_buf(),
+            root.join("nodes"),
+            root.join("services"),
+        ];
+        let mut own_files = Vec::new();
+        collect_with_prefix(Path::new("/dev/shm"), &self.prefix(), &mut own_files);
+        let closed =
+            dirs.iter()
+                .filter(|d| d.exists())
+                .find(|d| {
+                    access(
+                        d.as_path(),
+                        AccessFlags::R_OK | AccessFlags::W_OK | AccessFlags::X_OK,
+                    )
+                    .is_err()
+                })
+                .or_else(|| {
+                    own_files.iter().filter(|f| f.is_file()).find(|f| {
+                        access(f.as_path(), AccessFlags::R_OK | AccessFlags::W_OK).is_err()
+                    })
+                });
+        let Some(path) = closed else {
+            return Ok(());
+        };
+        let owner_of = |p: &Path| std::fs::metadata(p).map(|m| m.uid()).unwrap_or(0);
+        let user = nix::unistd::geteuid().as_raw();
+        // The domain's own files say whose it is; without them it is the directory's owner.
+        match own_files.first() {
+            Some(file) => Err(DomainAccessError::Domain {
+                domain: self.name.clone(),
+                owner: owner_of(file),
+                user,
+                path: path.clone(),
+            }),
+            None => Err(DomainAccessError::Directory {
+                owner: owner_of(path),
+                user,
+                path: path.clone(),
+            }),
+        }
+    }
+
+    /// Takes group and other permissions off the domain's shared-memory files that have them
+    /// (iceoryx2 opens its management segment to everyone): a domain is one user's. Returns
+    /// how many it closed.
+    pub fn close_shared_files(&self) -> usize {
+        use std::os::unix::fs::PermissionsExt;
+        let mut files = Vec::new();
+        collect_with_prefix(Path::new("/dev/shm"), &self.prefix(), &mut files);
+        let mut closed = 0;
+        for f in files.iter().filter(|f| f.is_file()) {
+            let Ok(meta) = std::fs::metadata(f) else {
+                continue;
+            };
+            let mode = meta.permissions().mode();
+            if mode & 0o077 != 0
+                && std::fs::set_permissions(f, std::fs::Permissions::from_mode(mode & 0o700))
+                    .is_ok()
+            {
+                closed += 1;
+            }
+        }
+        closed
     }
 
     /// Removes every file of this domain. Only call it when no module of the domain runs.

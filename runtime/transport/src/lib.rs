@@ -120,6 +120,8 @@ pub enum TransportError {
     FrameTooLarge { len: usize, max: usize },
     #[error("iceoryx2 {op} failed: {detail}")]
     Ipc { op: &'static str, detail: String },
+    #[error(transparent)]
+    Access(#[from] domain::DomainAccessError),
 }
 
 /// What a module receives besides its inbox.

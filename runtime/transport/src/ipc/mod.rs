@@ -72,11 +72,14 @@ pub struct IpcTransport {
     /// A supervisor publishes the domain's directory and cleans up after the dead: this
     /// process neither scans nor cleans.
     supervised: bool,
+    /// Whether this process closed the domain's files to other users (after its first node).
+    closed: std::cell::Cell<bool>,
 }
 
 impl IpcTransport {
     pub fn new(domain: &Domain) -> Result<IpcTransport, TransportError> {
         set_log_level_from_env_or(LogLevel::Error);
+        domain.check_access()?;
         let mut config = Config::default();
         config.global.prefix = ipc!("prefix", FileName::new(domain.prefix().as_bytes()))?;
         // iceoryx2's node and service files (thousands at full size) on tmpfs, beside the
@@ -103,6 +106,7 @@ impl IpcTransport {
             config,
             tool: std::cell::Cell::new(false),
             supervised,
+            closed: std::cell::Cell::new(false),
         })
     }
 
@@ -152,14 +156,19 @@ impl IpcTransport {
         node_name: &str,
     ) -> Result<Node<S>, TransportError> {
         let name = ipc!("node name", NodeName::new(node_name))?;
-        ipc!(
+        let node = ipc!(
             "node creation",
             NodeBuilder::new()
                 .name(&name)
                 .config(&self.config)
                 .signal_handling_mode(SignalHandlingMode::Disabled)
                 .create::<S>()
-        )
+        )?;
+        if !self.closed.replace(true) {
+            // iceoryx2 opens its management segment to everyone; the domain is one user's.
+            self.domain.close_shared_files();
+        }
+        Ok(node)
     }
 
     fn claim(

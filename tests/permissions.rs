@@ -1,0 +1,101 @@
+//! A domain is one user's: another user's tools and modules are refused with a line that says
+//! whose it is and what to do, leave nothing behind, and no file of a domain is open to
+//! other users. Needs root (to start a system and then act as `nobody`), as CI runs.
+
+mod common;
+
+use std::os::unix::fs::{MetadataExt, PermissionsExt};
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::Duration;
+
+use common::TestDomain;
+
+/// The uid and gid of `nobody`.
+const NOBODY: u32 = 65534;
+
+/// `program` copied where `nobody` may run it (the build directory may be closed to it).
+fn runnable_by_nobody(dir: &Path, program: &str) -> PathBuf {
+    let to = dir.join(program);
+    std::fs::copy(common::bin(program), &to).unwrap();
+    std::fs::set_permissions(&to, std::fs::Permissions::from_mode(0o755)).unwrap();
+    to
+}
+
+fn as_nobody(program: &Path, args: &[&str]) -> Output {
+    Command::new(program)
+        .args(args)
+        .env("RUST_BACKTRACE", "1")
+        .uid(NOBODY)
+        .gid(NOBODY)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn another_users_tools_and_modules_are_refused_with_whose_domain_it_is_and_leave_nothing() {
+    if !nix::unistd::geteuid().is_root() {
+        eprintln!("skipped: needs root to start a system and act as another user");
+        return;
+    }
+    let mut sut = TestDomain::new("perm");
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/first_module/counters.lua");
+    let domain = format!("domain={}", sut.name());
+    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap(), "--var", &domain]);
+    sut.wait_for("b running", Duration::from_secs(60), || {
+        String::from_utf8_lossy(&sut.modbot(&["ls", "--tsv"]).stdout).contains("\tb\t")
+    });
+    let dir = std::env::temp_dir().join(format!("{}_bin", sut.name()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let (modbot, module) = (
+        runnable_by_nobody(&dir, "modbot"),
+        runnable_by_nobody(&dir, "modbot-first-module"),
+    );
+    let expected = format!(
+        "permission denied: domain '{}' belongs to uid 0 (run as that user)",
+        sut.name()
+    );
+    for (what, out) in [
+        (
+            "modbot ls",
+            as_nobody(&modbot, &["ls", "--domain", sut.name()]),
+        ),
+        (
+            "a module",
+            as_nobody(
+                &module,
+                &["--domain", sut.name(), "--name", "intruder", "--addr", "77"],
+            ),
+        ),
+    ] {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{what} was let in");
+        assert!(stderr.contains(&expected), "{what}: {stderr}");
+        assert_eq!(
+            stderr.lines().count(),
+            1,
+            "{what}: one line, no backtrace: {stderr}"
+        );
+    }
+    let files = sut.leftover_files();
+    let nobodys: Vec<&PathBuf> = files
+        .iter()
+        .filter(|f| std::fs::metadata(f).is_ok_and(|m| m.uid() == NOBODY))
+        .collect();
+    assert!(nobodys.is_empty(), "the refused starts left {nobodys:?}");
+    let open: Vec<&PathBuf> = files
+        .iter()
+        .filter(|f| f.is_file() && std::fs::metadata(f).is_ok_and(|m| m.mode() & 0o002 != 0))
+        .collect();
+    assert!(
+        open.is_empty(),
+        "files of the domain anyone may write: {open:?}"
+    );
+    sut.modbot_ok(&["down"]);
+    let status = sut.wait_exit(up, Duration::from_secs(60));
+    assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
