@@ -31,6 +31,7 @@ compile_error!("modbot's wire formats are little-endian and are read in place: b
 pub mod addr;
 pub mod args;
 pub mod directory;
+pub mod fuzz;
 pub mod grid;
 pub mod heartbeat;
 pub mod hex;

@@ -53,6 +53,7 @@
 
 pub mod assembly;
 mod decl;
+pub mod fuzz;
 mod grid_decl;
 mod lua;
 pub mod program;

@@ -16,7 +16,10 @@
 //!   swallow the stop: once the description failed (a bad declaration, the instruction limit),
 //!   every protected call re-raises, and the script unwinds to the end;
 //! - `setmetatable` refuses metatables with `__gc`: Lua runs finalizers with hooks disabled, so
-//!   a finalizer could loop forever, out of the instruction limit's reach.
+//!   a finalizer could loop forever, out of the instruction limit's reach;
+//! - Lua patterns are not available (`string.match`, `gmatch`, `gsub`, and `string.find`
+//!   without `plain = true` raise an error): the matcher runs in C, where the instruction
+//!   limit cannot stop a pattern that backtracks for hours.
 //!
 //! Each declaration records the line of the Lua code that called it. The first failure is kept
 //! with its line; a Lua syntax or runtime error is translated from Lua's `file:LINE: message`.
@@ -89,6 +92,22 @@ setmetatable = function(t, mt)
     error(result, 2)
   end
   return result
+end
+-- Lua's pattern matching runs in C, out of the instruction limit's reach (a pattern can
+-- backtrack for hours on a short string): a description finds plain text only.
+local raw_find = string.find
+local refusal = " is not available in a system description (patterns run out of the " ..
+  "instruction limit's reach): use string.find(s, text, 1, true)"
+string.find = function(s, text, init, plain)
+  if plain ~= true then
+    error("string.find with a pattern" .. refusal, 2)
+  end
+  return raw_find(s, text, init, true)
+end
+for _, name in ipairs({ "match", "gmatch", "gsub" }) do
+  string[name] = function()
+    error("string." .. name .. refusal, 2)
+  end
 end
 "#;
 

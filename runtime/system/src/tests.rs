@@ -707,6 +707,34 @@ fn finalizers_cannot_be_declared() {
 }
 
 #[test]
+fn patterns_that_would_backtrack_out_of_the_instruction_limit_are_refused() {
+    // This one takes hours in C, where the instruction hook never runs.
+    let slow =
+        "local s = string.rep(\"a\", 40)\nlocal x = s:match(\"(.-)(.-)(.-)(.-)(.-)(.-)(.-)b\")";
+    assert_error(
+        &format!("domain \"t\"\n{slow}"),
+        Some(3),
+        "string.match is not available in a system description",
+    );
+    for (call, name) in [
+        ("string.gsub(\"ab\", \"a\", \"c\")", "string.gsub"),
+        (
+            "for w in string.gmatch(\"a b\", \"%a\") do end",
+            "string.gmatch",
+        ),
+        ("string.find(\"ab\", \"a.\")", "string.find with a pattern"),
+    ] {
+        assert_error(&format!("domain \"t\"\n{call}"), Some(2), name);
+    }
+    let source = "domain \"t\"\nlocal at = string.find(\"a.b\", \".\", 1, true)\nmodule \"a\" { addr = at, program = \"modbot-sonar\" }";
+    assert_eq!(
+        load_text(source).unwrap().modules[0].addr,
+        2,
+        "plain find works"
+    );
+}
+
+#[test]
 fn huge_allocation_is_stopped_by_the_memory_limit() {
     assert_error(
         "domain \"t\"\nlocal s = string.rep(\"x\", 1 << 30)",

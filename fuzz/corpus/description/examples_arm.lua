@@ -1,0 +1,24 @@
+-- A 6-axis simulated robot arm (MoRC): the bus bridge serves six CiA 402 drives on two-mass
+-- elastic joints every 1 ms tick; the control structure is an assembly, swapped at runtime.
+--
+--   modbot up examples/arm.lua                     -- starts with the `hold` assembly
+--   modbot assembly switch ptp --domain arm        -- the robot moves between A and B
+--   modbot assembly switch hold --domain arm       -- and holds where it is commanded to be
+--   modbot bus --domain arm                        -- cycles, missed cycles, drive states
+--   modbot top --domain arm                        -- the grid's ledger
+--
+-- The assemblies are the files in examples/arm/: hold.lua, ptp.lua (trajectory generator,
+-- rigid-body feed-forward, monitor) and ptp_smooth.lua (the same with a Bessel filter and a
+-- P-PI cascade in torque mode).
+
+domain(vars.domain or "arm")
+
+supervision { heartbeat_timeout = 2.0 }
+
+grid { base_period = 0.001, priority = 60, assemblies = "arm", assembly = vars.assembly or "hold" }
+
+-- The bus: served every tick, owns the drives (the host named "bus" is the bus bridge). It
+-- stays when the assembly changes; the assemblies connect to its ports.
+-- With `handover`, the running trajectory generator tells it the command it will give two ticks
+-- on, which it forwards to the generator of an assembly taking over (bumpless in velocity).
+component "robot" { type = "bus", host = "bus", period = 1, params = { axes = 6, handover = true } }

@@ -1,0 +1,97 @@
+//! Entry points for the fuzz targets (`fuzz/`) and for the test that replays their corpora:
+//! each takes untrusted bytes the way a receiving process does — decodes them fully, walks
+//! every value — and must neither panic nor loop, whatever the bytes.
+
+use crate::args::Args;
+use crate::directory::View;
+use crate::grid::{Done, Prepare, Release};
+use crate::heartbeat::Heartbeat;
+use crate::relay::{Request, Response};
+use crate::{Frame, SnapshotView, Value};
+
+/// An RVMF* frame, as a module's inbox receives it.
+pub fn frame(data: &[u8]) {
+    if let Ok(frame) = Frame::decode(data) {
+        let _ = (frame.dst(), frame.src(), frame.seq(), frame.kind());
+        for value in frame.values() {
+            let _ = value.map(|v| v.kind());
+        }
+        let _ = Args::decode(frame.values());
+    }
+}
+
+/// A run of MessagePack values back to back (a payload).
+pub fn values(data: &[u8]) {
+    let mut at = 0;
+    while at < data.len() {
+        match Value::decode(&data[at..], at) {
+            Ok((value, used)) if used > 0 => {
+                let _ = value.kind();
+                at += used;
+            }
+            _ => break,
+        }
+    }
+}
+
+/// A blackboard snapshot, as a reader receives it.
+pub fn snapshot(data: &[u8]) {
+    if let Ok(view) = SnapshotView::parse(data) {
+        let _ = (view.addr(), view.seq());
+        for item in view.iter() {
+            let _ = item;
+        }
+    }
+}
+
+/// A heartbeat, as the supervisor receives it.
+pub fn heartbeat(data: &[u8]) {
+    if let Ok(h) = Heartbeat::parse(data) {
+        let _ = (h.addr(), h.state(), h.beat(), h.counters());
+    }
+}
+
+/// A sample of grid notices: a release batch, a done batch, a prepare notice.
+pub fn grid(data: &[u8]) {
+    if let Ok(releases) = Release::batch(data) {
+        for r in releases {
+            let _ = r.versions().count();
+        }
+    }
+    if let Ok(done) = Done::batch(data) {
+        let _ = done.count();
+    }
+    if let Ok(p) = Prepare::parse(data) {
+        let _ = p.name();
+    }
+}
+
+/// The supervisor's directory image, as a module reads it.
+pub fn directory(data: &[u8]) {
+    if let Ok(view) = View::parse(data) {
+        for entry in view.entries() {
+            let _ = entry.listing();
+        }
+    }
+}
+
+/// A relayed call and its answer, as the supervisor and a tool read them.
+pub fn relay(data: &[u8]) {
+    if let Ok(request) = Request::parse(data) {
+        let _ = request.values();
+    }
+    if let Ok(response) = Response::parse(data) {
+        let _ = response;
+    }
+}
+
+/// Every decoder above, by the name of its fuzz target.
+pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+    ("frame", frame),
+    ("values", values),
+    ("snapshot", snapshot),
+    ("heartbeat", heartbeat),
+    ("grid", grid),
+    ("directory", directory),
+    ("relay", relay),
+];
