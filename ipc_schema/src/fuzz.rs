@@ -85,8 +85,11 @@ pub fn relay(data: &[u8]) {
     }
 }
 
+/// One of the decoders above.
+pub type Decoder = fn(&[u8]);
+
 /// Every decoder above, by the name of its fuzz target.
-pub const TARGETS: &[(&str, fn(&[u8]))] = &[
+pub const TARGETS: &[(&str, Decoder)] = &[
     ("frame", frame),
     ("values", values),
     ("snapshot", snapshot),
