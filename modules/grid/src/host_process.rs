@@ -40,19 +40,18 @@ pub struct HostProcess {
 }
 
 impl HostProcess {
-    /// Loads the grid, hands it to `before` (the bus bridge makes its drives there), opens the
-    /// node and makes the components of `--host` with `registry`; installs the termination
-    /// handler.
+    /// Loads the grid, asks `registry` for the component types to make its components with
+    /// (the bus bridge makes its drives there and registers the `bus` that drives them), opens
+    /// the node and makes the components of `--host`; installs the termination handler.
     pub fn start(
         args: HostArgs,
-        registry: &Registry,
-        before: impl FnOnce(&GridSpec) -> anyhow::Result<()>,
+        registry: impl FnOnce(&GridSpec) -> anyhow::Result<Registry>,
     ) -> anyhow::Result<HostProcess> {
         let grid = args.grid.load()?;
-        before(&grid)?;
+        let registry = registry(&grid)?;
         let transport = args.module.transport()?;
         let node = Arc::new(transport.threadsafe_node(&format!("grid.host.{}", args.host))?);
-        let host = Host::new(&node, &grid, registry, &args.host)?;
+        let host = Host::new(&node, &grid, &registry, &args.host)?;
         signals::install_termination_handler()?;
         Ok(HostProcess {
             grid,

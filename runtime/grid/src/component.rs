@@ -374,12 +374,14 @@ pub trait Component: Send {
 pub type InfoFn = fn(&Params) -> Result<ComponentInfo, String>;
 /// Makes an instance for the given (complete) parameters.
 pub type MakeFn = fn(&Params) -> Result<Box<dyn Component>, String>;
+/// Makes an instance with what it was given when registered (see [`Registry::register_with`]).
+type Maker = std::sync::Arc<dyn Fn(&Params) -> Result<Box<dyn Component>, String> + Send + Sync>;
 
 struct Entry {
     /// What the type says about itself without parameters: its name and parameter list.
     probe: ComponentInfo,
     info: InfoFn,
-    make: MakeFn,
+    make: Maker,
 }
 
 /// The component types a system can use, by name.
@@ -416,6 +418,18 @@ impl Registry {
     /// # Panics
     /// If `info_fn` fails with empty parameters: that is a bug in the component type.
     pub fn register(&mut self, info_fn: InfoFn, make: MakeFn) {
+        self.register_with(info_fn, make);
+    }
+
+    /// Adds a component type whose instances are made by a closure: for a type that needs
+    /// something of the process that registers it (the bus bridge's drives, say), handed in
+    /// here rather than reached through a global. Otherwise as [`Registry::register`].
+    pub fn register_with(
+        &mut self,
+        info_fn: InfoFn,
+        make: impl Fn(&Params) -> Result<Box<dyn Component>, String> + Send + Sync + 'static,
+    ) {
+        let make: Maker = std::sync::Arc::new(make);
         let probe = match info_fn(&Params::new()) {
             Ok(probe) => probe,
             Err(e) => panic!("a component type must describe itself without parameters: {e}"),

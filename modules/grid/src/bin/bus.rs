@@ -11,7 +11,7 @@ use modbot_grid_processes::host_process::{HostArgs, HostProcess};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
-use modbot_runtime::bus::{PlantParams, SimBackend};
+use modbot_runtime::bus::{robot, PlantParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
@@ -110,8 +110,8 @@ fn run() -> anyhow::Result<()> {
     };
     let mut axes = 0;
     let mut shared = None;
-    // The drives are made before the host's components: the `bus` component drives them.
-    let mut p = HostProcess::start(args, &Registry::builtin(), |grid| {
+    // The drives are made first: the grid's `bus` component drives them.
+    let mut p = HostProcess::start(args, |grid| {
         let bus = grid
             .components
             .iter()
@@ -135,11 +135,10 @@ fn run() -> anyhow::Result<()> {
                 bridge
             },
         ));
-        bridge::process_bridge()
-            .set(made.clone())
-            .map_err(|_| anyhow::anyhow!("the bus bridge was set twice"))?;
+        let mut registry = Registry::builtin();
+        robot::register_bridge(&mut registry, made.clone());
         shared = Some(made);
-        Ok(())
+        Ok(registry)
     })?;
     let shared = shared.ok_or_else(|| anyhow::anyhow!("no bus bridge was made"))?;
     // Its module (the ledger, switches and block methods) on a thread of its own, so a method

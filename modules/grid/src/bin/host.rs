@@ -24,7 +24,7 @@ fn main() -> std::process::ExitCode {
 
 fn run() -> anyhow::Result<()> {
     init_logging();
-    let mut p = HostProcess::start(Cli::parse().host, &Registry::builtin(), |_| Ok(()))?;
+    let mut p = HostProcess::start(Cli::parse().host, |_| Ok(Registry::builtin()))?;
     let name = p.grid.host_module(p.host_name());
     let service = p.serve(name, 200, |module| module, ())?;
     let now = || MonotonicClock.now_ns();

@@ -10,7 +10,7 @@
 //! sent disable voltage (CiA 402 transition 12) and enabled again; the ledger records when
 //! the stop happened.
 
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::Mutex;
 
 use super::backend::{AxisActual, AxisCommand, Backend};
 use super::cia402::DriveState;
@@ -502,13 +502,6 @@ pub struct Served {
     pub generation: u16,
     /// The assembly faulted: stop the drives.
     pub safe_stop: bool,
-}
-
-/// The bridge of this process, when it is the bus bridge process: the grid's `bus` component
-/// then drives it instead of a private simulation.
-pub fn process_bridge() -> &'static OnceLock<Arc<Mutex<Bridge>>> {
-    static BRIDGE: OnceLock<Arc<Mutex<Bridge>>> = OnceLock::new();
-    &BRIDGE
 }
 
 /// Locks the bridge, whoever panicked while holding it.

@@ -10,8 +10,8 @@
 //!   (default 6), `backend` (`sim`), `handover` (bool, default false: with it, input and
 //!   output `handover`, the running generator's handover forwarded one cycle later, see
 //!   [`handover`]). In the bus bridge process (`modbot-bus`) it drives that
-//!   process's [`Bridge`], which has the watchdog; elsewhere (the reference run, tests) a
-//!   private simulation.
+//!   process's [`Bridge`], which has the watchdog, handed to it by [`register_bridge`];
+//!   elsewhere (the reference run, tests) a private simulation.
 //! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled
 //!   in a mode (param `mode`, default 8, CSP), resets faults once (a rising edge of bit 7) when
 //!   param `reset_faults` is true, and never re-enables a drive held in quick stop unless
@@ -94,6 +94,7 @@ fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
+/// A `bus` with drives of its own: a private simulation (the reference run, tests).
 fn make_bus(p: &Params) -> Result<Box<dyn Component>, String> {
     let n = axes(p)?;
     if p.get("backend").is_some() && p.text("backend")? != "sim" {
@@ -102,23 +103,29 @@ fn make_bus(p: &Params) -> Result<Box<dyn Component>, String> {
             p.text("backend")?
         ));
     }
-    let bridge = match bridge::process_bridge().get() {
-        Some(b) => {
-            let axes = bridge::lock(b).axes();
-            if axes != n {
-                return Err(format!("the bus bridge has {axes} axes, the component {n}"));
-            }
-            b.clone()
+    let period_ns = (p.f64(PERIOD_S)? * 1e9).round() as u64;
+    let bridge = Bridge::new(
+        Box::new(SimBackend::new(n, PlantParams::default())),
+        period_ns,
+    );
+    Ok(Box::new(Bus {
+        bridge: Arc::new(Mutex::new(bridge)),
+    }))
+}
+
+/// Registers `bus` as the component that drives `bridge` (the bus bridge process's, which also
+/// runs its watchdog); the axes must agree.
+pub fn register_bridge(registry: &mut Registry, bridge: Arc<Mutex<Bridge>>) {
+    registry.register_with(bus_info, move |p| {
+        let n = axes(p)?;
+        let axes = bridge::lock(&bridge).axes();
+        if axes != n {
+            return Err(format!("the bus bridge has {axes} axes, the component {n}"));
         }
-        None => {
-            let period_ns = (p.f64(PERIOD_S)? * 1e9).round() as u64;
-            Arc::new(Mutex::new(Bridge::new(
-                Box::new(SimBackend::new(n, PlantParams::default())),
-                period_ns,
-            )))
-        }
-    };
-    Ok(Box::new(Bus { bridge }))
+        Ok(Box::new(Bus {
+            bridge: bridge.clone(),
+        }))
+    });
 }
 
 struct Bus {
