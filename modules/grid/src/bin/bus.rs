@@ -127,7 +127,8 @@ fn run() -> anyhow::Result<()> {
         let bridge = Bridge::new(
             Box::new(SimBackend::new(axes, PlantParams::default())),
             period_ns,
-        );
+        )
+        .watchdog_periods(robot::watchdog_periods(&bus.params).map_err(anyhow::Error::msg)?);
         let made = Arc::new(Mutex::new(
             if grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep {
                 bridge.lockstep()

@@ -7,9 +7,10 @@
 //!   `demand_position`: the position the drive was last commanded (CiA 402's position demand
 //!   value, 0x6062) while in operation enabled in CSP, else its actual position — where a
 //!   generator taking over should start for the command not to jump. Params: `axes`
-//!   (default 6), `backend` (`sim`), `handover` (bool, default false: with it, input and
-//!   output `handover`, the running generator's handover forwarded one cycle later, see
-//!   [`handover`]). In the bus bridge process (`modbot-bus`) it drives that
+//!   (default 6), `backend` (`sim`), `watchdog` (base periods without a release after which
+//!   the coordinator is lost and the drives stop, default 3), `handover` (bool, default false:
+//!   with it, input and output `handover`, the running generator's handover forwarded one
+//!   cycle later, see [`handover`]). In the bus bridge process (`modbot-bus`) it drives that
 //!   process's [`Bridge`], which has the watchdog, handed to it by [`register_bridge`];
 //!   elsewhere (the reference run, tests) a private simulation.
 //! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled
@@ -76,6 +77,7 @@ const BUS_OUT: [&str; 6] = [
 
 fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
     let n = axes(p)?;
+    watchdog_periods(p)?;
     let (mut inputs, mut outputs) = (ports(&BUS_IN, n), ports(&BUS_OUT, n));
     if handover::wanted(p)? {
         inputs.push(handover::port(n));
@@ -89,9 +91,29 @@ fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
         params: vec![
             ParamDecl::optional("axes", ParamType::I64, ParamValue::I64(6)),
             ParamDecl::optional("backend", ParamType::Text, ParamValue::Text("sim".into())),
+            ParamDecl::optional(
+                "watchdog",
+                ParamType::I64,
+                ParamValue::I64(bridge::LOST_AFTER as i64),
+            ),
             handover::param(),
         ],
     })
+}
+
+/// Param `watchdog`: the base periods without a release after which the bus bridge judges
+/// the coordinator lost and stops the drives (default [`bridge::LOST_AFTER`], 1 to 1000).
+pub fn watchdog_periods(p: &Params) -> Result<u64, String> {
+    if p.get("watchdog").is_none() {
+        return Ok(bridge::LOST_AFTER);
+    }
+    let periods = p.i64("watchdog")?;
+    if !(1..=1000).contains(&periods) {
+        return Err(format!(
+            "param 'watchdog' must be 1 to 1000 base periods, not {periods}"
+        ));
+    }
+    Ok(periods as u64)
 }
 
 /// A `bus` with drives of its own: a private simulation (the reference run, tests).
@@ -107,7 +129,8 @@ fn make_bus(p: &Params) -> Result<Box<dyn Component>, String> {
     let bridge = Bridge::new(
         Box::new(SimBackend::new(n, PlantParams::default())),
         period_ns,
-    );
+    )
+    .watchdog_periods(watchdog_periods(p)?);
     Ok(Box::new(Bus {
         bridge: Arc::new(Mutex::new(bridge)),
     }))
