@@ -14,6 +14,7 @@
 //! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
 //!   readable in place.
 //! - [`grid`]: the time grid's port values, output records and release/done notices.
+//! - [`ledger`]: the grid's overrun ledger (the coordinator's `ledger` answer).
 //! - [`directory`]: the phone book a supervisor publishes for its domain, one image read in
 //!   place.
 //! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
@@ -35,6 +36,7 @@ pub mod fuzz;
 pub mod grid;
 pub mod heartbeat;
 pub mod hex;
+pub mod ledger;
 pub mod relay;
 pub mod rvmf;
 pub mod snapshot;

@@ -178,6 +178,48 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 assert_eq!(bytes.len(), OUT_HEADER_LEN);
                 bytes
             }
+            "ledger" => {
+                use modbot_ipc_schema::ledger::{decode, encode, ComponentRow, GridRow};
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let list = |k| -> Vec<u64> {
+                    field(&desc, k)
+                        .split(',')
+                        .map(|x| x.parse().unwrap())
+                        .collect()
+                };
+                let (err, numbers) = (list("err"), list("numbers"));
+                let grid = GridRow {
+                    state: field(&desc, "state").to_owned(),
+                    fault: field(&desc, "fault").to_owned(),
+                    ticks: n("ticks"),
+                    missed: n("missed"),
+                    rate_hz: field(&desc, "rate").parse().unwrap(),
+                    tick_err_p50: err[0],
+                    tick_err_p99: err[1],
+                    tick_err_max: err[2],
+                };
+                let row = ComponentRow {
+                    name: field(&desc, "name").to_owned(),
+                    host: field(&desc, "host").to_owned(),
+                    period: n("period"),
+                    policy: field(&desc, "policy").to_owned(),
+                    releases: numbers[0],
+                    overruns: numbers[1],
+                    late: numbers[2],
+                    failed: numbers[3],
+                    stale: numbers[4],
+                    exec_min: numbers[5],
+                    exec_p50: numbers[6],
+                    exec_p99: numbers[7],
+                    exec_max: numbers[8],
+                    latency_p50: numbers[9],
+                    latency_p99: numbers[10],
+                };
+                let mut bytes = Vec::new();
+                encode(&grid, std::slice::from_ref(&row), &mut bytes);
+                assert_eq!(decode(&bytes).unwrap(), (grid, vec![row]));
+                bytes
+            }
             "snapshot" => {
                 let layout = SnapshotLayout::new(vec![
                     ItemSpec {
