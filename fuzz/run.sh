@@ -19,7 +19,12 @@ for t in $TARGETS; do
     mkdir -p "$work" "corpus/$t"
     log=target/$t.log
     crashes=0
-    if ! cargo +nightly fuzz run -O "$t" "$work" "corpus/$t" -- \
+    seeds=()
+    if [ "$t" = description ]; then
+        # The example systems seed the descriptions (read, never written to).
+        seeds=(../examples ../examples/arm ../examples/first_module)
+    fi
+    if ! cargo +nightly fuzz run -O "$t" "$work" "corpus/$t" "${seeds[@]}" -- \
         -runs="$RUNS" -timeout=10 -print_final_stats=1 >"$log" 2>&1; then
         crashes=1
         status=1
