@@ -2,17 +2,14 @@
 
 pub use modbot_core::cli::ModuleArgs;
 
-/// Ends a module program: an error is one line on stderr, `PROGRAM: what went wrong: its
-/// causes`, and exit status 1 — never a backtrace, whatever `RUST_BACKTRACE` says (a panic
-/// keeps its backtrace: that is a bug, not a refusal).
+/// Ends a module program as [`modbot_core::cli::exit`] does: an error is one line on stderr,
+/// `PROGRAM: what went wrong: its causes`, exit status 1, never a backtrace.
 pub fn finish(program: &str, result: anyhow::Result<()>) -> std::process::ExitCode {
-    match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("{program}: {e:#}");
-            std::process::ExitCode::from(1)
-        }
-    }
+    let boxed: Box<dyn std::error::Error + Send + Sync> = match result {
+        Ok(()) => return modbot_core::cli::exit(program, Ok(())),
+        Err(e) => e.into(),
+    };
+    modbot_core::cli::exit(program, Err(boxed))
 }
 
 /// Logs to stderr, filtered by `RUST_LOG` (default `info`); colours only on a terminal (under

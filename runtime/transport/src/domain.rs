@@ -118,23 +118,28 @@ impl Domain {
             root.join("nodes"),
             root.join("services"),
         ];
-        let mut own_files = Vec::new();
-        collect_with_prefix(Path::new("/dev/shm"), &self.prefix(), &mut own_files);
-        let closed =
-            dirs.iter()
-                .filter(|d| d.exists())
-                .find(|d| {
-                    access(
-                        d.as_path(),
-                        AccessFlags::R_OK | AccessFlags::W_OK | AccessFlags::X_OK,
-                    )
-                    .is_err()
-                })
-                .or_else(|| {
-                    own_files.iter().filter(|f| f.is_file()).find(|f| {
-                        access(f.as_path(), AccessFlags::R_OK | AccessFlags::W_OK).is_err()
-                    })
-                });
+        let own_files = self.shm_files();
+        // Only a refusal counts: a file that went away meanwhile (iceoryx2 creates and removes
+        // them all the time) is no sign of another user.
+        let refused = |p: &Path, flags: AccessFlags| {
+            matches!(
+                access(p, flags),
+                Err(nix::errno::Errno::EACCES | nix::errno::Errno::EPERM)
+            )
+        };
+        let closed = dirs
+            .iter()
+            .find(|d| {
+                refused(
+                    d.as_path(),
+                    AccessFlags::R_OK | AccessFlags::W_OK | AccessFlags::X_OK,
+                )
+            })
+            .or_else(|| {
+                own_files
+                    .iter()
+                    .find(|f| refused(f.as_path(), AccessFlags::R_OK | AccessFlags::W_OK))
+            });
         let Some(path) = closed else {
             return Ok(());
         };
@@ -161,22 +166,36 @@ impl Domain {
     /// how many it closed.
     pub fn close_shared_files(&self) -> usize {
         use std::os::unix::fs::PermissionsExt;
-        let mut files = Vec::new();
-        collect_with_prefix(Path::new("/dev/shm"), &self.prefix(), &mut files);
         let mut closed = 0;
-        for f in files.iter().filter(|f| f.is_file()) {
-            let Ok(meta) = std::fs::metadata(f) else {
+        for f in self.shm_files() {
+            let Ok(meta) = std::fs::metadata(&f) else {
                 continue;
             };
             let mode = meta.permissions().mode();
             if mode & 0o077 != 0
-                && std::fs::set_permissions(f, std::fs::Permissions::from_mode(mode & 0o700))
+                && std::fs::set_permissions(&f, std::fs::Permissions::from_mode(mode & 0o700))
                     .is_ok()
             {
                 closed += 1;
             }
         }
         closed
+    }
+
+    /// The domain's shared-memory files: those directly in `/dev/shm` (iceoryx2's segments and
+    /// its management segment; not its node and service files under [`ICEORYX2_ROOT`], which a
+    /// process need not walk — at full size they are thousands).
+    fn shm_files(&self) -> Vec<std::path::PathBuf> {
+        let prefix = self.prefix();
+        let Ok(entries) = std::fs::read_dir("/dev/shm") else {
+            return Vec::new();
+        };
+        entries
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+            .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
+            .map(|e| e.path())
+            .collect()
     }
 
     /// Removes every file of this domain. Only call it when no module of the domain runs.

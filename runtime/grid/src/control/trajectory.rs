@@ -284,6 +284,24 @@ impl Brake {
         }
     }
 
+    /// Begins braking at `tick`, the first live release after tracking: from the command the
+    /// running generator handed over (exactly the one replaced), else from `rest` carried one
+    /// tick on at the velocities `v0` its [`Lead`] predicted (its outputs apply a tick later).
+    fn take_over(
+        &mut self,
+        tick: u64,
+        handed: Option<Handover<'_>>,
+        rest: &[f64],
+        v0: &[f64],
+        a: &[f64],
+        dt: f64,
+    ) {
+        match handed {
+            Some(h) => self.begin(tick, h.q(), h.qd(), a, 0.0),
+            None => self.begin(tick, rest, v0, a, dt),
+        }
+    }
+
     /// Whether it is braking `t` seconds after it began.
     fn active(&self, t: f64) -> bool {
         t < self.duration
@@ -483,15 +501,8 @@ impl Ptp {
         let taken = self.handover(inputs);
         if let Some(v0) = self.ahead.take_over() {
             // Taken over from the running assembly's motion: brake from its velocity first.
-            // From the command it replaces, when it handed that over; else from the one tick
-            // on from where it rests, carried at the velocity predicted (its outputs apply one
-            // tick later).
-            match taken {
-                Some(h) => self.brake.begin(tick, h.q(), h.qd(), &self.a_max, 0.0),
-                None => self
-                    .brake
-                    .begin(tick, &self.target, v0, &self.a_max, self.dt),
-            }
+            self.brake
+                .take_over(tick, taken, &self.target, v0, &self.a_max, self.dt);
             if self.brake.duration == 0.0 {
                 // At rest already: the next motion starts where it took over, not from the
                 // demand it reads (older).
@@ -664,12 +675,9 @@ impl Hold {
     fn command(&mut self, tick: u64, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let taken = self.handover(inputs);
         if let Some(v0) = self.ahead.take_over() {
-            // As ptp: brake from the command it replaces, or from the velocity predicted, one
-            // tick on.
-            match taken {
-                Some(h) => self.brake.begin(tick, h.q(), h.qd(), &self.a_max, 0.0),
-                None => self.brake.begin(tick, &self.q, v0, &self.a_max, self.dt),
-            }
+            // As ptp: brake from what it takes over.
+            self.brake
+                .take_over(tick, taken, &self.q, v0, &self.a_max, self.dt);
             self.brake.stops(&mut self.q);
         }
         let t = tick.saturating_sub(self.brake.began) as f64 * self.dt;
