@@ -10,6 +10,7 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-ipc-schema", "ipc_schema", 0),
     ("modbot-transport", "runtime/transport", 1),
     ("modbot-core", "runtime/core", 2),
+    ("modbot-testkit", "runtime/testkit", 2),
     ("modbot-grid", "runtime/grid", 3),
     ("modbot-modules", "modules", 3),
     ("modbot-system", "runtime/system", 4),

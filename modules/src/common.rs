@@ -12,6 +12,16 @@ pub fn finish(program: &str, result: anyhow::Result<()>) -> std::process::ExitCo
     modbot_core::cli::exit(program, Err(boxed))
 }
 
+/// The `main` of a module program: logging (see [`init_logging`]), the command line `C`,
+/// then `run`; ends as [`finish`] does.
+pub fn main<C: clap::Parser>(
+    program: &str,
+    run: impl FnOnce(C) -> anyhow::Result<()>,
+) -> std::process::ExitCode {
+    init_logging();
+    finish(program, run(C::parse()))
+}
+
 /// Logs to stderr, filtered by `RUST_LOG` (default `info`); colours only on a terminal (under
 /// `modbot up` the supervisor reads the lines through a pipe).
 pub fn init_logging() {

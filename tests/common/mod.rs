@@ -7,13 +7,8 @@ pub mod arm;
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
-use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
-
-use modbot_runtime::Domain;
-
-static COUNTER: AtomicU32 = AtomicU32::new(0);
 
 static BUILT: OnceLock<Result<(), String>> = OnceLock::new();
 
@@ -46,7 +41,8 @@ pub fn bin(name: &str) -> PathBuf {
 
 /// A domain of its own, with the processes started in it.
 pub struct TestDomain {
-    pub domain: Domain,
+    /// Removes its files when dropped (after the processes are killed).
+    pub domain: modbot_testkit::TestDomain,
     children: Vec<(String, Child)>,
     /// Files this test wrote (system descriptions, captured output); removed on drop.
     files: Vec<PathBuf>,
@@ -54,15 +50,8 @@ pub struct TestDomain {
 
 impl TestDomain {
     pub fn new(test: &str) -> TestDomain {
-        let n = COUNTER.fetch_add(1, Ordering::SeqCst);
-        let short: String = test
-            .chars()
-            .filter(|c| c.is_ascii_lowercase())
-            .take(12)
-            .collect();
-        let name = format!("t{}_{}_{}", std::process::id(), n, short);
         TestDomain {
-            domain: Domain::new(&name).unwrap(),
+            domain: modbot_testkit::TestDomain::new("t", test),
             children: Vec::new(),
             files: Vec::new(),
         }
@@ -211,34 +200,22 @@ impl TestDomain {
 
     /// Waits until `f` holds, or panics after `timeout`.
     pub fn wait_for(&self, what: &str, timeout: Duration, mut f: impl FnMut() -> bool) {
-        let start = Instant::now();
-        while !f() {
-            assert!(
-                start.elapsed() < timeout,
-                "timed out after {timeout:?} waiting for {what}"
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
+        modbot_testkit::wait_until(
+            what,
+            timeout,
+            || {
+                if f() {
+                    Ok(())
+                } else {
+                    Err("no".into())
+                }
+            },
+        );
     }
 
     /// Waits until `f` says yes, or panics after `timeout` with what `f` saw last.
-    pub fn wait_until(
-        &self,
-        what: &str,
-        timeout: Duration,
-        mut f: impl FnMut() -> Result<(), String>,
-    ) {
-        let start = Instant::now();
-        loop {
-            match f() {
-                Ok(()) => return,
-                Err(last) => assert!(
-                    start.elapsed() < timeout,
-                    "timed out after {timeout:?} waiting for {what}; last seen:\n{last}"
-                ),
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
+    pub fn wait_until(&self, what: &str, timeout: Duration, f: impl FnMut() -> Result<(), String>) {
+        modbot_testkit::wait_until(what, timeout, f);
     }
 
     /// Sends `signal` to the child with `pid`.
@@ -283,7 +260,7 @@ impl Drop for TestDomain {
             let _ = c.kill();
             let _ = c.wait();
         }
-        self.domain.remove_files();
+        // The domain's files go when `domain` is dropped, after this.
         for f in &self.files {
             let _ = std::fs::remove_file(f);
         }

@@ -1,6 +1,6 @@
 //! Your first module: a counter that others add to, and that adds 1 to a peer every second.
 use modbot_core::{Args, Blackboard, CallError, CallHandle, Ctx, MethodError};
-use modbot_core::{ModuleArgs, ModuleBuilder, OwnedValue, Reply, Value};
+use modbot_core::{ModuleArgs, OwnedValue, Reply, Value};
 
 /// What the supervisor passes (`--domain`, `--name`, `--addr`, `--mode`), and `--peer`.
 #[derive(clap::Parser)]
@@ -51,13 +51,12 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         total: 0,
         peer: cli.peer,
     };
-    ModuleBuilder::new(&cli.module.name_or("counter"), cli.module.addr_or(1))
-        .mode(cli.module.receive_mode())
+    let module = cli
+        .module
+        .module("counter", 1)
         .method("add", add)
         .every(std::time::Duration::from_secs(1), tick)
         .on_done(added)
-        .blackboard(bb)
-        .open(cli.module.transport()?, counter)?
-        .run()?;
-    Ok(())
+        .blackboard(bb);
+    Ok(cli.module.serve(module, counter)?)
 }

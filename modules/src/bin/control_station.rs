@@ -5,9 +5,9 @@ use std::time::{Duration, Instant};
 use clap::Parser;
 use modbot_core::sim::SimTime;
 use modbot_core::stats::Stats;
-use modbot_core::{signals, CallError, CallOptions, Module, ModuleBuilder};
+use modbot_core::{signals, CallError, CallOptions, Module};
 use modbot_ipc_schema::{NakCode, OwnedValue, Value};
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::control_station::{self, Station, Summary};
 
 /// The control station: sends the robot on patrol, shows its progress and alerts as a line log,
@@ -44,27 +44,23 @@ struct Cli {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-control-station", run())
+    modbot_modules::common::main("modbot-control-station", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
-    let mut module = ModuleBuilder::new(
-        cli.module.name.as_deref().unwrap_or("control_station"),
-        cli.module.addr.unwrap_or(20),
-    )
-    .mode(cli.module.receive_mode())
-    .method("patrol", control_station::patrol)
-    .method("stop", control_station::stop)
-    .method("activate_module", control_station::activate)
-    .method("deactivate_module", control_station::deactivate)
-    .on_report(control_station::on_report)
-    .peer(&cli.high_level)
-    .open(
-        cli.module.transport()?,
-        Station::new(&cli.high_level, cli.line_every),
-    )?;
+fn run(cli: Cli) -> anyhow::Result<()> {
+    let mut module = cli
+        .module
+        .module("control_station", 20)
+        .method("patrol", control_station::patrol)
+        .method("stop", control_station::stop)
+        .method("activate_module", control_station::activate)
+        .method("deactivate_module", control_station::deactivate)
+        .on_report(control_station::on_report)
+        .peer(&cli.high_level)
+        .open(
+            cli.module.transport()?,
+            Station::new(&cli.high_level, cli.line_every),
+        )?;
     signals::install_termination_handler()?;
     let sim = SimTime::from_env();
     let started = Instant::now();

@@ -3,8 +3,7 @@
 use std::time::Duration;
 
 use clap::Parser;
-use modbot_core::ModuleBuilder;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::faulty::{self, Faulty};
 
 /// A module that panics, exits, hangs, floods or spams when called to; see `modbot_modules::faulty`.
@@ -21,30 +20,24 @@ struct Cli {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-faulty", run())
+    modbot_modules::common::main("modbot-faulty", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
+fn run(cli: Cli) -> anyhow::Result<()> {
     let state = Faulty {
         slow_ms: cli.slow_ms,
         ..Default::default()
     };
-    let module = ModuleBuilder::new(
-        cli.module.name.as_deref().unwrap_or("faulty"),
-        cli.module.addr.unwrap_or(10),
-    )
-    .mode(cli.module.receive_mode())
-    .method("ping", faulty::ping)
-    .method("panic", faulty::panic)
-    .method("exit", faulty::exit)
-    .method("hang", faulty::hang)
-    .method("flood", faulty::flood)
-    .method("spam", faulty::spam)
-    .on_report(faulty::on_report)
-    .every(Duration::from_millis(10), faulty::tick)
-    .open(cli.module.transport()?, state)?;
-    module.run()?;
-    Ok(())
+    let module = cli
+        .module
+        .module("faulty", 10)
+        .method("ping", faulty::ping)
+        .method("panic", faulty::panic)
+        .method("exit", faulty::exit)
+        .method("hang", faulty::hang)
+        .method("flood", faulty::flood)
+        .method("spam", faulty::spam)
+        .on_report(faulty::on_report)
+        .every(Duration::from_millis(10), faulty::tick);
+    Ok(cli.module.serve(module, state)?)
 }

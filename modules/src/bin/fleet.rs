@@ -4,9 +4,9 @@
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
-use modbot_core::{Blackboard, ModuleBuilder};
+use modbot_core::Blackboard;
 use modbot_ipc_schema::OwnedValue;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::fleet::{self, Aggregator, Sensor};
 
 /// A module of a sensor fleet.
@@ -40,15 +40,10 @@ enum Role {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-fleet", run())
+    modbot_modules::common::main("modbot-fleet", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
-    let name = cli.module.name.clone().unwrap_or_else(|| "fleet".into());
-    let addr = cli.module.addr.unwrap_or(1);
-    let transport = cli.module.transport()?;
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.role {
         Role::Sensor {
             aggregator,
@@ -57,15 +52,15 @@ fn run() -> anyhow::Result<()> {
             let bb = Blackboard::builder()
                 .item("value", OwnedValue::F64(f64::NAN))
                 .build()?;
-            ModuleBuilder::new(&name, addr)
-                .mode(cli.module.receive_mode())
+            let module = cli
+                .module
+                .module("fleet", 1)
                 .method("read", fleet::read)
                 .every(Duration::from_millis(period_ms.max(1)), fleet::sense)
                 .blackboard(bb)
                 .snapshot_period(Duration::from_secs(1))
-                .peer(&aggregator)
-                .open(transport, Sensor::new(&aggregator))?
-                .run()?;
+                .peer(&aggregator);
+            cli.module.serve(module, Sensor::new(&aggregator))?;
         }
         Role::Aggregator => {
             let bb = Blackboard::builder()
@@ -73,14 +68,14 @@ fn run() -> anyhow::Result<()> {
                 .item("mean", OwnedValue::F64(f64::NAN))
                 .item("reports", OwnedValue::I64(0))
                 .build()?;
-            ModuleBuilder::new(&name, addr)
-                .mode(cli.module.receive_mode())
+            let module = cli
+                .module
+                .module("fleet", 1)
                 .method("summary", fleet::summary)
                 .on_report(fleet::on_reading)
                 .blackboard(bb)
-                .snapshot_period(Duration::from_secs(1))
-                .open(transport, Aggregator::default())?
-                .run()?;
+                .snapshot_period(Duration::from_secs(1));
+            cli.module.serve(module, Aggregator::default())?;
         }
     }
     Ok(())

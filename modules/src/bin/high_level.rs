@@ -3,9 +3,9 @@
 use std::time::Duration;
 
 use clap::Parser;
-use modbot_core::{Blackboard, ModuleBuilder};
+use modbot_core::Blackboard;
 use modbot_ipc_schema::OwnedValue;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::high_level::{self, HighLevel};
 use modbot_modules::moser::building::moser_building;
 
@@ -33,12 +33,10 @@ struct Cli {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-high-level", run())
+    modbot_modules::common::main("modbot-high-level", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
+fn run(cli: Cli) -> anyhow::Result<()> {
     let bb = Blackboard::builder()
         .item("state", OwnedValue::Text("idle".into()))
         .item("wing", OwnedValue::I64(0))
@@ -51,22 +49,18 @@ fn run() -> anyhow::Result<()> {
         &cli.nav_sonar,
         &cli.station,
     );
-    let module = ModuleBuilder::new(
-        cli.module.name.as_deref().unwrap_or("high_level"),
-        cli.module.addr.unwrap_or(10),
-    )
-    .mode(cli.module.receive_mode())
-    .method("patrol", high_level::patrol)
-    .method("stop", high_level::stop)
-    .on_done(high_level::on_done)
-    .every(
-        Duration::from_millis(cli.period_ms.max(1)),
-        high_level::tick,
-    )
-    .blackboard(bb)
-    .peer(&cli.mobility)
-    .peer(&cli.station)
-    .open(cli.module.transport()?, state)?;
-    module.run()?;
-    Ok(())
+    let module = cli
+        .module
+        .module("high_level", 10)
+        .method("patrol", high_level::patrol)
+        .method("stop", high_level::stop)
+        .on_done(high_level::on_done)
+        .every(
+            Duration::from_millis(cli.period_ms.max(1)),
+            high_level::tick,
+        )
+        .blackboard(bb)
+        .peer(&cli.mobility)
+        .peer(&cli.station);
+    Ok(cli.module.serve(module, state)?)
 }

@@ -3,9 +3,9 @@
 use std::time::Duration;
 
 use clap::Parser;
-use modbot_core::{Blackboard, ModuleBuilder};
+use modbot_core::Blackboard;
 use modbot_ipc_schema::OwnedValue;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::intrusion::{self, Intrusion};
 use modbot_modules::moser::building::moser_building;
 use modbot_modules::moser::intruder::moser_intruder;
@@ -34,12 +34,10 @@ struct Cli {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-intrusion", run())
+    modbot_modules::common::main("modbot-intrusion", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
+fn run(cli: Cli) -> anyhow::Result<()> {
     anyhow::ensure!(
         cli.threshold > 0.0 && cli.threshold < 1.0,
         "--threshold {}: use a probability in (0, 1)",
@@ -57,16 +55,12 @@ fn run() -> anyhow::Result<()> {
         &cli.mobility,
         &cli.station,
     );
-    let module = ModuleBuilder::new(
-        cli.module.name.as_deref().unwrap_or("intrusion"),
-        cli.module.addr.unwrap_or(12),
-    )
-    .mode(cli.module.receive_mode())
-    .every(Duration::from_millis(cli.period_ms.max(1)), intrusion::tick)
-    .blackboard(bb)
-    .peer(&cli.mobility)
-    .peer(&cli.station)
-    .open(cli.module.transport()?, state)?;
-    module.run()?;
-    Ok(())
+    let module = cli
+        .module
+        .module("intrusion", 12)
+        .every(Duration::from_millis(cli.period_ms.max(1)), intrusion::tick)
+        .blackboard(bb)
+        .peer(&cli.mobility)
+        .peer(&cli.station);
+    Ok(cli.module.serve(module, state)?)
 }

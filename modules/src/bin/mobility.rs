@@ -4,9 +4,9 @@ use std::time::Duration;
 
 use clap::{Parser, ValueEnum};
 use modbot_core::sim::SimTime;
-use modbot_core::{Blackboard, ModuleBuilder};
+use modbot_core::Blackboard;
 use modbot_ipc_schema::OwnedValue;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::mobility::{self, Base, Ids};
 use modbot_modules::moser::building::moser_building;
 
@@ -44,12 +44,10 @@ enum WorldArg {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-mobility", run())
+    modbot_modules::common::main("modbot-mobility", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
+fn run(cli: Cli) -> anyhow::Result<()> {
     anyhow::ensure!(
         cli.speed > 0.0 && cli.turn_rate > 0.0,
         "--speed and --turn-rate must be positive"
@@ -90,22 +88,18 @@ fn run() -> anyhow::Result<()> {
         cmd_seq: 0,
         collisions: 0,
     };
-    let module = ModuleBuilder::new(
-        cli.module.name.as_deref().unwrap_or("mobility"),
-        cli.module.addr.unwrap_or(2),
-    )
-    .mode(cli.module.receive_mode())
-    .method("forward", mobility::forward)
-    .method("turn", mobility::turn)
-    .method("stop", mobility::stop)
-    .method("use_collision", mobility::use_collision)
-    .on_report(mobility::on_report)
-    .on_done(mobility::on_done)
-    .every(Duration::from_millis(cli.period_ms.max(1)), mobility::tick)
-    .blackboard(bb)
-    .snapshot_period(Duration::from_millis(50))
-    .peer(&cli.sonar)
-    .open(cli.module.transport()?, state)?;
-    module.run()?;
-    Ok(())
+    let module = cli
+        .module
+        .module("mobility", 2)
+        .method("forward", mobility::forward)
+        .method("turn", mobility::turn)
+        .method("stop", mobility::stop)
+        .method("use_collision", mobility::use_collision)
+        .on_report(mobility::on_report)
+        .on_done(mobility::on_done)
+        .every(Duration::from_millis(cli.period_ms.max(1)), mobility::tick)
+        .blackboard(bb)
+        .snapshot_period(Duration::from_millis(50))
+        .peer(&cli.sonar);
+    Ok(cli.module.serve(module, state)?)
 }

@@ -4,9 +4,9 @@
 use std::time::Duration;
 
 use clap::{Parser, ValueEnum};
-use modbot_core::{Blackboard, ModuleBuilder};
+use modbot_core::Blackboard;
 use modbot_ipc_schema::OwnedValue;
-use modbot_modules::common::{init_logging, ModuleArgs};
+use modbot_modules::common::ModuleArgs;
 use modbot_modules::moser::building::moser_building;
 use modbot_modules::sonar::{self, Ring, SensorKind, Sonar, World};
 
@@ -71,12 +71,10 @@ fn parse_point(text: &str) -> Result<(f64, f64), String> {
 }
 
 fn main() -> std::process::ExitCode {
-    modbot_modules::common::finish("modbot-sonar", run())
+    modbot_modules::common::main("modbot-sonar", run)
 }
 
-fn run() -> anyhow::Result<()> {
-    init_logging();
-    let cli = Cli::parse();
+fn run(cli: Cli) -> anyhow::Result<()> {
     anyhow::ensure!(
         (1..=64).contains(&cli.sensors),
         "--sensors {}: use 1 to 64",
@@ -111,17 +109,13 @@ fn run() -> anyhow::Result<()> {
         .item("ranges", OwnedValue::F64s(vec![cli.max_range; cli.sensors]))
         .build()?;
     let state = Sonar::new(ring, world, &cli.pose_from);
-    let module = ModuleBuilder::new(
-        cli.module.name.as_deref().unwrap_or("sonar"),
-        cli.module.addr.unwrap_or(1),
-    )
-    .mode(cli.module.receive_mode())
-    .method("ranges", sonar::ranges)
-    .method("monitor", sonar::monitor)
-    .every(Duration::from_millis(cli.period_ms.max(1)), sonar::tick)
-    .blackboard(bb)
-    .peer(&cli.pose_from)
-    .open(cli.module.transport()?, state)?;
-    module.run()?;
-    Ok(())
+    let module = cli
+        .module
+        .module("sonar", 1)
+        .method("ranges", sonar::ranges)
+        .method("monitor", sonar::monitor)
+        .every(Duration::from_millis(cli.period_ms.max(1)), sonar::tick)
+        .blackboard(bb)
+        .peer(&cli.pose_from);
+    Ok(cli.module.serve(module, state)?)
 }

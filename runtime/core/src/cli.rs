@@ -7,6 +7,7 @@ use clap::Args;
 
 use crate::domain::Domain;
 use crate::error::ModuleError;
+use crate::module::ModuleBuilder;
 use crate::transport::ipc::IpcTransport;
 use crate::transport::ReceiveMode;
 
@@ -50,6 +51,18 @@ impl ModuleArgs {
     /// The address given, else `default`.
     pub fn addr_or(&self, default: u8) -> u8 {
         self.addr.unwrap_or(default)
+    }
+
+    /// A builder for the module these options name: `--name` else `name`, `--addr` else
+    /// `addr`, waiting for frames as `--mode` says.
+    pub fn module<S>(&self, name: &str, addr: u8) -> ModuleBuilder<S> {
+        ModuleBuilder::new(&self.name_or(name), self.addr_or(addr)).mode(self.receive_mode())
+    }
+
+    /// Opens the module `builder` describes in the domain, with `state`, and serves until it
+    /// is stopped (see [`crate::Module::run`]).
+    pub fn serve<S>(&self, builder: ModuleBuilder<S>, state: S) -> Result<(), ModuleError> {
+        builder.open(self.transport()?, state)?.run()
     }
 }
 

@@ -67,8 +67,7 @@ mod tests {
 
     #[test]
     fn a_notification_wakes_the_waiter_and_a_silent_listener_times_out() {
-        let domain =
-            modbot_core::domain::Domain::new(&format!("waittest_{}", std::process::id())).unwrap();
+        let domain = modbot_testkit::TestDomain::new("wait", "notification");
         let mut cfg = Config::default();
         cfg.global.prefix = FileName::new(domain.prefix().as_bytes()).unwrap();
         let node = NodeBuilder::new()
@@ -98,7 +97,7 @@ mod tests {
             );
             drain(&listener);
         }
-        drop((listener, notifier, svc, node));
-        domain.remove_files();
+        // The domain's files go with `domain`.
+        drop((listener, notifier, svc, node, domain));
     }
 }

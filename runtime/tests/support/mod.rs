@@ -16,7 +16,7 @@
 #![allow(dead_code)]
 
 use std::cell::RefCell;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -95,46 +95,17 @@ pub fn run_test<B: Backend>(name: &str, test: fn(&mut TestDomain<B>)) {
     });
 }
 
-/// Runs `f` on a thread of its own; fails (panics) if it does not end within `limit`.
-///
-/// A hung thread is left behind (it cannot be stopped from outside); the test fails with a
-/// message instead of hanging the whole run. SIGINT/SIGTERM, which module threads turn into a
-/// flag, end the process.
+/// Runs `f` on a thread of its own; fails (panics) if it does not end within `limit` (see
+/// [`modbot_testkit::watchdog`]). Module threads install the runtime's SIGINT/SIGTERM
+/// handler (`Module::run` does); in a test process that must still end the process.
 pub fn watchdog(name: &str, limit: Duration, f: impl FnOnce() + Send + 'static) {
-    let (tx, rx) = mpsc::channel();
-    std::thread::Builder::new()
-        .name(name.to_owned())
-        .spawn(move || {
-            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
-            let _ = tx.send(r);
-        })
-        .expect("spawn the test thread");
-    let start = Instant::now();
-    loop {
-        match rx.recv_timeout(Duration::from_millis(100)) {
-            Ok(Ok(())) => return,
-            Ok(Err(panic)) => std::panic::resume_unwind(panic),
-            Err(mpsc::RecvTimeoutError::Disconnected) => panic!("{name}: the test thread vanished"),
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                exit_if_interrupted();
-                if start.elapsed() > limit {
-                    panic!("{name} hangs: it did not finish within {limit:?}");
-                }
-            }
-        }
-    }
+    modbot_testkit::watchdog(
+        name,
+        limit,
+        modbot_runtime::signals::termination_requested,
+        f,
+    );
 }
-
-/// Module threads install the runtime's SIGINT/SIGTERM handler (`Module::run` does); in a test
-/// process that must still end the process.
-fn exit_if_interrupted() {
-    if modbot_runtime::signals::termination_requested() {
-        eprintln!("interrupted");
-        std::process::exit(130);
-    }
-}
-
-static COUNTER: AtomicU32 = AtomicU32::new(0);
 
 thread_local! {
     /// The stop flag of the module thread this runs on.
@@ -202,21 +173,15 @@ impl Server {
 
 /// A domain of its own for one test, and the module threads started in it.
 pub struct TestDomain<B: Backend> {
-    pub domain: Domain,
+    /// Removes its files when dropped (after the module threads stopped).
+    pub domain: modbot_testkit::TestDomain,
     pub transport: B::Transport,
     servers: Vec<Server>,
 }
 
 impl<B: Backend> TestDomain<B> {
     pub fn new(test: &str) -> TestDomain<B> {
-        let n = COUNTER.fetch_add(1, Ordering::SeqCst);
-        let short: String = test
-            .chars()
-            .filter(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || *c == '_')
-            .take(14)
-            .collect();
-        let name = format!("rt{}_{n}_{}_{short}", std::process::id(), &B::NAME[..1]);
-        let domain = Domain::new(&name).expect("a valid domain name");
+        let domain = modbot_testkit::TestDomain::new("rt", &format!("{}_{test}", &B::NAME[..1]));
         let transport = B::transport(&domain);
         TestDomain {
             domain,
@@ -282,7 +247,10 @@ impl<B: Backend> TestDomain<B> {
                 };
                 let _ = ready_tx.send(Ok(()));
                 let result = module.run().map_err(|e| e.to_string());
-                exit_if_interrupted();
+                if modbot_runtime::signals::termination_requested() {
+                    eprintln!("interrupted");
+                    std::process::exit(130);
+                }
                 result
             })
             .expect("spawn a module thread");
@@ -411,7 +379,6 @@ impl<B: Backend> Drop for TestDomain<B> {
         for s in &mut self.servers {
             let _ = s.stop();
         }
-        self.domain.remove_files();
     }
 }
 
@@ -481,16 +448,4 @@ pub fn pump<S>(
     }
 }
 
-/// Polls `cond` until it holds or `limit` passes; returns whether it held.
-pub fn eventually(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
-    let deadline = Instant::now() + limit;
-    loop {
-        if cond() {
-            return true;
-        }
-        if Instant::now() >= deadline {
-            return false;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-}
+pub use modbot_testkit::eventually;
