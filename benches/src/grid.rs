@@ -276,27 +276,27 @@ fn measure_grid(opts: &Opts, fifo: bool, plan: &Plan) -> anyhow::Result<Measured
     sys.wait_up(Duration::from_secs(30))?;
     let coordinator = sys.pid_of("coordinator")?;
     let seen = {
-        let node = IpcTransport::new(&scratch.domain)?.node("bench.tap")?;
-        let releases = wire::release_subscriber(&node, "grid.release.h1")?;
-        let done = wire::done_subscriber(&node)?;
+        let channels = IpcTransport::new(&scratch.domain)?.channels("bench.tap")?;
+        let releases = wire::release_subscriber(&channels, "grid.release.h1")?;
+        let done = wire::done_subscriber(&channels)?;
         let poll = |seen: &mut Seen| -> anyhow::Result<()> {
-            while let Some(s) = releases.receive().map_err(ix("receive a release"))? {
-                for r in Release::batch(s.payload()).into_iter().flatten() {
+            while releases.receive(&mut |s| {
+                for r in Release::batch(s).into_iter().flatten() {
                     let t = r.tick.get();
                     if r.component.get() != PING && seen.releases.last().is_none_or(|l| l.0 != t) {
                         seen.releases.push((t, r.released_ns.get()));
                     }
                 }
-            }
-            while let Some(s) = done.receive().map_err(ix("receive a done notice"))? {
-                for d in Done::batch(s.payload()).into_iter().flatten() {
+            })? {}
+            while done.receive(&mut |s| {
+                for d in Done::batch(s).into_iter().flatten() {
                     let c = d.component.get();
                     if c != PING && c != READY && d.status.get() == Done::OK {
                         seen.release_to_done
                             .push(d.latency_ns.get() + d.exec_ns.get());
                     }
                 }
-            }
+            })? {}
             Ok(())
         };
         observe(plan, coordinator, Some("tick"), poll, || {

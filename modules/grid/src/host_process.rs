@@ -7,12 +7,11 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use clap::Args;
-use iceoryx2::prelude::Node;
 use modbot_modules::common::ModuleArgs;
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::host::Host;
-use modbot_runtime::grid::wire::Threadsafe;
 use modbot_runtime::grid::GridSpec;
+use modbot_runtime::transport::channels::Channels;
 use modbot_runtime::{signals, IpcTransport, ModuleBuilder};
 
 use crate::grid_args::GridArgs;
@@ -33,7 +32,8 @@ pub struct HostArgs {
 /// A host process, set up: its grid loaded, its components made, listening on the grid.
 pub struct HostProcess {
     pub grid: GridSpec,
-    pub node: Arc<Node<Threadsafe>>,
+    /// The grid's channels, through the host's node.
+    pub node: Arc<dyn Channels>,
     pub host: Host,
     args: HostArgs,
     transport: Option<IpcTransport>,
@@ -50,8 +50,9 @@ impl HostProcess {
         let grid = args.grid.load()?;
         let registry = registry(&grid)?;
         let transport = args.module.transport()?;
-        let node = Arc::new(transport.threadsafe_node(&format!("grid.host.{}", args.host))?);
-        let host = Host::new(&node, &grid, &registry, &args.host)?;
+        let node: Arc<dyn Channels> =
+            Arc::new(transport.channels(&format!("grid.host.{}", args.host))?);
+        let host = Host::new(&*node, &grid, &registry, &args.host)?;
         signals::install_termination_handler()?;
         Ok(HostProcess {
             grid,

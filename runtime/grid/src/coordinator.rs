@@ -18,9 +18,6 @@
 
 use std::io::Write;
 
-use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
-use iceoryx2::prelude::*;
 use modbot_ipc_schema::grid::{Done, Release, MAX_SOURCES, PING, READY};
 use zerocopy::IntoBytes;
 
@@ -28,8 +25,9 @@ use super::ledger::{self, ComponentRow, GridRow};
 use super::recorder::{self, Recorder};
 use super::spec::{GridClock, GridSpec, OverrunPolicy};
 use super::tick::TickSource;
-use super::wire::{self, Pub, Sub, Threadsafe};
+use super::wire::{self, Listener, Notifier, Pub, Sub};
 use modbot_core::stats::Histogram;
+use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
 
 /// Deadlines in a row a component with the `fault` policy may miss before its assembly faults:
@@ -84,8 +82,8 @@ pub struct HostLink {
     /// The host's name and the generation of its components (0: the system's own).
     name: String,
     generation: u16,
-    release: Pub<Threadsafe>,
-    wake: Notifier<Threadsafe>,
+    release: Pub,
+    wake: Notifier,
     /// The releases of this tick, sent as one sample with one wake-up when the tick's releases
     /// are made.
     batch: Vec<u8>,
@@ -112,11 +110,7 @@ impl Incoming {
 /// The coordinator's link to `host` of `spec`. Opening one takes milliseconds (files, maps):
 /// never do it on the tick thread while the grid runs; hand it over with
 /// [`Coordinator::add_incoming_link`].
-pub fn link(
-    node: &Node<Threadsafe>,
-    spec: &GridSpec,
-    host: &str,
-) -> Result<HostLink, TransportError> {
+pub fn link(node: &dyn Channels, spec: &GridSpec, host: &str) -> Result<HostLink, TransportError> {
     // A tick's batch holds a release of each of its components, and a warm-up release.
     let most = spec.components_of(host).len() + 1;
     Ok(HostLink {
@@ -174,10 +168,12 @@ pub struct Coordinator<W: Write> {
     spec: GridSpec,
     comps: Vec<Comp>,
     hosts: Vec<HostLink>,
-    done: Sub<Threadsafe>,
+    done: Sub,
     /// Hosts notify it after each batch of done notices: the coordinator sleeps on it while it
     /// waits for a due one.
-    done_wake: Listener<Threadsafe>,
+    done_wake: Listener,
+    /// Scratch: the done notices of one sample.
+    done_scratch: Vec<Done>,
     recorder: Option<Recorder<W>>,
     /// Scratch: the valid version of every component, for the recorder.
     versions: Vec<u64>,
@@ -250,7 +246,7 @@ pub enum SwitchState {
 impl<W: Write> Coordinator<W> {
     /// Opens the grid's services on `node`; with `trace`, records every output at every tick.
     pub fn new(
-        node: &Node<Threadsafe>,
+        node: &dyn Channels,
         spec: GridSpec,
         trace: Option<W>,
     ) -> Result<Coordinator<W>, TransportError> {
@@ -270,6 +266,7 @@ impl<W: Write> Coordinator<W> {
             hosts,
             done: wire::done_subscriber(node)?,
             done_wake: wire::done_wake_listener(node)?,
+            done_scratch: Vec::with_capacity(wire::DONE_BATCH),
             recorder,
             spec,
             tick: 0,
@@ -310,22 +307,22 @@ impl<W: Write> Coordinator<W> {
                 detail: e.to_string(),
             })?;
             for h in &mut self.hosts {
-                wire::send_bytes(&h.release, ping.as_bytes())?;
+                h.release.send_bytes(ping.as_bytes())?;
                 if let Err(e) = h.wake.notify() {
                     tracing::debug!("wake-up not sent: {e:?}");
                 }
             }
             let mut answered = 0;
             while answered < self.hosts.len() && std::time::Instant::now() < until {
-                match self.done.receive() {
-                    Ok(Some(sample)) => {
-                        if let Ok(batch) = Done::batch(sample.payload()) {
-                            answered += batch
-                                .filter(|d| d.component.get() == PING && d.tick.get() == round)
-                                .count();
-                        }
+                let received = self.done.receive(&mut |sample| {
+                    if let Ok(batch) = Done::batch(sample) {
+                        answered += batch
+                            .filter(|d| d.component.get() == PING && d.tick.get() == round)
+                            .count();
                     }
-                    _ => std::thread::sleep(core::time::Duration::from_micros(100)),
+                });
+                if !matches!(received, Ok(true)) {
+                    std::thread::sleep(core::time::Duration::from_micros(100));
                 }
             }
             silent = self.hosts.len() - answered;
@@ -434,7 +431,7 @@ impl<W: Write> Coordinator<W> {
             if h.batch.is_empty() {
                 continue;
             }
-            let sent = wire::send_bytes(&h.release, &h.batch);
+            let sent = h.release.send_bytes(&h.batch);
             h.batch.clear();
             if let Err(e) = sent {
                 tracing::warn!("releases not sent to host {}: {e}", h.name);
@@ -449,12 +446,22 @@ impl<W: Write> Coordinator<W> {
     fn take_done(&mut self, n: u64) {
         let base = self.base();
         let current = self.spec.generation();
-        while let Ok(Some(sample)) = self.done.receive() {
-            let Ok(batch) = Done::batch(sample.payload()) else {
-                continue;
-            };
-            for done in batch {
+        loop {
+            // Copied out of the sample (no allocation: a sample holds at most
+            // `wire::DONE_BATCH` notices), so the sample goes back before they are taken.
+            let mut scratch = std::mem::take(&mut self.done_scratch);
+            scratch.clear();
+            let received = self.done.receive(&mut |sample| {
+                if let Ok(batch) = Done::batch(sample) {
+                    scratch.extend(batch.copied());
+                }
+            });
+            for done in &scratch {
                 self.take_one_done(n, base, current, done);
+            }
+            self.done_scratch = scratch;
+            if !matches!(received, Ok(true)) {
+                break;
             }
         }
     }
@@ -584,7 +591,7 @@ impl<W: Write> Coordinator<W> {
         }
         loop {
             // Taken before looking: a done notice sent after this wakes the wait below.
-            super::wait::drain(&self.done_wake);
+            self.done_wake.drain();
             self.take_done(n);
             if !self.due_pending(n) {
                 return;
@@ -606,7 +613,7 @@ impl<W: Write> Coordinator<W> {
             } else {
                 left
             };
-            super::wait::wait(&self.done_wake, Some(slice));
+            self.done_wake.wait(Some(slice));
         }
     }
 

@@ -15,9 +15,6 @@
 
 use core::time::Duration;
 
-use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
-use iceoryx2::prelude::*;
 use modbot_ipc_schema::grid::{
     record_len, write_record, Done, OutHeader, PortValue, Prepare, Release, OUT_HEADER_LEN, PING,
     READY,
@@ -27,10 +24,11 @@ use zerocopy::IntoBytes;
 use super::component::{Component, Registry, Released};
 use super::spec::GridSpec;
 use super::versions::{self, Versions};
-use super::wire::{self, Pub, Sub, Threadsafe};
+use super::wire::{self, Listener, Notifier, Pub, Sub};
+use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
 
-type Source = Versions<Threadsafe>;
+type Source = Versions;
 
 /// Loads assembly `name` as generation `generation` for the running grid `system` (the
 /// system descriptions' loader: the grid itself reads no description).
@@ -55,7 +53,7 @@ struct Hosted {
     /// The binding of the assembly being prepared: it replaces `binding` at the first release
     /// of its generation.
     next: Option<Binding>,
-    out: Pub<Threadsafe>,
+    out: Pub,
     out_len: usize,
 }
 
@@ -72,17 +70,17 @@ pub struct Host {
     name: String,
     generation: u16,
     hosted: Vec<Hosted>,
-    releases: Sub<Threadsafe>,
-    done: Pub<Threadsafe>,
+    releases: Sub,
+    done: Pub,
     /// Notified once per batch of done notices (the coordinator may sleep on it).
-    done_wake: Notifier<Threadsafe>,
+    done_wake: Notifier,
     /// The done notices of the releases being served, sent as one sample.
     done_batch: Vec<u8>,
     /// Scratch: the releases of one sample.
     batch: Vec<Release>,
-    wake: Listener<Threadsafe>,
+    wake: Listener,
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
-    prepare: Option<Sub<Threadsafe>>,
+    prepare: Option<Sub>,
     /// The newest generation it was asked to prepare, and its loader.
     loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, String>>)>,
     preparing: Option<Preparing>,
@@ -121,7 +119,7 @@ pub enum HostError {
 
 /// The outputs of component `s` as read by component `reader` of `spec`.
 fn source(
-    node: &Node<Threadsafe>,
+    node: &dyn Channels,
     spec: &GridSpec,
     reader: usize,
     s: usize,
@@ -137,7 +135,7 @@ fn source(
 
 /// Waits (up to 10 s) until every source's host publishes, and connects to it here: the first
 /// receive would otherwise map the publisher's memory on the serving thread, at the switch.
-fn connect(node: &Node<Threadsafe>, spec: &GridSpec, hosted: &[usize], opened: &[Vec<Source>]) {
+fn connect(node: &dyn Channels, spec: &GridSpec, hosted: &[usize], opened: &[Vec<Source>]) {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
     for (&c, sources) in hosted.iter().zip(opened) {
         for (s, source) in spec.sources(c).into_iter().zip(sources) {
@@ -161,7 +159,7 @@ fn input_bindings(spec: &GridSpec, c: usize) -> Vec<(usize, usize)> {
 impl Host {
     /// Instantiates and initialises the components of `host` and opens their channels.
     pub fn new(
-        node: &Node<Threadsafe>,
+        node: &dyn Channels,
         spec: &GridSpec,
         registry: &Registry,
         host: &str,
@@ -246,27 +244,29 @@ impl Host {
     /// Sleeps until released or `timeout` passed (`None`: until released); whether it was.
     /// [`Host::serve`] takes the wake-up.
     pub fn wait(&self, timeout: Option<Duration>) -> bool {
-        super::wait::wait(&self.wake, timeout)
+        self.wake.wait(timeout)
     }
 
     /// Serves every release notice waiting, then tells the coordinator once; returns how many.
     pub fn serve(&mut self, now: &dyn Fn() -> u64) -> Result<usize, TransportError> {
         // Taken before looking: a release sent after this wakes the next wait.
-        super::wait::drain(&self.wake);
+        self.wake.drain();
         let mut served = 0;
-        while let Some(sample) = self.releases.receive().map_err(|e| TransportError::Ipc {
-            op: "receive release",
-            detail: format!("{e:?}"),
-        })? {
+        loop {
             // Copied out of the sample (no allocation while the batch fits what a tick's
             // batch holds), so the sample goes back before the steps.
             let mut batch = std::mem::take(&mut self.batch);
             batch.clear();
-            match Release::batch(sample.payload()) {
-                Ok(releases) => batch.extend(releases.copied()),
-                Err(e) => tracing::warn!("a malformed release batch is ignored: {e}"),
+            let received = self
+                .releases
+                .receive(&mut |sample| match Release::batch(sample) {
+                    Ok(releases) => batch.extend(releases.copied()),
+                    Err(e) => tracing::warn!("a malformed release batch is ignored: {e}"),
+                });
+            if !received? {
+                self.batch = batch;
+                break;
             }
-            drop(sample);
             for release in &batch {
                 self.step(release, now)?;
                 served += 1;
@@ -296,7 +296,7 @@ impl Host {
         if self.done_batch.is_empty() {
             return Ok(());
         }
-        let sent = wire::send_bytes(&self.done, &self.done_batch);
+        let sent = self.done.send_bytes(&self.done_batch);
         self.done_batch.clear();
         sent
     }
@@ -307,18 +307,19 @@ impl Host {
     /// releases are never held up for long. Answers the coordinator when it is ready.
     pub fn prepare_step(
         &mut self,
-        node: &std::sync::Arc<Node<Threadsafe>>,
+        node: &std::sync::Arc<dyn Channels>,
         load: LoadAssembly,
     ) -> Result<(), TransportError> {
         let Some(notices) = self.prepare.as_ref() else {
             return Ok(());
         };
-        while let Ok(Some(sample)) = notices.receive() {
-            let Ok(notice) = Prepare::parse(sample.payload()) else {
-                continue;
-            };
-            let generation = notice.generation.get();
-            let Some(name) = notice.name().map(str::to_owned) else {
+        let mut notice = None;
+        while let Ok(true) = notices.receive(&mut |sample| {
+            notice = Prepare::parse(sample)
+                .ok()
+                .and_then(|p| Some((p.generation.get(), p.name()?.to_owned())));
+        }) {
+            let Some((generation, name)) = notice.take() else {
                 continue;
             };
             let loading = self.loading.as_ref().map(|l| l.0);
@@ -360,12 +361,12 @@ impl Host {
                                 opening
                                     .sources(c)
                                     .into_iter()
-                                    .map(|s| source(&node, &opening, c, s))
+                                    .map(|s| source(&*node, &opening, c, s))
                                     .collect::<Result<Vec<_>, _>>()
                             })
                             .collect::<Result<Vec<_>, _>>();
                         if let Ok(opened) = &opened {
-                            connect(&node, &opening, &hosted, opened);
+                            connect(&*node, &opening, &hosted, opened);
                         }
                         let _ = tx.send(opened);
                     });
@@ -421,7 +422,7 @@ impl Host {
 
     fn answer_ready(&mut self, generation: u16, status: u16) -> Result<(), TransportError> {
         let done = Done::new(0, READY, status, 0, 0).of_generation(generation);
-        wire::send_bytes(&self.done, done.as_bytes())
+        self.done.send_bytes(done.as_bytes())
     }
 
     fn step(&mut self, release: &Release, now: &dyn Fn() -> u64) -> Result<(), TransportError> {
@@ -500,7 +501,7 @@ impl Host {
         }
         let end = now();
         let outputs = &h.outputs;
-        wire::send(&h.out, h.out_len, |buf| {
+        h.out.send(h.out_len, &mut |buf| {
             let header = OutHeader {
                 valid_from: (n + h.period).into(),
                 release: n.into(),

@@ -31,9 +31,9 @@
 //!   the reference run and the real runs write so they can be compared.
 //!
 //! Across processes:
-//! - [`wire`]: the grid's iceoryx2 services (outputs, release and done notices, wake-ups).
+//! - [`wire`]: the grid's links over the transport layer's channels (outputs, release and done
+//!   notices, wake-ups): iceoryx2 in real runs, in-process in tests.
 //! - [`versions`]: the versions of a component's outputs a reader keeps (hosts, recorder).
-//! - [`wait`]: sleeping on a wake-up with a deadline to the microsecond.
 //! - [`tick`]: where the base tick comes from (an absolute timerfd; a free-running source).
 //! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
 //! - [`host`]: a component host: steps its components on release, publishes their outputs.
@@ -59,7 +59,6 @@ pub mod switch;
 pub mod tick;
 pub mod trace;
 pub mod versions;
-pub mod wait;
 pub mod wire;
 
 pub use component::{

@@ -11,13 +11,13 @@
 
 use std::io::Write;
 
-use iceoryx2::prelude::*;
 use modbot_ipc_schema::grid::PortValue;
 
 use super::spec::GridSpec;
 use super::trace::TraceWriter;
 use super::versions::{self, Versions};
-use super::wire::{self, Threadsafe};
+use super::wire;
+use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
 
 /// How many components of `spec` a trace records: the system's own with assemblies, else all.
@@ -29,25 +29,21 @@ pub fn recorded(spec: &GridSpec) -> usize {
 
 /// Writes the trace of a run.
 pub struct Recorder<W: Write> {
-    comps: Vec<Versions<Threadsafe>>,
+    comps: Vec<Versions>,
     writer: TraceWriter<W>,
     /// Versions that were not found when needed.
     pub missing: u64,
 }
 
 impl<W: Write> Recorder<W> {
-    /// Subscribes to every component's outputs on `node`, writing the trace to `out`.
-    pub fn new(
-        node: &Node<Threadsafe>,
-        spec: &GridSpec,
-        out: W,
-    ) -> Result<Recorder<W>, TransportError> {
+    /// Subscribes to every component's outputs on `ch`, writing the trace to `out`.
+    pub fn new(ch: &dyn Channels, spec: &GridSpec, out: W) -> Result<Recorder<W>, TransportError> {
         let comps = (0..recorded(spec))
             .map(|c| {
                 let zeros: Vec<PortValue> = spec.output_types(c).iter().map(|t| t.zero()).collect();
                 let period = spec.components[c].period;
                 Ok(Versions::new(
-                    wire::out_subscriber(node, &spec.out_service(c))?,
+                    wire::out_subscriber(ch, &spec.out_service(c))?,
                     zeros,
                     versions::depth(period, period),
                 ))

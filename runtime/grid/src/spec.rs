@@ -608,7 +608,7 @@ impl GridSpec {
             .collect()
     }
 
-    /// The iceoryx2 service of component `c`'s outputs.
+    /// The channel of component `c`'s outputs.
     pub fn out_service(&self, c: usize) -> String {
         let name = &self.components[c].name;
         match self.generation_of(c) {
@@ -617,7 +617,7 @@ impl GridSpec {
         }
     }
 
-    /// The iceoryx2 service of `host`'s release notices.
+    /// The channel of `host`'s release notices.
     pub fn release_service(&self, host: &str) -> String {
         match self.host_generation(host) {
             0 => format!("grid.release.{host}"),
@@ -625,7 +625,7 @@ impl GridSpec {
         }
     }
 
-    /// The iceoryx2 event that wakes `host`.
+    /// The wake-up of `host`.
     pub fn wake_service(&self, host: &str) -> String {
         match self.host_generation(host) {
             0 => format!("grid.wake.{host}"),

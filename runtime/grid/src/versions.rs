@@ -26,18 +26,18 @@ pub fn depth(reader_period: u64, source_period: u64) -> usize {
 }
 
 /// The newest versions of one source's outputs.
-pub struct Versions<S: iceoryx2::service::Service> {
-    sub: Sub<S>,
+pub struct Versions {
+    sub: Sub,
     /// (valid_from, outputs), the newest overwriting the oldest; `u64::MAX`: empty.
     ring: Vec<(u64, Vec<PortValue>)>,
     next: usize,
     zeros: Vec<PortValue>,
 }
 
-impl<S: iceoryx2::service::Service> Versions<S> {
+impl Versions {
     /// Keeps `depth` versions of what `sub` receives; `zeros` are the outputs before the first
     /// version (and give every version its types).
-    pub fn new(sub: Sub<S>, zeros: Vec<PortValue>, depth: usize) -> Versions<S> {
+    pub fn new(sub: Sub, zeros: Vec<PortValue>, depth: usize) -> Versions {
         Versions {
             sub,
             ring: (0..depth.max(1))
@@ -51,18 +51,19 @@ impl<S: iceoryx2::service::Service> Versions<S> {
     /// Takes every sample that arrived into the ring. No allocation: the ring's values have
     /// their types and lengths already.
     pub fn take_arrived(&mut self) {
-        while let Ok(Some(sample)) = self.sub.receive() {
-            let Ok((header, record)) = OutHeader::ref_from_prefix(sample.payload()) else {
-                continue;
+        let (ring, next) = (&mut self.ring, &mut self.next);
+        while let Ok(true) = self.sub.receive(&mut |sample| {
+            let Ok((header, record)) = OutHeader::ref_from_prefix(sample) else {
+                return;
             };
-            let slot = &mut self.ring[self.next];
+            let slot = &mut ring[*next];
             if read_record(record, &mut slot.1).is_ok() {
                 slot.0 = header.valid_from.get();
-                self.next = (self.next + 1) % self.ring.len();
+                *next = (*next + 1) % ring.len();
             } else {
                 slot.0 = u64::MAX;
             }
-        }
+        }) {}
     }
 
     /// Takes what arrived, then lends version `want` (0: the initial zeros); `None` if it is
@@ -81,7 +82,7 @@ impl<S: iceoryx2::service::Service> Versions<S> {
     /// Makes the connection to the source's publisher here (it maps the publisher's memory), so
     /// that the first receive on a real-time thread does not.
     pub fn connect(&self) {
-        let _ = self.sub.has_samples();
+        self.sub.connect();
     }
 }
 

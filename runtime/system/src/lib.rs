@@ -65,6 +65,8 @@ mod control_tests;
 #[cfg(test)]
 mod grid_tests;
 #[cfg(test)]
+mod in_process_tests;
+#[cfg(test)]
 mod let_tests;
 #[cfg(test)]
 mod tests;

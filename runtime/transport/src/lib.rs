@@ -3,6 +3,7 @@
 //!
 //! # Layout
 //! - this file: the [`Transport`], [`Endpoint`] and [`Directory`] traits and [`TransportError`];
+//! - [`channels`]: named byte channels and wake-ups, the time grid's links (both backends);
 //! - [`ipc`]: the iceoryx2 backend (endpoints, the supervisor's published directory, the relay
 //!   for tools without an address); [`local`]: the in-process backend for fast tests;
 //! - [`domain`]: a domain's name, its iceoryx2 prefix and root, and the sweep of its files;
@@ -35,6 +36,7 @@
 //! Liveness comes from the supervisor's directory, or without a supervisor from iceoryx2 nodes:
 //! one per module, named `mNNN.MODE.NAME`.
 
+pub mod channels;
 pub mod domain;
 pub mod ipc;
 pub mod launch;

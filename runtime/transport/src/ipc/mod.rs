@@ -4,9 +4,11 @@
 //! - `directory`: who is in the domain (the supervisor's published directory, or a scan).
 //! - `relay`: calls of tools without a module address, made by the supervisor.
 
+mod channels;
 mod directory;
 mod relay;
 
+pub use channels::IpcChannels;
 pub use directory::DirectoryWriter;
 use directory::{PublishedDirectory, ScannedDirectory};
 pub use relay::{RelayClient, RelayRequest, RelayServer};
@@ -137,16 +139,13 @@ impl IpcTransport {
         &self.domain
     }
 
-    /// A node of this domain whose ports may move between threads (the coordinator's: it
-    /// opens an assembly's links off its tick thread).
-    pub fn threadsafe_node(
-        &self,
-        node_name: &str,
-    ) -> Result<Node<ipc_threadsafe::Service>, TransportError> {
-        self.node_of(node_name)
+    /// The channels and wake-ups of this domain, through a node of its own named
+    /// `node_name` (the grid's processes: see [`crate::channels`]).
+    pub fn channels(&self, node_name: &str) -> Result<IpcChannels, TransportError> {
+        Ok(IpcChannels::new(self.node_of(node_name)?))
     }
 
-    /// A node of this domain that is not a module (the grid's channels use one).
+    /// A node of this domain that is not a module.
     pub fn node(&self, node_name: &str) -> Result<Node<ipc::Service>, TransportError> {
         self.node_of(node_name)
     }

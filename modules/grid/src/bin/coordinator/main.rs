@@ -21,6 +21,7 @@ use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::grid::coordinator::Coordinator;
 use modbot_runtime::grid::offload::Offload;
 use modbot_runtime::grid::GridSpec;
+use modbot_runtime::transport::channels::Channels;
 use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply};
 
 use switching::Switching;
@@ -135,7 +136,7 @@ fn run() -> anyhow::Result<()> {
     let hosts: Vec<String> = grid.hosts().iter().map(|h| grid.host_module(h)).collect();
     let assemblies = grid.assembly.is_some();
     let transport = cli.module.transport()?;
-    let node = Arc::new(transport.threadsafe_node("grid.coordinator")?);
+    let node: Arc<dyn Channels> = Arc::new(transport.channels("grid.coordinator")?);
     // The trace is written by a thread of normal priority: the tick thread does no file I/O.
     let trace = match &cli.trace {
         Some(p) => Some(Offload::new(std::fs::File::create(p).map_err(|e| {
@@ -145,7 +146,7 @@ fn run() -> anyhow::Result<()> {
     };
     // A due component's done notice may be on its way: wait up to a quarter of a tick for it
     // (no longer: every release of the tick, the bus's among them, waits with it).
-    let coord = Coordinator::new(&node, grid.clone(), trace)?.with_grace(period_ns / 4);
+    let coord = Coordinator::new(&*node, grid.clone(), trace)?.with_grace(period_ns / 4);
     let mut module = ModuleBuilder::new(
         cli.module.name.as_deref().unwrap_or("coordinator"),
         cli.module.addr.unwrap_or(250),

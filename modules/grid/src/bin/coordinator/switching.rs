@@ -7,14 +7,14 @@ use std::sync::mpsc::{Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use iceoryx2::prelude::Node;
 use modbot_ipc_schema::grid::Prepare;
 use modbot_ipc_schema::Value;
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::coordinator::{link, SwitchState};
 use modbot_runtime::grid::switch::Outcome;
-use modbot_runtime::grid::wire::{self, Pub, Threadsafe};
+use modbot_runtime::grid::wire::{self, Pub};
 use modbot_runtime::grid::GridSpec;
+use modbot_runtime::transport::channels::Channels;
 use modbot_runtime::{system, Module};
 use zerocopy::IntoBytes;
 
@@ -54,15 +54,15 @@ pub struct Switching {
     state: SwitchState,
     failure: Option<String>,
     ticks: u64,
-    node: Arc<Node<Threadsafe>>,
+    node: Arc<dyn Channels>,
     /// The assembly notices to the system's hosts (only in a grid with assemblies).
-    prepare: Option<Pub<Threadsafe>>,
+    prepare: Option<Pub>,
     to_tick: Sender<ToTick>,
 }
 
 impl Switching {
     pub fn new(
-        node: Arc<Node<Threadsafe>>,
+        node: Arc<dyn Channels>,
         to_tick: Sender<ToTick>,
         assemblies: bool,
     ) -> anyhow::Result<Switching> {
@@ -75,7 +75,7 @@ impl Switching {
             failure: None,
             ticks: 0,
             prepare: if assemblies {
-                Some(wire::prepare_publisher(&node)?)
+                Some(wire::prepare_publisher(&*node)?)
             } else {
                 None
             },
@@ -127,7 +127,7 @@ impl Switching {
             Err(e) => return self.fail(module, e.to_string()),
         };
         if let Some(prepare) = &self.prepare {
-            if let Err(e) = wire::send_bytes(prepare, notice.as_bytes()) {
+            if let Err(e) = prepare.send_bytes(notice.as_bytes()) {
                 return self.fail(module, format!("the assembly notice was not sent: {e}"));
             }
         }
@@ -146,7 +146,7 @@ impl Switching {
         let (node, to_tick) = (self.node.clone(), self.to_tick.clone());
         std::thread::spawn(move || {
             for h in &hosts {
-                match link(&node, &spec, h) {
+                match link(&*node, &spec, h) {
                     Ok(l) => {
                         if to_tick.send(ToTick::Link(Box::new(l))).is_err() {
                             return;

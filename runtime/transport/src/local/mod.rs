@@ -16,6 +16,10 @@ use super::{
     Transport, TransportError, Tx,
 };
 
+mod channels;
+
+pub use channels::LocalChannels;
+
 const INBOX_DEPTH: usize = 64;
 
 struct Slot {
@@ -34,6 +38,7 @@ struct Slot {
 struct LocalDomain {
     slots: HashMap<u8, Slot>,
     snapshots: HashMap<u8, Arc<Vec<u8>>>,
+    channels: Arc<channels::LocalChannelSet>,
 }
 
 type Shared = Arc<Mutex<LocalDomain>>;
@@ -58,6 +63,11 @@ impl LocalTransport {
         let mut all = registry().lock().unwrap_or_else(|p| p.into_inner());
         let domain = all.entry(domain.name().to_owned()).or_default().clone();
         LocalTransport { domain }
+    }
+
+    /// The channels and wake-ups of the domain (see [`crate::channels`]).
+    pub fn channels(&self) -> LocalChannels {
+        LocalChannels::new(lock(&self.domain).channels.clone())
     }
 
     /// Marks module `addr` dead, as if its process had been killed.
