@@ -24,7 +24,7 @@ use modbot_ipc_schema::grid::{
 };
 use zerocopy::IntoBytes;
 
-use super::component::{Component, Registry, Released};
+use super::component::{Component, ComponentError, Registry, Released};
 use super::spec::GridSpec;
 use super::versions::{self, Versions};
 use super::wire::{self, Pub, Sub, Threadsafe};
@@ -34,7 +34,11 @@ type Source = Versions<Threadsafe>;
 
 /// Loads assembly `name` as generation `generation` for the running grid `system` (the
 /// system descriptions' loader: the grid itself reads no description).
-pub type LoadAssembly = fn(&GridSpec, &str, u16) -> Result<GridSpec, String>;
+pub type LoadAssembly = fn(&GridSpec, &str, u16) -> Result<GridSpec, LoadError>;
+
+/// Why an assembly could not be loaded: the loader's own error (the grid, which reads no
+/// description, does not know its type).
+pub type LoadError = Box<dyn std::error::Error + Send + Sync>;
 
 /// Where one component's inputs come from, for one assembly generation.
 struct Binding {
@@ -84,7 +88,7 @@ pub struct Host {
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
     prepare: Option<Sub<Threadsafe>>,
     /// The newest generation it was asked to prepare, and its loader.
-    loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, String>>)>,
+    loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, LoadError>>)>,
     preparing: Option<Preparing>,
     /// The spec it was made from, to load other assemblies against.
     spec: GridSpec,
@@ -113,8 +117,12 @@ fn reaper() -> Result<std::sync::mpsc::Sender<Binding>, TransportError> {
 pub enum HostError {
     #[error("host '{0}' has no components in this grid")]
     NoComponents(String),
-    #[error("component '{name}' cannot be instantiated: {why}")]
-    Instantiate { name: String, why: String },
+    #[error("component '{name}' cannot be instantiated: {error}")]
+    Instantiate {
+        name: String,
+        #[source]
+        error: ComponentError,
+    },
     #[error(transparent)]
     Transport(#[from] TransportError),
 }
@@ -176,9 +184,9 @@ impl Host {
             let cs = &spec.components[c];
             let component = registry
                 .instantiate(&cs.type_name, &cs.params)
-                .map_err(|why| HostError::Instantiate {
+                .map_err(|error| HostError::Instantiate {
                     name: cs.name.clone(),
-                    why,
+                    error,
                 })?;
             let out_types = spec.output_types(c);
             let sources = spec
