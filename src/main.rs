@@ -137,7 +137,7 @@ enum Command {
 }
 
 /// `--var KEY=VALUE`; a malformed one is a usage error (exit 2).
-fn parse_var(text: &str) -> Result<(String, String), String> {
+fn parse_var(text: &str) -> Result<(String, String), modbot_runtime::system::VarError> {
     modbot_runtime::system::parse_var(text)
 }
 

@@ -3,7 +3,8 @@
 use std::process::ExitCode;
 
 use clap::{Subcommand, ValueEnum};
-use modbot_ipc_schema::{hex, Addr, Frame, FrameKind, FrameSpec, NakCode, Seq};
+use modbot_ipc_schema::hex::{self, HexError};
+use modbot_ipc_schema::{Addr, Frame, FrameError, FrameKind, FrameSpec, NakCode, Seq, ValueError};
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum KindArg {
@@ -75,6 +76,33 @@ pub fn run(command: RvmfCommand) -> ExitCode {
     }
 }
 
+/// Why a frame is not encoded or decoded; one line for stderr.
+#[derive(Debug, thiserror::Error)]
+enum RvmfError {
+    #[error("sequence number {0} does not fit in 5 bits (0..=31)")]
+    Seq(u8),
+    /// `--method` is missing for a kind with an operand, named here.
+    #[error("--method is required for {0} (the {0} operand)")]
+    NoOperand(&'static str),
+    /// `--method` is given for a kind without an operand (`n ack`, ` reply`: the article's end).
+    #[error("a{0} frame carries no method, code or topic: leave out --method")]
+    NoMethod(&'static str),
+    #[error("an ack frame carries no payload: leave out --payload")]
+    AckPayload,
+    #[error("--payload: {0}")]
+    PayloadHex(#[source] HexError),
+    #[error("--payload is not a sequence of values a receiver accepts: {0}")]
+    Rejected(#[source] FrameError),
+    #[error(transparent)]
+    Hex(#[from] HexError),
+    #[error("reading standard input: {0}")]
+    Stdin(#[source] std::io::Error),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error(transparent)]
+    Value(#[from] ValueError),
+}
+
 fn encode(
     kind: KindArg,
     dst: u8,
@@ -82,26 +110,18 @@ fn encode(
     seq: u8,
     op: Option<u8>,
     payload: Option<String>,
-) -> Result<String, String> {
-    let seq = Seq::new(seq).ok_or(format!(
-        "sequence number {seq} does not fit in 5 bits (0..=31)"
-    ))?;
-    let need_op = |what: &str| {
-        op.ok_or(format!(
-            "--method is required for {what} (the {what} operand)"
-        ))
-    };
-    let no_op = |what: &str| match op {
-        Some(_) => Err(format!(
-            "a{what} frame carries no method, code or topic: leave out --method"
-        )),
+) -> Result<String, RvmfError> {
+    let seq = Seq::new(seq).ok_or(RvmfError::Seq(seq))?;
+    let need_op = |what| op.ok_or(RvmfError::NoOperand(what));
+    let no_op = |what| match op {
+        Some(_) => Err(RvmfError::NoMethod(what)),
         None => Ok(()),
     };
     let kind = match kind {
         KindArg::Ack => {
             no_op("n ack")?;
             if payload.is_some() {
-                return Err("an ack frame carries no payload: leave out --payload".into());
+                return Err(RvmfError::AckPayload);
             }
             FrameKind::Ack
         }
@@ -123,7 +143,7 @@ fn encode(
         },
     };
     let payload = match payload {
-        Some(p) => hex::decode(&p).map_err(|e| format!("--payload: {e}"))?,
+        Some(p) => hex::decode(&p).map_err(RvmfError::PayloadHex)?,
         None => Vec::new(),
     };
     let spec = FrameSpec {
@@ -133,21 +153,20 @@ fn encode(
         kind,
     };
     let mut out = vec![0; spec.encoded_len(payload.len())];
-    spec.encode(&payload, &mut out).map_err(|e| e.to_string())?;
+    spec.encode(&payload, &mut out)?;
     // What a receiver would refuse is not printed as a frame.
-    Frame::decode_strict(&out)
-        .map_err(|e| format!("--payload is not a sequence of values a receiver accepts: {e}"))?;
+    Frame::decode_strict(&out).map_err(RvmfError::Rejected)?;
     Ok(hex::encode(&out))
 }
 
 /// The frame's bytes: `text` as hex, or for `-` standard input, as hex text or raw bytes.
-fn frame_bytes(text: &str) -> Result<Vec<u8>, String> {
+fn frame_bytes(text: &str) -> Result<Vec<u8>, RvmfError> {
     if text != "-" {
-        return hex::decode(text).map_err(|e| e.to_string());
+        return Ok(hex::decode(text)?);
     }
     let mut input = Vec::new();
     std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut input)
-        .map_err(|e| format!("reading standard input: {e}"))?;
+        .map_err(RvmfError::Stdin)?;
     let as_hex = std::str::from_utf8(&input).ok().and_then(|t| {
         let digits: String = t.chars().filter(|c| !c.is_ascii_whitespace()).collect();
         hex::decode(&digits).ok().filter(|_| !digits.is_empty())
@@ -155,8 +174,8 @@ fn frame_bytes(text: &str) -> Result<Vec<u8>, String> {
     Ok(as_hex.unwrap_or(input))
 }
 
-fn decode(bytes: &[u8]) -> Result<String, String> {
-    let frame = Frame::decode_strict(bytes).map_err(|e| e.to_string())?;
+fn decode(bytes: &[u8]) -> Result<String, RvmfError> {
+    let frame = Frame::decode_strict(bytes)?;
     let mut out = String::new();
     let mut line = |k: &str, v: String| out.push_str(&format!("{k}: {v}\n"));
     line("kind", frame.kind().kind().to_string());
@@ -187,7 +206,7 @@ fn decode(bytes: &[u8]) -> Result<String, String> {
         line("payload", hex::encode(frame.payload()));
     }
     for (i, v) in frame.values().enumerate() {
-        let v = v.map_err(|e| e.to_string())?;
+        let v = v?;
         line(&format!("value[{i}]"), format!("{} {v}", v.kind()));
     }
     Ok(out)

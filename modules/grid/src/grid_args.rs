@@ -52,12 +52,11 @@ impl GridArgs {
 
 /// Loads an assembly of the running grid with the built-in components (what a host hands
 /// [`modbot_runtime::grid::host::Host::prepare_step`]).
-pub fn load_assembly(system: &GridSpec, name: &str, generation: u16) -> Result<GridSpec, String> {
-    system::load_assembly(
-        system,
-        name,
-        generation,
-        &modbot_runtime::grid::Registry::builtin(),
-    )
-    .map_err(|e| e.to_string())
+pub fn load_assembly(
+    system: &GridSpec,
+    name: &str,
+    generation: u16,
+) -> Result<GridSpec, modbot_runtime::grid::host::LoadError> {
+    let registry = modbot_runtime::grid::Registry::builtin();
+    Ok(system::load_assembly(system, name, generation, &registry)?)
 }

@@ -21,8 +21,8 @@ use std::f64::consts::PI;
 use std::time::Duration;
 
 use super::component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
+    Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
+    PortDecl, PortType, PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
 /// Adds every built-in type to `registry`.
@@ -84,7 +84,7 @@ fn f64_info(
     inputs: &[&'static str],
     outputs: &[&'static str],
     params: Vec<ParamDecl>,
-) -> Result<ComponentInfo, String> {
+) -> Result<ComponentInfo, ComponentError> {
     let ports = |names: &[&'static str]| {
         let port = |&name| PortDecl::new(name, PortType::F64);
         names.iter().map(port).collect()
@@ -105,7 +105,7 @@ fn put(slot: &mut PortValue, y: f64) {
 
 // ---- sources: counter, ramp, sine ----
 
-fn counter_info(_: &Params) -> Result<ComponentInfo, String> {
+fn counter_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let start = ParamDecl::optional("start", ParamType::I64, ParamValue::I64(0));
     let mut info = f64_info(
         "counter",
@@ -130,7 +130,7 @@ impl Component for Counter {
     }
 }
 
-fn ramp_info(_: &Params) -> Result<ComponentInfo, String> {
+fn ramp_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let doc = "a ramp in time: y = slope * tick * base_period_s";
     f64_info("ramp", doc, &[], &["y"], vec![f64_param("slope", 1.0)])
 }
@@ -148,7 +148,7 @@ impl Component for Ramp {
     }
 }
 
-fn sine_info(_: &Params) -> Result<ComponentInfo, String> {
+fn sine_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let doc = "a sine in time: y = amplitude * sin(2 pi * freq * tick * base_period_s)";
     let params = vec![f64_param("amplitude", 1.0), f64_param("freq", 1.0)];
     f64_info("sine", doc, &[], &["y"], params)
@@ -171,7 +171,7 @@ impl Component for Sine {
 
 // ---- arithmetic: gain, sum ----
 
-fn gain_info(_: &Params) -> Result<ComponentInfo, String> {
+fn gain_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let k = ParamDecl::required("k", ParamType::F64);
     f64_info("gain", "y = k * u", &["u"], &["y"], vec![k])
 }
@@ -186,7 +186,7 @@ impl Component for Gain {
     }
 }
 
-fn sum_info(_: &Params) -> Result<ComponentInfo, String> {
+fn sum_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     f64_info("sum", "y = a + b", &["a", "b"], &["y"], vec![])
 }
 
@@ -200,7 +200,7 @@ impl Component for Sum {
 
 // ---- state: integrator, delay ----
 
-fn integrator_info(_: &Params) -> Result<ComponentInfo, String> {
+fn integrator_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let doc = "forward Euler at its own period: y += u * period_s at each release";
     let params = vec![f64_param("initial", 0.0)];
     f64_info("integrator", doc, &["u"], &["y"], params)
@@ -220,7 +220,7 @@ impl Component for Integrator {
     }
 }
 
-fn delay_info(_: &Params) -> Result<ComponentInfo, String> {
+fn delay_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let doc = "y = the u of the previous release (initial at the first)";
     f64_info(
         "delay",
@@ -249,15 +249,16 @@ impl Component for Delay {
 const MAX_VEC: i64 = 64;
 
 /// `vec_gain`'s length; a placeholder of 1 when asked without parameters.
-fn vec_len(p: &Params) -> Result<usize, String> {
+fn vec_len(p: &Params) -> Result<usize, ParamError> {
     let n = if p.is_empty() { 1 } else { p.i64("n")? };
     if !(1..=MAX_VEC).contains(&n) {
-        return Err(format!("param 'n' must be from 1 to {MAX_VEC}, not {n}"));
+        let why = format!("must be from 1 to {MAX_VEC}, not {n}");
+        return Err(ParamError::invalid("n", why));
     }
     Ok(usize::try_from(n).unwrap_or(1))
 }
 
-fn vec_gain_info(p: &Params) -> Result<ComponentInfo, String> {
+fn vec_gain_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let ty = PortType::F64s(vec_len(p)?);
     let params = vec![
         ParamDecl::required("n", ParamType::I64),
@@ -283,7 +284,7 @@ impl Component for VecGain {
     }
 }
 
-fn pack_info(_: &Params) -> Result<ComponentInfo, String> {
+fn pack_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
     let mut info = f64_info("pack", "v = [a, b]", &["a", "b"], &[], vec![])?;
     info.outputs.push(PortDecl::new("v", PortType::F64s(2)));
     Ok(info)
@@ -302,7 +303,7 @@ impl Component for Pack {
 
 // ---- sleeper ----
 
-fn sleeper_info(p: &Params) -> Result<ComponentInfo, String> {
+fn sleeper_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     if !p.is_empty() {
         sleep_of(p)?;
     }
@@ -318,10 +319,14 @@ fn sleeper_info(p: &Params) -> Result<ComponentInfo, String> {
     f64_info("sleeper", doc, &["u"], &["y"], params)
 }
 
-fn sleep_of(p: &Params) -> Result<Duration, String> {
+fn sleep_of(p: &Params) -> Result<Duration, ParamError> {
     let ms = p.f64("sleep_ms")?;
-    Duration::try_from_secs_f64(ms / 1000.0)
-        .map_err(|_| format!("param 'sleep_ms' must be 0 or more milliseconds, not {ms}"))
+    Duration::try_from_secs_f64(ms / 1000.0).map_err(|_| {
+        ParamError::invalid(
+            "sleep_ms",
+            format!("must be 0 or more milliseconds, not {ms}"),
+        )
+    })
 }
 
 /// A pass-through that sleeps once, at one release: a test helper that blocks in `step` on
@@ -424,7 +429,11 @@ mod tests {
             .with("n", ParamValue::I64(65))
             .with("k", ParamValue::F64(1.0));
         let sut = registry.info("vec_gain", &too_long).unwrap_err();
-        assert_eq!(sut, "param 'n' must be from 1 to 64, not 65");
+        assert!(
+            matches!(&sut, ComponentError::Param(ParamError::Invalid { name, .. }) if name == "n"),
+            "{sut:?}"
+        );
+        assert_eq!(sut.to_string(), "param 'n' must be from 1 to 64, not 65");
         let v = run(
             "pack",
             Params::new(),
@@ -457,11 +466,12 @@ mod tests {
     fn registry_checks_params_against_the_declarations() {
         let sut = Registry::builtin();
         assert_eq!(sut.type_names().len(), 18);
-        let err = sut.info("gain", &Params::new()).unwrap_err();
+        let err = sut.info("gain", &Params::new()).unwrap_err().to_string();
         assert_eq!(err, "param 'k' (f64) is required for type 'gain'");
         let err = sut
             .info("gain", &Params::new().with("q", ParamValue::F64(1.0)))
-            .unwrap_err();
+            .unwrap_err()
+            .to_string();
         assert_eq!(err, "unknown param 'q' for type 'gain' (params: k)");
         let err = sut
             .info(
@@ -469,8 +479,15 @@ mod tests {
                 &Params::new().with("k", ParamValue::Text("x".into())),
             )
             .unwrap_err();
-        assert_eq!(err, "param 'k' must be f64, not \"x\"");
-        let err = sut.info("gian", &Params::new()).unwrap_err();
+        let ComponentError::Param(ParamError::WrongType { expected, got, .. }) = &err else {
+            panic!("{err:?}");
+        };
+        assert_eq!(
+            (*expected, got),
+            (ParamType::F64, &ParamValue::Text("x".into()))
+        );
+        assert_eq!(err.to_string(), "param 'k' must be f64, not \"x\"");
+        let err = sut.info("gian", &Params::new()).unwrap_err().to_string();
         assert!(err.starts_with("unknown component type 'gian' (known: counter, ramp,"));
         let complete = sut
             .complete(

@@ -12,8 +12,14 @@
 //! description fills in and a description may not set: [`BASE_PERIOD_S`], the base tick in
 //! seconds, and [`PERIOD_S`], the component's own period in seconds. Components never read a
 //! clock: their time is the tick number they are released at.
+//!
+//! A component type that refuses its parameters says why with a [`ParamError`] (missing, of
+//! the wrong type, out of range); everything its functions return is a [`ComponentError`],
+//! into which `?` turns a [`ParamError`], so `params.f64("k")?` works in all of them.
 
 use std::fmt;
+
+use thiserror::Error;
 
 use super::builtin;
 
@@ -214,42 +220,46 @@ impl Params {
         name: &str,
         ty: ParamType,
         pick: impl FnOnce(&'a ParamValue) -> Option<T>,
-    ) -> Result<T, String> {
+    ) -> Result<T, ParamError> {
         match self.get(name) {
-            None => Err(format!("param '{name}' is missing")),
-            Some(v) => pick(v).ok_or_else(|| format!("param '{name}' must be {ty}, not {v}")),
+            None => Err(ParamError::Missing { name: name.into() }),
+            Some(v) => pick(v).ok_or_else(|| ParamError::WrongType {
+                name: name.into(),
+                expected: ty,
+                got: v.clone(),
+            }),
         }
     }
 
-    pub fn f64(&self, name: &str) -> Result<f64, String> {
+    pub fn f64(&self, name: &str) -> Result<f64, ParamError> {
         self.typed(name, ParamType::F64, |v| match v {
             ParamValue::F64(x) => Some(*x),
             _ => None,
         })
     }
 
-    pub fn i64(&self, name: &str) -> Result<i64, String> {
+    pub fn i64(&self, name: &str) -> Result<i64, ParamError> {
         self.typed(name, ParamType::I64, |v| match v {
             ParamValue::I64(i) => Some(*i),
             _ => None,
         })
     }
 
-    pub fn bool(&self, name: &str) -> Result<bool, String> {
+    pub fn bool(&self, name: &str) -> Result<bool, ParamError> {
         self.typed(name, ParamType::Bool, |v| match v {
             ParamValue::Bool(b) => Some(*b),
             _ => None,
         })
     }
 
-    pub fn f64s(&self, name: &str) -> Result<&[f64], String> {
+    pub fn f64s(&self, name: &str) -> Result<&[f64], ParamError> {
         self.typed(name, ParamType::F64s, |v| match v {
             ParamValue::F64s(xs) => Some(xs.as_slice()),
             _ => None,
         })
     }
 
-    pub fn text(&self, name: &str) -> Result<&str, String> {
+    pub fn text(&self, name: &str) -> Result<&str, ParamError> {
         self.typed(name, ParamType::Text, |v| match v {
             ParamValue::Text(s) => Some(s.as_str()),
             _ => None,
@@ -341,7 +351,7 @@ impl Released {
 pub trait Component: Send {
     /// Called once after instantiation with the complete parameters (defaults and automatic
     /// ones filled in). An error refuses the instance.
-    fn initialise(&mut self, params: &Params) -> Result<(), String> {
+    fn initialise(&mut self, params: &Params) -> Result<(), ComponentError> {
         let _ = params;
         Ok(())
     }
@@ -371,11 +381,12 @@ pub trait Component: Send {
 }
 
 /// Describes a component type for the given (complete) parameters.
-pub type InfoFn = fn(&Params) -> Result<ComponentInfo, String>;
+pub type InfoFn = fn(&Params) -> Result<ComponentInfo, ComponentError>;
 /// Makes an instance for the given (complete) parameters.
-pub type MakeFn = fn(&Params) -> Result<Box<dyn Component>, String>;
+pub type MakeFn = fn(&Params) -> Result<Box<dyn Component>, ComponentError>;
 /// Makes an instance with what it was given when registered (see [`Registry::register_with`]).
-type Maker = std::sync::Arc<dyn Fn(&Params) -> Result<Box<dyn Component>, String> + Send + Sync>;
+type Maker =
+    std::sync::Arc<dyn Fn(&Params) -> Result<Box<dyn Component>, ComponentError> + Send + Sync>;
 
 struct Entry {
     /// What the type says about itself without parameters: its name and parameter list.
@@ -427,7 +438,7 @@ impl Registry {
     pub fn register_with(
         &mut self,
         info_fn: InfoFn,
-        make: impl Fn(&Params) -> Result<Box<dyn Component>, String> + Send + Sync + 'static,
+        make: impl Fn(&Params) -> Result<Box<dyn Component>, ComponentError> + Send + Sync + 'static,
     ) {
         let make: Maker = std::sync::Arc::new(make);
         let probe = match info_fn(&Params::new()) {
@@ -462,7 +473,7 @@ impl Registry {
     /// `params` checked against `type_name`'s declarations and completed: declared parameters
     /// in declaration order (defaults filled in, integers made f64 where f64 is declared),
     /// then the automatic parameters that were given.
-    pub fn complete(&self, type_name: &str, params: &Params) -> Result<Params, String> {
+    pub fn complete(&self, type_name: &str, params: &Params) -> Result<Params, ComponentError> {
         let entry = self.entry(type_name)?;
         let decls = &entry.probe.params;
         let mut complete = Params::new();
@@ -473,20 +484,22 @@ impl Registry {
                 match decls.iter().find(|d| d.name == name) {
                     Some(d) => d.ty,
                     None => {
-                        let known: Vec<&str> = decls.iter().map(|d| d.name).collect();
-                        let known = if known.is_empty() {
-                            "none".to_owned()
-                        } else {
-                            known.join(", ")
-                        };
-                        return Err(format!(
-                            "unknown param '{name}' for type '{type_name}' (params: {known})"
-                        ));
+                        return Err(ParamError::Unknown {
+                            name: name.into(),
+                            type_name: type_name.into(),
+                            known: decls.iter().map(|d| d.name).collect(),
+                        }
+                        .into())
                     }
                 }
             };
             if value.coerce(ty).is_none() {
-                return Err(format!("param '{name}' must be {ty}, not {value}"));
+                return Err(ParamError::WrongType {
+                    name: name.into(),
+                    expected: ty,
+                    got: value.clone(),
+                }
+                .into());
             }
         }
         for d in decls {
@@ -494,10 +507,12 @@ impl Registry {
                 (Some(v), _) => v.coerce(d.ty),
                 (None, Some(default)) => Some(default.clone()),
                 (None, None) => {
-                    return Err(format!(
-                        "param '{}' ({}) is required for type '{type_name}'",
-                        d.name, d.ty
-                    ))
+                    return Err(ParamError::Required {
+                        name: d.name,
+                        ty: d.ty,
+                        type_name: type_name.into(),
+                    }
+                    .into())
                 }
             };
             if let Some(value) = value {
@@ -514,7 +529,7 @@ impl Registry {
 
     /// The ports and parameters of `type_name` with these parameters (checked and completed
     /// first: an error says what is wrong with them).
-    pub fn info(&self, type_name: &str, params: &Params) -> Result<ComponentInfo, String> {
+    pub fn info(&self, type_name: &str, params: &Params) -> Result<ComponentInfo, ComponentError> {
         let params = self.complete(type_name, params)?;
         (self.entry(type_name)?.info)(&params)
     }
@@ -524,7 +539,7 @@ impl Registry {
         &self,
         type_name: &str,
         params: &Params,
-    ) -> Result<Box<dyn Component>, String> {
+    ) -> Result<Box<dyn Component>, ComponentError> {
         let params = self.complete(type_name, params)?;
         let entry = self.entry(type_name)?;
         (entry.info)(&params)?;
@@ -533,15 +548,168 @@ impl Registry {
         Ok(component)
     }
 
-    fn entry(&self, type_name: &str) -> Result<&Entry, String> {
+    fn entry(&self, type_name: &str) -> Result<&Entry, ComponentError> {
         self.entries
             .iter()
             .find(|e| e.probe.type_name == type_name)
-            .ok_or_else(|| {
-                format!(
-                    "unknown component type '{type_name}' (known: {})",
-                    self.type_names().join(", ")
-                )
+            .ok_or_else(|| ComponentError::UnknownType {
+                type_name: type_name.into(),
+                known: self.type_names(),
             })
+    }
+}
+
+/// Why a parameter is refused: which one, and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ParamError {
+    /// A component read a parameter its parameters do not hold.
+    #[error("param '{name}' is missing")]
+    Missing { name: String },
+    /// The value is not of the type the parameter is declared (or read) with.
+    #[error("param '{name}' must be {expected}, not {got}")]
+    WrongType {
+        name: String,
+        expected: ParamType,
+        got: ParamValue,
+    },
+    /// The value is of the right type but not one the component takes; `why` says what it
+    /// must be ("must be from 1 to 64, not 0").
+    #[error("param '{name}' {why}")]
+    Invalid { name: String, why: String },
+    /// The description sets a parameter the component type does not declare.
+    #[error("unknown param '{name}' for type '{type_name}' (params: {})", list_or_none(.known))]
+    Unknown {
+        name: String,
+        type_name: String,
+        /// The parameters the type declares.
+        known: Vec<&'static str>,
+    },
+    /// A parameter without a default is not given.
+    #[error("param '{name}' ({ty}) is required for type '{type_name}'")]
+    Required {
+        name: &'static str,
+        ty: ParamType,
+        type_name: String,
+    },
+}
+
+impl ParamError {
+    /// Param `name` is refused: it `why` ("must be positive, not -1").
+    pub fn invalid(name: impl Into<String>, why: impl Into<String>) -> ParamError {
+        ParamError::Invalid {
+            name: name.into(),
+            why: why.into(),
+        }
+    }
+}
+
+/// Why a component type cannot be described or instantiated with some parameters: what its
+/// [`InfoFn`], [`MakeFn`] and [`Component::initialise`] return.
+#[derive(Debug, Error)]
+pub enum ComponentError {
+    /// A parameter is missing, of the wrong type or out of range.
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    /// A parameter's value is refused by what it sets up (a filter its cutoff, say), which
+    /// says why.
+    #[error("param '{name}': {source}")]
+    ParamRefused {
+        name: String,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// No component type of this name is registered.
+    #[error("unknown component type '{type_name}' (known: {})", .known.join(", "))]
+    UnknownType {
+        type_name: String,
+        known: Vec<&'static str>,
+    },
+    /// Anything else a component type refuses for (a device that cannot be opened, say): for
+    /// component types outside this crate, with their own errors.
+    #[error(transparent)]
+    Other(Box<dyn std::error::Error + Send + Sync>),
+}
+
+impl ComponentError {
+    /// Param `name` is refused by what it sets up, for `source`.
+    pub fn param_refused(
+        name: impl Into<String>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+    ) -> ComponentError {
+        ComponentError::ParamRefused {
+            name: name.into(),
+            source: source.into(),
+        }
+    }
+
+    /// Any other refusal: an error of the component type's own, or a message.
+    pub fn other(source: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> ComponentError {
+        ComponentError::Other(source.into())
+    }
+}
+
+/// `a, b, c`, or `none` for an empty list.
+pub(crate) fn list_or_none(names: &[&str]) -> String {
+    if names.is_empty() {
+        "none".to_owned()
+    } else {
+        names.join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A type whose parameter is checked when an instance is initialised.
+    struct Checked;
+
+    impl Component for Checked {
+        fn initialise(&mut self, params: &Params) -> Result<(), ComponentError> {
+            let k = params.f64("k")?;
+            if k < 0.0 {
+                return Err(ParamError::invalid("k", format!("must be 0 or more, not {k}")).into());
+            }
+            if k > 1.0 {
+                let io = std::io::Error::other("the device is busy");
+                return Err(ComponentError::other(io));
+            }
+            Ok(())
+        }
+
+        fn step(&mut self, _: &Released, _: &[PortValue], _: &mut [PortValue]) {}
+    }
+
+    fn checked_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
+        Ok(ComponentInfo {
+            type_name: "checked",
+            doc: "refuses k < 0 when initialised",
+            inputs: vec![],
+            outputs: vec![],
+            params: vec![ParamDecl::required("k", ParamType::F64)],
+        })
+    }
+
+    #[test]
+    fn initialise_refuses_with_the_params_own_error_and_keeps_other_errors() {
+        let mut registry = Registry::new();
+        registry.register(checked_info, |_| Ok(Box::new(Checked)));
+        let k = |k: f64| Params::new().with("k", ParamValue::F64(k));
+        assert!(registry.instantiate("checked", &k(0.5)).is_ok());
+        let Err(sut) = registry.instantiate("checked", &k(-1.0)) else {
+            panic!("k = -1 was accepted");
+        };
+        assert!(
+            matches!(&sut, ComponentError::Param(ParamError::Invalid { name, .. }) if name == "k"),
+            "{sut:?}"
+        );
+        assert_eq!(sut.to_string(), "param 'k' must be 0 or more, not -1");
+        let Err(sut) = registry.instantiate("checked", &k(2.0)) else {
+            panic!("k = 2 was accepted");
+        };
+        let ComponentError::Other(inner) = &sut else {
+            panic!("{sut:?}");
+        };
+        assert!(inner.downcast_ref::<std::io::Error>().is_some(), "{sut:?}");
+        assert_eq!(sut.to_string(), "the device is busy");
     }
 }

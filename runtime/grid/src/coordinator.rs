@@ -243,6 +243,15 @@ pub enum SwitchState {
     Announced { from: u64, at: u64 },
 }
 
+/// Why an assembly cannot begin to be prepared ([`Coordinator::begin_switch`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum BeginSwitchError {
+    #[error("an assembly is being prepared already")]
+    Busy,
+    #[error("generation {generation} is not newer than the running {running}")]
+    NotNewer { generation: u16, running: u16 },
+}
+
 impl<W: Write> Coordinator<W> {
     /// Opens the grid's services on `node`; with `trace`, records every output at every tick.
     pub fn new(
@@ -804,16 +813,15 @@ impl<W: Write> Coordinator<W> {
 
     /// Begins preparing `spec` (a grid with the next assembly, of a new generation): its
     /// components run alongside once [`Coordinator::announce`] is called.
-    pub fn begin_switch(&mut self, spec: GridSpec) -> Result<(), String> {
+    pub fn begin_switch(&mut self, spec: GridSpec) -> Result<(), BeginSwitchError> {
         if self.incoming.is_some() {
-            return Err("an assembly is being prepared already".into());
+            return Err(BeginSwitchError::Busy);
         }
         if spec.generation() <= self.spec.generation() {
-            return Err(format!(
-                "generation {} is not newer than the running {}",
-                spec.generation(),
-                self.spec.generation()
-            ));
+            return Err(BeginSwitchError::NotNewer {
+                generation: spec.generation(),
+                running: self.spec.generation(),
+            });
         }
         let host_names = spec.assembly_hosts();
         let mut comps = comps_of(&spec, &host_names);

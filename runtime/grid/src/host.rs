@@ -21,7 +21,7 @@ use modbot_ipc_schema::grid::{
 };
 use zerocopy::IntoBytes;
 
-use super::component::{Component, Registry, Released};
+use super::component::{Component, ComponentError, Registry, Released};
 use super::spec::GridSpec;
 use super::versions::{self, Versions};
 use super::wire::{self, Listener, Notifier, Pub, Sub};
@@ -32,7 +32,11 @@ type Source = Versions;
 
 /// Loads assembly `name` as generation `generation` for the running grid `system` (the
 /// system descriptions' loader: the grid itself reads no description).
-pub type LoadAssembly = fn(&GridSpec, &str, u16) -> Result<GridSpec, String>;
+pub type LoadAssembly = fn(&GridSpec, &str, u16) -> Result<GridSpec, LoadError>;
+
+/// Why an assembly could not be loaded: the loader's own error (the grid, which reads no
+/// description, does not know its type).
+pub type LoadError = Box<dyn std::error::Error + Send + Sync>;
 
 /// Where one component's inputs come from, for one assembly generation.
 struct Binding {
@@ -82,7 +86,7 @@ pub struct Host {
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
     prepare: Option<Sub>,
     /// The newest generation it was asked to prepare, and its loader.
-    loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, String>>)>,
+    loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, LoadError>>)>,
     preparing: Option<Preparing>,
     /// The spec it was made from, to load other assemblies against.
     spec: GridSpec,
@@ -111,8 +115,12 @@ fn reaper() -> Result<std::sync::mpsc::Sender<Binding>, TransportError> {
 pub enum HostError {
     #[error("host '{0}' has no components in this grid")]
     NoComponents(String),
-    #[error("component '{name}' cannot be instantiated: {why}")]
-    Instantiate { name: String, why: String },
+    #[error("component '{name}' cannot be instantiated: {error}")]
+    Instantiate {
+        name: String,
+        #[source]
+        error: ComponentError,
+    },
     #[error(transparent)]
     Transport(#[from] TransportError),
 }
@@ -174,9 +182,9 @@ impl Host {
             let cs = &spec.components[c];
             let component = registry
                 .instantiate(&cs.type_name, &cs.params)
-                .map_err(|why| HostError::Instantiate {
+                .map_err(|error| HostError::Instantiate {
                     name: cs.name.clone(),
-                    why,
+                    error,
                 })?;
             let out_types = spec.output_types(c);
             let sources = spec

@@ -18,13 +18,14 @@
 //!
 //! # Layout
 //! - [`component`]: ports, parameters, the [`Component`] trait (initialise → step → terminate)
-//!   and the [`Registry`] of component types, which checks parameters and instantiates.
+//!   and the [`Registry`] of component types, which checks parameters and instantiates; what
+//!   a type refuses for ([`ComponentError`], [`ParamError`]).
 //! - [`builtin`]: the built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`, `integrator`,
 //!   `delay`, `vec_gain`, `pack`, `sleeper`).
 //! - [`control`]: example controllers: `ptp`, `hold_position`, `feedforward`, `cascade`, `monitor`.
 //! - [`spec`]: the checked grid ([`GridSpec`]): components, hosts, periods in base ticks,
 //!   connections, and the *sources* of a component (the release notice's order); built from
-//!   declarations by [`GridSpec::build`].
+//!   declarations by [`GridSpec::build`], which says what is wrong with them ([`GridError`]).
 //! - [`reference`](mod@reference): the LET semantics computed in one thread ([`reference_run`],
 //!   [`reference_trace`]).
 //! - [`trace`]: the text format of a run's outputs, tick by tick ([`TraceWriter`]), which
@@ -62,11 +63,11 @@ pub mod versions;
 pub mod wire;
 
 pub use component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Registry,
+    Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
+    PortDecl, PortType, PortValue, Registry,
 };
 pub use reference::{reference_run, reference_trace, reference_trace_with, Overruns};
 pub use spec::{
-    ComponentSpec, Connection, GridClock, GridSpec, GridTiming, OverrunPolicy, PortRef,
+    ComponentSpec, Connection, GridClock, GridError, GridSpec, GridTiming, OverrunPolicy, PortRef,
 };
 pub use trace::TraceWriter;

@@ -15,9 +15,40 @@
 //! component (valid now, and pending until n + k) so that this holds by construction; a test
 //! checks it by releasing in reverse order.
 
-use super::component::{Component, PortValue, Registry, Released};
+use thiserror::Error;
+
+use super::component::{Component, ComponentError, PortValue, Registry, Released};
 use super::spec::GridSpec;
 use super::trace::TraceWriter;
+
+/// Why the reference run could not be made.
+#[derive(Debug, Error)]
+pub enum ReferenceError {
+    /// A component cannot be instantiated.
+    #[error("component '{component}': {error}")]
+    Instantiate {
+        component: String,
+        #[source]
+        error: ComponentError,
+    },
+    /// An input has no connection (never in a spec from [`GridSpec::build`]).
+    #[error("component '{component}': input {input} is not connected")]
+    Unconnected { component: String, input: usize },
+    /// The trace could not be written.
+    #[error("the reference trace: {0}")]
+    Trace(#[from] std::io::Error),
+}
+
+/// Why a trace's overrun and stale lines cannot be read ([`Overruns::from_trace`]).
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum OverrunsError {
+    #[error("'{line}' has no {key}")]
+    NoField { line: String, key: &'static str },
+    #[error("bad {key} in '{line}'")]
+    BadNumber { line: String, key: &'static str },
+    #[error("unknown component in '{line}'")]
+    UnknownComponent { line: String },
+}
 
 /// Runs `spec` for `ticks` base ticks. For n in 0..ticks, in that order: calls
 /// `sink(n, c, outputs valid at n)` for every component c in index order, then releases the
@@ -28,7 +59,7 @@ pub fn reference_run(
     registry: &Registry,
     ticks: u64,
     sink: &mut dyn FnMut(u64, usize, &[PortValue]),
-) -> Result<(), String> {
+) -> Result<(), ReferenceError> {
     run(
         spec,
         registry,
@@ -55,29 +86,35 @@ impl Overruns {
     /// Reads the overrun and stale lines of a trace of `spec`: `# overrun tick=T
     /// component=C release=M` (release M finished late, and C was not released at T) and
     /// `# stale tick=M component=C` (release M was not executed: an input's version was gone).
-    pub fn from_trace(spec: &GridSpec, trace: &str) -> Result<Overruns, String> {
+    pub fn from_trace(spec: &GridSpec, trace: &str) -> Result<Overruns, OverrunsError> {
         let mut out = Overruns::default();
         for line in trace.lines() {
             let overrun = line.starts_with("# overrun ");
             if !overrun && !line.starts_with("# stale ") {
                 continue;
             }
-            let field = |key: &str| {
+            let field = |key: &'static str| {
                 line.split_whitespace()
                     .find_map(|w| w.strip_prefix(key))
-                    .ok_or_else(|| format!("'{line}' has no {key}"))
+                    .ok_or_else(|| OverrunsError::NoField {
+                        line: line.to_owned(),
+                        key,
+                    })
             };
-            let number = |key: &str| -> Result<u64, String> {
-                field(key)?
-                    .parse()
-                    .map_err(|_| format!("bad {key} in '{line}'"))
+            let number = |key: &'static str| -> Result<u64, OverrunsError> {
+                field(key)?.parse().map_err(|_| OverrunsError::BadNumber {
+                    line: line.to_owned(),
+                    key,
+                })
             };
             let name = field("component=")?;
             let c = spec
                 .components
                 .iter()
                 .position(|x| x.name == name)
-                .ok_or_else(|| format!("unknown component in '{line}'"))?;
+                .ok_or_else(|| OverrunsError::UnknownComponent {
+                    line: line.to_owned(),
+                })?;
             let tick = number("tick=")?;
             if overrun {
                 out.late.insert((c, number("release=")?));
@@ -95,7 +132,7 @@ pub fn reference_trace_with(
     registry: &Registry,
     ticks: u64,
     overruns: &Overruns,
-) -> Result<String, String> {
+) -> Result<String, ReferenceError> {
     let mut writer = TraceWriter::new(Vec::new(), spec);
     let mut failure = None;
     run(
@@ -111,9 +148,9 @@ pub fn reference_trace_with(
         },
     )?;
     if let Some(e) = failure {
-        return Err(e.to_string());
+        return Err(e.into());
     }
-    let bytes = writer.finish().map_err(|e| e.to_string())?;
+    let bytes = writer.finish()?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
@@ -176,20 +213,26 @@ pub fn run(
     order: Order,
     overruns: &Overruns,
     sink: &mut dyn FnMut(u64, usize, &[PortValue]),
-) -> Result<(), String> {
+) -> Result<(), ReferenceError> {
     let base_ns = u64::try_from(spec.base_period.as_nanos()).unwrap_or(u64::MAX);
     let mut slots = Vec::with_capacity(spec.components.len());
     for (index, c) in spec.components.iter().enumerate() {
         let component = registry
             .instantiate(&c.type_name, &c.params)
-            .map_err(|e| format!("component '{}': {e}", c.name))?;
+            .map_err(|error| ReferenceError::Instantiate {
+                component: c.name.clone(),
+                error,
+            })?;
         let bindings = (0..c.info.inputs.len())
-            .map(|i| {
-                spec.source_of(index, i)
+            .map(|input| {
+                spec.source_of(index, input)
                     .map(|p| (p.component, p.port))
-                    .ok_or_else(|| format!("component '{}': input {i} is not connected", c.name))
+                    .ok_or_else(|| ReferenceError::Unconnected {
+                        component: c.name.clone(),
+                        input,
+                    })
             })
-            .collect::<Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>, _>>()?;
         slots.push(Slot {
             component,
             period: c.period.max(1),

@@ -93,6 +93,19 @@ pub enum SupervisorError {
     Module(#[from] modbot_core::error::ModuleError),
 }
 
+/// Why a host of an assembly could not be started (`spawn_host`).
+#[derive(Debug, Error)]
+enum SpawnHostError {
+    #[error("the system has no assemblies")]
+    NoAssemblies,
+    #[error("module {name} exists already")]
+    Exists { name: String },
+    #[error("no address is free")]
+    NoAddress,
+    #[error(transparent)]
+    Spawn(#[from] SupervisorError),
+}
+
 /// The longest the supervisor sleeps between looks at heartbeats and deadlines (calls to it
 /// and its children's ends wake it at once).
 const IDLE_WAIT: Duration = Duration::from_millis(20);
@@ -385,14 +398,19 @@ impl Supervisor {
         }
     }
 
-    fn spawn_host(&mut self, host: &str, assembly: &str, generation: u16) -> Result<(), String> {
+    fn spawn_host(
+        &mut self,
+        host: &str,
+        assembly: &str,
+        generation: u16,
+    ) -> Result<(), SpawnHostError> {
         let Some(template) = self.spec.host_template.clone() else {
-            return Err("the system has no assemblies".into());
+            return Err(SpawnHostError::NoAssemblies);
         };
         let name = modbot_grid::spec::host_module_of(host, generation);
         if let Some(i) = self.spec.modules.iter().position(|m| m.name == name) {
             if self.slots[i].state != RunState::Retired {
-                return Err(format!("module {name} exists already"));
+                return Err(SpawnHostError::Exists { name });
             }
         }
         let own = self.endpoint.addr().0;
@@ -407,7 +425,7 @@ impl Supervisor {
         let addr = (Addr::FIRST..=Addr::LAST)
             .rev()
             .find(|a| *a != own && !busy.contains(a))
-            .ok_or("no address is free")?;
+            .ok_or(SpawnHostError::NoAddress)?;
         let mut m = template;
         m.name = name.clone();
         m.addr = addr;
@@ -440,7 +458,7 @@ impl Supervisor {
         self.name_width = self.name_width.max(name.len());
         self.spawn(i).map_err(|e| {
             self.slots[i].state = RunState::Retired;
-            e.to_string()
+            SpawnHostError::Spawn(e)
         })?;
         self.say(&format!(
             "{name}: host {host} of assembly {assembly} (generation {generation}) started"
@@ -1080,7 +1098,7 @@ fn spawn_host_method(
     }
     let generation = u16::try_from(generation)
         .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
-    modbot_grid::spec::check_host(host).map_err(MethodError::Failed)?;
+    modbot_grid::spec::check_host(host).map_err(|e| MethodError::Failed(e.to_string()))?;
     modbot_system::assembly::check_assembly_name(assembly).map_err(MethodError::Failed)?;
     shared.requests.push(HostRequest::Spawn {
         host: (*host).to_owned(),

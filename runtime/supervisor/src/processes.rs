@@ -2,7 +2,7 @@
 //! supervisor starts them like modules — hosts first, the coordinator last, so that every
 //! host listens before the first tick — and they load the same system description.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use modbot_core::transport::ReceiveMode;
 use modbot_system::{ModuleSpec, ProgramResolver, Restart, RestartPolicy, SystemSpec};
@@ -46,6 +46,45 @@ pub struct GridRun {
     pub switches: Vec<(u64, String)>,
 }
 
+/// Why the grid's processes cannot be added to a system ([`add_processes`]).
+#[derive(Debug, thiserror::Error)]
+pub enum GridProcessError {
+    #[error(
+        "{}: --ticks, --trace, --lockstep and --switch need a grid, and the description has none",
+        .file.display()
+    )]
+    NoGrid { file: PathBuf },
+    #[error(
+        "{}: --switch needs a grid with assemblies (grid {{ assemblies = ..., assembly = ... }})",
+        .file.display()
+    )]
+    NoAssemblies { file: PathBuf },
+    #[error(
+        "{}:{line}: the grid needs the program '{program}', which is not found ({searched})",
+        .file.display()
+    )]
+    NoProgram {
+        file: PathBuf,
+        line: u32,
+        program: String,
+        /// Where it was looked for.
+        searched: String,
+    },
+    #[error(
+        "{}:{line}: module name '{name}' is taken; the grid's host '{host}' needs it",
+        .file.display()
+    )]
+    NameTaken {
+        file: PathBuf,
+        line: u32,
+        name: String,
+        host: String,
+    },
+    /// Every address is used; `what` needed one ("the coordinator").
+    #[error("no address left for {what}")]
+    NoAddress { what: &'static str },
+}
+
 /// Adds the grid's processes to `spec`'s modules, if it has a grid. `file` and `vars` are
 /// what the processes load the description from.
 pub fn add_processes(
@@ -54,13 +93,11 @@ pub fn add_processes(
     file: &Path,
     vars: &[(String, String)],
     run: &GridRun,
-) -> Result<(), String> {
+) -> Result<(), GridProcessError> {
     let Some(grid) = spec.grid.clone() else {
         if run.ticks.is_some() || run.trace.is_some() || run.lockstep || !run.switches.is_empty() {
-            return Err(format!(
-                "{}: --ticks, --trace, --lockstep and --switch need a grid, and the description has none",
-                file.display()
-            ));
+            let file = file.to_path_buf();
+            return Err(GridProcessError::NoGrid { file });
         }
         return Ok(());
     };
@@ -74,10 +111,7 @@ pub fn add_processes(
         common.push("--lockstep".into());
     }
     if !run.switches.is_empty() && grid.assembly.is_none() {
-        return Err(format!(
-            "{}: --switch needs a grid with assemblies (grid {{ assemblies = ..., assembly = ... }})",
-            file.display()
-        ));
+        return Err(GridProcessError::NoAssemblies { file });
     }
     let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
     let mut next_addr = || {
@@ -88,14 +122,14 @@ pub fn add_processes(
         a
     };
     let program = |name: &str| {
-        resolver.resolve(name).ok_or_else(|| {
-            format!(
-                "{}:{}: the grid needs the program '{name}', which is not found ({})",
-                spec.file.display(),
-                grid.line,
-                resolver.searched(name)
-            )
-        })
+        resolver
+            .resolve(name)
+            .ok_or_else(|| GridProcessError::NoProgram {
+                file: spec.file.clone(),
+                line: grid.line,
+                program: name.to_owned(),
+                searched: resolver.searched(name),
+            })
     };
     let policy = RestartPolicy {
         when: Restart::OnFailure,
@@ -123,11 +157,12 @@ pub fn add_processes(
     for host in grid.hosts() {
         let name = grid.host_module(&host);
         if spec.modules.iter().any(|m| m.name == name) {
-            return Err(format!(
-                "{}:{}: module name '{name}' is taken; the grid's host '{host}' needs it",
-                spec.file.display(),
-                grid.line
-            ));
+            return Err(GridProcessError::NameTaken {
+                file: spec.file.clone(),
+                line: grid.line,
+                name,
+                host,
+            });
         }
         let mut args = common.clone();
         args.extend(["--host".to_owned(), host.clone()]);
@@ -141,7 +176,9 @@ pub fn add_processes(
         }
         added.push(ModuleSpec {
             name,
-            addr: next_addr().ok_or("no address left for the grid's hosts")?,
+            addr: next_addr().ok_or(GridProcessError::NoAddress {
+                what: "the grid's hosts",
+            })?,
             program: program(host_program(&host))?,
             program_name: host_program(&host).into(),
             args,
@@ -166,7 +203,9 @@ pub fn add_processes(
     }
     added.push(ModuleSpec {
         name: COORDINATOR.into(),
-        addr: next_addr().ok_or("no address left for the coordinator")?,
+        addr: next_addr().ok_or(GridProcessError::NoAddress {
+            what: "the coordinator",
+        })?,
         program: program(COORDINATOR_PROGRAM)?,
         program_name: COORDINATOR_PROGRAM.into(),
         args,

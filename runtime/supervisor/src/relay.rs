@@ -42,7 +42,7 @@ impl Relay {
             };
             match start(endpoint.ctx(), request.payload()) {
                 Ok(handle) => self.waiting.push((handle, request)),
-                Err(why) => answer(request, &relay::encode_failed(&why)),
+                Err(why) => answer(request, &relay::encode_failed(&why.to_string())),
             }
         }
         let done = std::mem::take(&mut endpoint.state_mut().relayed);
@@ -55,17 +55,25 @@ impl Relay {
     }
 }
 
-fn start(ctx: &mut Ctx, payload: &[u8]) -> Result<CallHandle, String> {
-    let request = Request::parse(payload).map_err(|e| e.to_string())?;
-    let args = request.values().map_err(|e| e.to_string())?;
+/// Why a relayed call could not be made: the tool's request, or the call.
+#[derive(Debug, thiserror::Error)]
+enum StartError {
+    #[error(transparent)]
+    Request(#[from] relay::RelayError),
+    #[error(transparent)]
+    Call(#[from] CallError),
+}
+
+fn start(ctx: &mut Ctx, payload: &[u8]) -> Result<CallHandle, StartError> {
+    let request = Request::parse(payload)?;
+    let args = request.values()?;
     let timeout = Duration::from_millis(u64::from(request.timeout_ms.clamp(1, 60_000)));
-    ctx.call_with(
+    Ok(ctx.call_with(
         request.module,
         request.method,
         args.as_slice(),
         CallOptions::timeout(timeout),
-    )
-    .map_err(|e| e.to_string())
+    )?)
 }
 
 fn answer(request: RelayRequest, response: &[u8]) {

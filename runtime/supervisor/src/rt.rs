@@ -28,7 +28,7 @@ pub fn apply(pid: u32, cpus: &[usize], priority: Option<u8>) -> Vec<String> {
                     ));
                 }
             }
-            Err(w) => warnings.push(w),
+            Err(w) => warnings.push(w.to_string()),
         }
     }
     if let Some(prio) = priority {
@@ -71,7 +71,20 @@ pub fn real_time_thread(priority: Option<u8>, what: &str) {
     }
 }
 
-fn cpu_set(cpus: &[usize]) -> Result<CpuSet, String> {
+/// Why an affinity mask cannot be made of the CPUs asked for.
+#[derive(Debug, thiserror::Error)]
+enum AffinityError {
+    #[error("CPU {cpu} cannot be used for affinity ({source})")]
+    Cpu { cpu: usize, source: nix::Error },
+    #[error(
+        "CPU affinity {cpus:?} not applied: this machine has CPUs 0..{}; the module runs on any \
+         CPU",
+        .online.saturating_sub(1)
+    )]
+    NoneOnline { cpus: Vec<usize>, online: usize },
+}
+
+fn cpu_set(cpus: &[usize]) -> Result<CpuSet, AffinityError> {
     let online = std::thread::available_parallelism().map_or(1, usize::from);
     let mut set = CpuSet::new();
     let mut usable = 0;
@@ -80,14 +93,12 @@ fn cpu_set(cpus: &[usize]) -> Result<CpuSet, String> {
             continue;
         }
         set.set(cpu)
-            .map_err(|e| format!("CPU {cpu} cannot be used for affinity ({e})"))?;
+            .map_err(|source| AffinityError::Cpu { cpu, source })?;
         usable += 1;
     }
     if usable == 0 {
-        return Err(format!(
-            "CPU affinity {cpus:?} not applied: this machine has CPUs 0..{}; the module runs on any CPU",
-            online.saturating_sub(1)
-        ));
+        let cpus = cpus.to_vec();
+        return Err(AffinityError::NoneOnline { cpus, online });
     }
     Ok(set)
 }

@@ -63,19 +63,19 @@ pub fn load_assembly(
             .map_err(|_| SystemError::new(&file, None, "the assembly file is not UTF-8 text"))?,
         Err(e) => {
             let known = assembly_names(&current.dir);
-            let message = if e.kind() == std::io::ErrorKind::NotFound {
-                format!(
-                    "no assembly named '{name}' in {} (assemblies: {})",
-                    current.dir.display(),
-                    if known.is_empty() {
-                        "none".to_owned()
-                    } else {
-                        known.join(", ")
-                    }
-                )
-            } else {
-                format!("cannot read the assembly file: {e}")
-            };
+            if e.kind() != std::io::ErrorKind::NotFound {
+                let message = format!("cannot read the assembly file: {e}");
+                return Err(SystemError::new(&file, None, message).because(e));
+            }
+            let message = format!(
+                "no assembly named '{name}' in {} (assemblies: {})",
+                current.dir.display(),
+                if known.is_empty() {
+                    "none".to_owned()
+                } else {
+                    known.join(", ")
+                }
+            );
             return Err(SystemError::new(&file, None, message));
         }
     };
@@ -134,9 +134,9 @@ pub fn load_assembly(
         GridSpec::build(grid.clone(), components, connections, registry).map_err(|e| {
             match e.line {
                 Some(l) if l >= LINE_OFFSET => {
-                    SystemError::new(&file, Some(l - LINE_OFFSET), e.message)
+                    SystemError::caused(&file, Some(l - LINE_OFFSET), e.kind)
                 }
-                line => SystemError::new(system_file, line, e.message),
+                line => SystemError::caused(system_file, line, e.kind),
             }
         })?;
     for c in spec.components.iter_mut().skip(base) {

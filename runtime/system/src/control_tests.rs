@@ -1,14 +1,16 @@
 //! The example controllers in a loop from a description: ptp → feedforward → cascade → a
 //! test plant, watched by the monitor.
 
-use modbot_grid::component::{ComponentInfo, Params, PortValue, Registry, Released};
+use modbot_grid::component::{
+    ComponentError, ComponentInfo, Params, PortValue, Registry, Released,
+};
 use modbot_grid::control::{
     array, array_mut, array_ports, axes, axes_decl, per_axis, per_axis_decl, positive,
 };
 use modbot_grid::{reference_run, Component};
 
 /// A test-only source of a constant array: `y` = the param `value`.
-fn goal_info(p: &Params) -> Result<ComponentInfo, String> {
+fn goal_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = if p.is_empty() {
         1
     } else {
@@ -33,7 +35,7 @@ impl Component for Goal {
 
 /// A test-only plant: per axis a pure double integrator, inertia · q̈ = τ (semi-implicit
 /// Euler at its period), at rest at 0 to begin with.
-fn plant_info(p: &Params) -> Result<ComponentInfo, String> {
+fn plant_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     Ok(ComponentInfo {
         type_name: "test_plant",

@@ -1,8 +1,8 @@
 //! What one declaration says, read from its Lua values.
 //!
 //! Each function here takes the value a declaration was called with and returns the Rust value
-//! or a message naming the declaration and the field ("module 'sonar': field 'args' must be a
-//! list of strings"); `lua` adds the file and the line. Checks that need more than one
+//! or a [`DeclError`] naming the declaration and the field ("module 'sonar': field 'args' must
+//! be a list of strings"); `lua` adds the file and the line. Checks that need more than one
 //! declaration (duplicates, group members) are in `validate`.
 //!
 //! Tables are read with raw access (no metamethods run) and every key must be a known field,
@@ -13,9 +13,9 @@ use std::path::PathBuf;
 use mlua::{Lua, Value};
 
 use super::read::{
-    coerce, integer, integer_in, list, seconds, show, string, string_list, text, Fields,
+    coerce, integer, integer_in, list, lua_failed, seconds, show, string, string_list, text, Fields,
 };
-use super::{GiveUp, GroupSpec, ModuleSpec, Restart, RestartPolicy, Supervision};
+use super::{DeclError, GiveUp, GroupSpec, ModuleSpec, Restart, RestartPolicy, Supervision};
 use modbot_core::transport::{check_name, ReceiveMode};
 use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl};
 
@@ -98,35 +98,31 @@ const RESTART_FIELDS: &[&str] = &[
 const MAX_CPU: i64 = 1023;
 
 /// The argument of `domain "name"`.
-pub(super) fn domain(v: &Value) -> Result<String, String> {
-    let name = text(v).ok_or_else(|| {
-        format!(
-            "domain must be given a name, as in domain \"robot\", not {}",
-            show(v)
-        )
+pub(super) fn domain(v: &Value) -> Result<String, DeclError> {
+    let name = text(v).ok_or_else(|| DeclError::Argument {
+        what: "domain".into(),
+        expected: "a name, as in domain \"robot\"".into(),
+        got: show(v),
     })?;
-    modbot_core::Domain::new(&name).map_err(|e| e.to_string())?;
+    modbot_core::Domain::new(&name)?;
     Ok(name)
 }
 
 /// The argument of `module "name"` or `group "name"` (`what` is "module" or "group").
-pub(super) fn name(what: &str, v: &Value) -> Result<String, String> {
-    let name = text(v).ok_or_else(|| {
-        format!(
-            "{what} must be given a name, as in {what} \"sonar\" {{ ... }}, not {}",
-            show(v)
-        )
+pub(super) fn name(what: &'static str, v: &Value) -> Result<String, DeclError> {
+    let name = text(v).ok_or_else(|| DeclError::Argument {
+        what: what.into(),
+        expected: format!("a name, as in {what} \"sonar\" {{ ... }}"),
+        got: show(v),
     })?;
     if check_name(&name).is_err() {
-        return Err(format!(
-            "{what} name '{name}' is invalid: use 1 to 48 characters of a-z, A-Z, 0-9, _ and -"
-        ));
+        return Err(DeclError::Name { what, name });
     }
     Ok(name)
 }
 
 /// The table of `supervision { ... }`.
-pub(super) fn supervision(v: &Value) -> Result<Supervision, String> {
+pub(super) fn supervision(v: &Value) -> Result<Supervision, DeclError> {
     let what = "supervision";
     let mut fields = Fields::read(what, v, SUPERVISION_FIELDS)?;
     let mut sut = Supervision::default();
@@ -143,30 +139,34 @@ pub(super) fn supervision(v: &Value) -> Result<Supervision, String> {
         sut.stop_grace = seconds(what, "stop_grace", &v, true)?;
     }
     if sut.heartbeat_period >= sut.heartbeat_timeout / 2 {
-        return Err(format!(
-            "supervision: heartbeat_period ({:?}) must be less than half of heartbeat_timeout \
-             ({:?}), so that one late heartbeat does not make a module look hung",
+        let why = format!(
+            "heartbeat_period ({:?}) must be less than half of heartbeat_timeout ({:?}), so \
+             that one late heartbeat does not make a module look hung",
             sut.heartbeat_period, sut.heartbeat_timeout
-        ));
+        );
+        return Err(DeclError::invalid(what, why));
     }
     Ok(sut)
 }
 
 /// The table of `module "name" { ... }`, declared at `line`.
-pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<ModuleDecl, String> {
+pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<ModuleDecl, DeclError> {
     let what = format!("module '{name}'");
     let what = what.as_str();
     let mut fields = Fields::read(what, v, MODULE_FIELDS)?;
     let addr = match fields.take("addr") {
         Some(v) => integer_in(what, "addr", &v, 1, 254)?,
-        None => return Err(format!("{what}: field 'addr' is required (1 to 254)")),
+        None => return Err(DeclError::missing(what, "addr", " (1 to 254)")),
     };
     let program = match fields.take("program") {
         Some(v) => string(what, "program", &v)?,
-        None => return Err(format!("{what}: field 'program' is required")),
+        None => return Err(DeclError::missing(what, "program", "")),
     };
     if program.is_empty() || program.contains('\0') {
-        return Err(format!("{what}: field 'program' must name a program"));
+        return Err(DeclError::invalid(
+            what,
+            "field 'program' must name a program",
+        ));
     }
     let args = match fields.take("args") {
         Some(v) => string_list(lua, what, "args", &v)?,
@@ -186,10 +186,8 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
             Some("blocking") => ReceiveMode::Blocking,
             Some("busy" | "busy-poll") => ReceiveMode::BusyPoll,
             _ => {
-                return Err(format!(
-                    "{what}: field 'mode' must be \"blocking\" or \"busy\", not {}",
-                    show(&v)
-                ))
+                let expected = "\"blocking\" or \"busy\"";
+                return Err(DeclError::field(what, "mode", expected, show(&v)));
             }
         },
         None => ReceiveMode::Blocking,
@@ -211,47 +209,50 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
 }
 
 /// The list of `group "name" { "member", ... }`.
-pub(super) fn group_members(name: &str, v: &Value) -> Result<Vec<String>, String> {
+pub(super) fn group_members(name: &str, v: &Value) -> Result<Vec<String>, DeclError> {
     let what = format!("group '{name}'");
-    let items = list(&what, "members", v).map_err(|_| {
-        format!(
-            "group '{name}' must be given a list of module names, as in group \"{name}\" \
-             {{ \"sonar\", \"mobility\" }}, not {}",
-            show(v)
-        )
+    let items = list(&what, "members", v).map_err(|_| DeclError::Argument {
+        what: what.clone(),
+        expected: format!(
+            "a list of module names, as in group \"{name}\" {{ \"sonar\", \"mobility\" }}"
+        ),
+        got: show(v),
     })?;
     let mut members: Vec<String> = Vec::with_capacity(items.len());
     for (i, item) in items.iter().enumerate() {
         let member = text(item).ok_or_else(|| {
-            format!(
-                "group '{name}': member {} must be a module name, not {}",
-                i + 1,
-                show(item)
-            )
+            let why = format!("member {} must be a module name, not {}", i + 1, show(item));
+            DeclError::invalid(&what, why)
         })?;
         if members.contains(&member) {
-            return Err(format!("group '{name}': '{member}' is listed twice"));
+            return Err(DeclError::invalid(
+                &what,
+                format!("'{member}' is listed twice"),
+            ));
         }
         members.push(member);
     }
     if members.is_empty() {
-        return Err(format!("group '{name}' has no members"));
+        return Err(DeclError::NoMembers { group: name.into() });
     }
     Ok(members)
 }
 
 /// `restart = "policy"` or `restart = { policy = ..., ... }` of module `module`.
-fn restart(module: &str, v: &Value) -> Result<RestartPolicy, String> {
+fn restart(module: &str, v: &Value) -> Result<RestartPolicy, DeclError> {
     let when = |v: &Value| match text(v) {
         Some(s) => Restart::from_name(&s).ok_or_else(|| {
-            format!(
-                "restart policy '{s}' for module '{module}': expected never, on-failure or always"
-            )
+            let what = format!("restart policy '{s}' for module '{module}'");
+            DeclError::invalid(&what, "expected never, on-failure or always")
         }),
-        None => Err(format!(
-            "module '{module}': restart policy must be never, on-failure or always, not {}",
-            show(v)
-        )),
+        None => {
+            let what = format!("module '{module}'");
+            let why = format!(
+                "restart policy must be never, on-failure or always, not {}",
+                show(v)
+            );
+            Err(DeclError::invalid(&what, why))
+        }
     };
     let mut sut = RestartPolicy::default();
     match v {
@@ -280,25 +281,23 @@ fn restart(module: &str, v: &Value) -> Result<RestartPolicy, String> {
                     .as_deref()
                     .and_then(GiveUp::from_name)
                     .ok_or_else(|| {
-                        format!(
-                            "{what}: field 'give_up' must be \"keep-others\" or \"stop-system\", not {}",
-                            show(&v)
-                        )
+                        let expected = "\"keep-others\" or \"stop-system\"";
+                        DeclError::field(what, "give_up", expected, show(&v))
                     })?;
             }
             if sut.max_backoff < sut.backoff {
-                return Err(format!(
-                    "{what}: max_backoff ({:?}) must not be less than backoff ({:?})",
+                let why = format!(
+                    "max_backoff ({:?}) must not be less than backoff ({:?})",
                     sut.max_backoff, sut.backoff
-                ));
+                );
+                return Err(DeclError::invalid(what, why));
             }
         }
         Value::String(_) => sut.when = when(v)?,
         _ => {
-            return Err(format!(
-                "module '{module}': field 'restart' must be a policy name or a table, not {}",
-                show(v)
-            ))
+            let what = format!("module '{module}'");
+            let expected = "a policy name or a table";
+            return Err(DeclError::field(&what, "restart", expected, show(v)));
         }
     }
     Ok(sut)
@@ -310,7 +309,7 @@ fn restart(module: &str, v: &Value) -> Result<RestartPolicy, String> {
 pub(super) fn realtime(
     what: &str,
     fields: &mut Fields,
-) -> Result<(Vec<usize>, Option<i64>, bool), String> {
+) -> Result<(Vec<usize>, Option<i64>, bool), DeclError> {
     let cpus = match fields.take("cpus") {
         Some(v) => cpus(what, &v)?,
         None => Vec::new(),
@@ -321,24 +320,15 @@ pub(super) fn realtime(
     };
     let mlock = match fields.take("mlock") {
         Some(Value::Boolean(b)) => b,
-        Some(v) => {
-            return Err(format!(
-                "{what}: field 'mlock' must be true or false, not {}",
-                show(&v)
-            ))
-        }
+        Some(v) => return Err(DeclError::field(what, "mlock", "true or false", show(&v))),
         None => false,
     };
     Ok((cpus, priority, mlock))
 }
 
-pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
-    let bad = || {
-        format!(
-            "{what}: field 'cpus' must be a list of CPU indices 0 to {MAX_CPU}, not {}",
-            show(v)
-        )
-    };
+pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, DeclError> {
+    let expected = format!("a list of CPU indices 0 to {MAX_CPU}");
+    let bad = || DeclError::field(what, "cpus", expected.clone(), show(v));
     let mut cpus = Vec::new();
     for item in list(what, "cpus", v).map_err(|_| bad())? {
         match integer(&item) {
@@ -346,10 +336,11 @@ pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
                 cpus.push(usize::try_from(cpu).unwrap_or(usize::MAX))
             }
             _ => {
-                return Err(format!(
-                    "{what}: field 'cpus' must be a list of CPU indices 0 to {MAX_CPU}, and {} is not one",
+                let why = format!(
+                    "field 'cpus' must be {expected}, and {} is not one",
                     show(&item)
-                ))
+                );
+                return Err(DeclError::invalid(what, why));
             }
         }
     }
@@ -359,24 +350,31 @@ pub(super) fn cpus(what: &str, v: &Value) -> Result<Vec<usize>, String> {
 }
 
 /// `env = { NAME = "value" }`: sorted by name.
-fn env(lua: &Lua, what: &str, v: &Value) -> Result<Vec<(String, String)>, String> {
-    let bad = || format!("{what}: field 'env' must be a table of NAME = \"value\"");
+fn env(lua: &Lua, what: &str, v: &Value) -> Result<Vec<(String, String)>, DeclError> {
+    let bad = || DeclError::Field {
+        what: what.to_owned(),
+        field: "env".into(),
+        expected: "a table of NAME = \"value\"".into(),
+        got: None,
+    };
     let Value::Table(table) = v else {
         return Err(bad());
     };
     let mut env = Vec::new();
     for pair in table.pairs::<Value, Value>() {
-        let (key, value) = pair.map_err(|e| format!("{what}: {e}"))?;
+        let (key, value) = pair.map_err(|e| lua_failed(what, &e))?;
         let key = text(&key).ok_or_else(bad)?;
         if key.is_empty() || key.contains(['=', '\0']) {
-            return Err(format!(
-                "{what}: '{key}' cannot be an environment variable name"
-            ));
+            let why = format!("'{key}' cannot be an environment variable name");
+            return Err(DeclError::invalid(what, why));
         }
-        let value = coerce(lua, &value)
-            .ok_or_else(|| format!("{what}: env {key} must be a string, not {}", show(&value)))?;
+        let value = coerce(lua, &value).ok_or_else(|| {
+            let why = format!("env {key} must be a string, not {}", show(&value));
+            DeclError::invalid(what, why)
+        })?;
         if value.contains('\0') {
-            return Err(format!("{what}: env {key} contains a NUL character"));
+            let why = format!("env {key} contains a NUL character");
+            return Err(DeclError::invalid(what, why));
         }
         env.push((key, value));
     }

@@ -19,7 +19,8 @@ use mlua::{Lua, MultiValue, Table, Value};
 
 use super::decl::{self, realtime};
 use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
-use super::read::{integer_in, list, show, string, text, Fields};
+use super::read::{integer_in, list, lua_failed, show, string, text, Fields};
+use super::DeclError;
 use modbot_grid::component::{ParamValue, Params};
 use modbot_grid::spec::{
     AssembliesDecl, ComponentDecl, ConnectDecl, GridClock, GridDecl, GridTiming, OverrunPolicy,
@@ -61,8 +62,8 @@ fn grid_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
             .map_err(|m| fail(&record, line, m))?;
         let first = record.borrow().decls.grid.as_ref().map(|g| g.line);
         if let Some(first) = first {
-            let message = format!("grid is already declared at line {first}");
-            return Err(fail(&record, line, message));
+            let what = "grid";
+            return Err(fail(&record, line, DeclError::Duplicate { what, first }));
         }
         record.borrow_mut().decls.grid = Some(grid);
         Ok(())
@@ -98,8 +99,8 @@ fn connect_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
         let line = caller_line(lua);
         let connection = connect(line, &args).map_err(|m| fail(&record, line, m))?;
         if record.borrow().decls.connections.len() >= MAX_CONNECTIONS {
-            let message = format!("too many connect declarations (at most {MAX_CONNECTIONS})");
-            return Err(fail(&record, line, message));
+            let (kind, max) = ("connect", MAX_CONNECTIONS);
+            return Err(fail(&record, line, DeclError::TooMany { kind, max }));
         }
         record.borrow_mut().decls.connections.push(connection);
         Ok(())
@@ -107,7 +108,7 @@ fn connect_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
 }
 
 /// The table of `grid { ... }`, declared at `line`.
-fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
+fn grid(line: u32, v: &Value) -> Result<GridDecl, DeclError> {
     let what = "grid";
     let mut fields = Fields::read(what, v, GRID_FIELDS)?;
     let base_period = match fields.take("base_period") {
@@ -122,18 +123,17 @@ fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
         }),
         (None, None) => None,
         _ => {
-            return Err(
-                "grid: give both 'assemblies' (the directory of the assembly files) and \
-                 'assembly' (the one to start with), or neither"
-                    .into(),
-            )
+            let why = "give both 'assemblies' (the directory of the assembly files) and \
+                       'assembly' (the one to start with), or neither";
+            return Err(DeclError::invalid(what, why));
         }
     };
     let mut timing = GridTiming::default();
     if let Some(v) = fields.take("clock") {
         let name = string(what, "clock", &v)?;
         timing.clock = GridClock::from_name(&name).ok_or_else(|| {
-            format!("grid: field 'clock' must be \"realtime\" or \"lockstep\", not \"{name}\"")
+            let expected = "\"realtime\" or \"lockstep\"";
+            DeclError::field(what, "clock", expected, format!("\"{name}\""))
         })?;
     }
     if let Some(v) = fields.take("track_ticks") {
@@ -155,58 +155,47 @@ fn grid(line: u32, v: &Value) -> Result<GridDecl, String> {
 }
 
 /// `base_period = seconds`, rounded to whole nanoseconds.
-fn base_period(v: &Value) -> Result<Duration, String> {
+fn base_period(v: &Value) -> Result<Duration, DeclError> {
     let secs = number(v).unwrap_or(f64::NAN);
     if !(secs.is_finite() && secs > 0.0 && secs <= 3600.0) {
-        return Err(format!(
-            "grid: field 'base_period' must be a positive number of seconds (at most 3600), not {}",
-            show(v)
-        ));
+        let expected = "a positive number of seconds (at most 3600)";
+        return Err(DeclError::field("grid", "base_period", expected, show(v)));
     }
     let nanos = (secs * 1e9).round() as u64;
     if nanos == 0 {
-        return Err(format!("grid: base_period {secs} s is shorter than 1 ns"));
+        let why = format!("base_period {secs} s is shorter than 1 ns");
+        return Err(DeclError::invalid("grid", why));
     }
     Ok(Duration::from_nanos(nanos))
 }
 
 /// The table of `component "name" { ... }`, declared at `line`.
-fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, String> {
+fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclError> {
     let what = format!("component '{name}'");
     let what = what.as_str();
     let mut fields = Fields::read(what, v, COMPONENT_FIELDS)?;
     let type_name = match fields.take("type") {
         Some(v) => string(what, "type", &v)?,
-        None => return Err(format!("{what}: field 'type' is required")),
+        None => return Err(DeclError::missing(what, "type", "")),
     };
     let host = match fields.take("host") {
         Some(v) => string(what, "host", &v)?,
-        None => {
-            return Err(format!(
-                "{what}: field 'host' is required (the host process)"
-            ))
-        }
+        None => return Err(DeclError::missing(what, "host", " (the host process)")),
     };
-    let period = match (fields.take("period"), fields.take("period_s")) {
-        (Some(_), Some(_)) => {
-            return Err(format!(
-                "{what}: give 'period' (base ticks) or 'period_s' (seconds), not both"
-            ))
-        }
-        (Some(v), None) => Period::Ticks(number(&v).ok_or_else(|| {
-            format!(
-                "{what}: field 'period' must be a number of base ticks, not {}",
-                show(&v)
-            )
-        })?),
-        (None, Some(v)) => Period::Seconds(number(&v).ok_or_else(|| {
-            format!(
-                "{what}: field 'period_s' must be a number of seconds, not {}",
-                show(&v)
-            )
-        })?),
-        (None, None) => Period::Ticks(1.0),
-    };
+    let period =
+        match (fields.take("period"), fields.take("period_s")) {
+            (Some(_), Some(_)) => {
+                let why = "give 'period' (base ticks) or 'period_s' (seconds), not both";
+                return Err(DeclError::invalid(what, why));
+            }
+            (Some(v), None) => Period::Ticks(number(&v).ok_or_else(|| {
+                DeclError::field(what, "period", "a number of base ticks", show(&v))
+            })?),
+            (None, Some(v)) => Period::Seconds(number(&v).ok_or_else(|| {
+                DeclError::field(what, "period_s", "a number of seconds", show(&v))
+            })?),
+            (None, None) => Period::Ticks(1.0),
+        };
     let params = match fields.take("params") {
         Some(v) => params(what, &v)?,
         None => Params::new(),
@@ -215,12 +204,7 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, String> 
         Some(v) => text(&v)
             .as_deref()
             .and_then(OverrunPolicy::from_name)
-            .ok_or_else(|| {
-                format!(
-                    "{what}: field 'policy' must be \"hold\" or \"fault\", not {}",
-                    show(&v)
-                )
-            })?,
+            .ok_or_else(|| DeclError::field(what, "policy", "\"hold\" or \"fault\"", show(&v)))?,
         None => OverrunPolicy::Hold,
     };
     Ok(ComponentDecl {
@@ -237,29 +221,29 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, String> 
 /// `params = { name = value, ... }`: booleans, integers (i64), other numbers (f64), strings
 /// and lists of numbers (f64 lists), sorted by name. Their names and types are checked
 /// against the component type later.
-fn params(what: &str, v: &Value) -> Result<Params, String> {
+fn params(what: &str, v: &Value) -> Result<Params, DeclError> {
     let Value::Table(table) = v else {
-        return Err(format!(
-            "{what}: field 'params' must be a table of name = value, not {}",
-            show(v)
-        ));
+        let expected = "a table of name = value";
+        return Err(DeclError::field(what, "params", expected, show(v)));
     };
     let mut params = Vec::new();
     for pair in table.pairs::<Value, Value>() {
-        let (key, value) = pair.map_err(|e| format!("{what}: {e}"))?;
+        let (key, value) = pair.map_err(|e| lua_failed(what, &e))?;
         let Some(name) = text(&key) else {
-            return Err(format!(
-                "{what}: params are written name = value, and [{}] = {} is not",
-                show(&key),
-                show(&value)
-            ));
+            return Err(DeclError::Unnamed {
+                what: what.to_owned(),
+                kind: "params",
+                key: show(&key),
+                value: show(&value),
+            });
         };
         let bad = || {
-            format!(
-                "{what}: param '{name}' must be a boolean, a number, a string or a list of \
-                 numbers, not {}",
+            let why = format!(
+                "param '{name}' must be a boolean, a number, a string or a list of numbers, not \
+                 {}",
                 show(&value)
-            )
+            );
+            DeclError::invalid(what, why)
         };
         let value = match &value {
             Value::Boolean(b) => ParamValue::Bool(*b),
@@ -281,29 +265,33 @@ fn params(what: &str, v: &Value) -> Result<Params, String> {
 }
 
 /// The arguments of `connect`, declared at `line`.
-fn connect(line: u32, args: &MultiValue) -> Result<ConnectDecl, String> {
+fn connect(line: u32, args: &MultiValue) -> Result<ConnectDecl, DeclError> {
     let usage = "write connect \"A.y -> B.u\" or connect(\"A.y\", \"B.u\")";
     let texts: Option<Vec<String>> = args.iter().map(text).collect();
     let (from, to) = match texts.as_deref() {
         Some([one]) => match one.split_once("->") {
             Some((from, to)) => (endpoint(from.trim())?, endpoint(to.trim())?),
-            None => return Err(format!("connect: '{one}' has no '->': {usage}")),
+            None => {
+                let why = format!("'{one}' has no '->': {usage}");
+                return Err(DeclError::invalid("connect", why));
+            }
         },
         Some([from, to]) => (endpoint(from)?, endpoint(to)?),
-        _ => return Err(format!("connect takes an output and an input: {usage}")),
+        _ => return Err(DeclError::ConnectArguments { usage }),
     };
     Ok(ConnectDecl { from, to, line })
 }
 
 /// `"A.y"` as (component, port).
-fn endpoint(text: &str) -> Result<(String, String), String> {
+fn endpoint(text: &str) -> Result<(String, String), DeclError> {
     match text.split_once('.') {
         Some((c, p)) if !c.is_empty() && !p.is_empty() && !p.contains(['.', ' ']) => {
             Ok((c.to_owned(), p.to_owned()))
         }
-        _ => Err(format!(
-            "connect: '{text}' is not component.port (as in \"A.y\")"
-        )),
+        _ => {
+            let why = format!("'{text}' is not component.port (as in \"A.y\")");
+            Err(DeclError::invalid("connect", why))
+        }
     }
 }
 

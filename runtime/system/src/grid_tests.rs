@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use super::*;
-use modbot_grid::component::{Component, ComponentInfo, PortDecl, Released};
+use modbot_grid::component::{Component, ComponentError, ComponentInfo, PortDecl, Released};
 use modbot_grid::{OverrunPolicy, ParamValue, PortRef, PortType, PortValue};
 
 fn load_text(source: &str) -> Result<SystemSpec, SystemError> {
@@ -351,7 +351,7 @@ fn duplicate_component_name_is_refused() {
 }
 
 /// A type with 17 inputs, to feed one component from more sources than a release notice holds.
-fn wide_info(_: &modbot_grid::Params) -> Result<ComponentInfo, String> {
+fn wide_info(_: &modbot_grid::Params) -> Result<ComponentInfo, ComponentError> {
     const NAMES: [&str; 17] = [
         "u0", "u1", "u2", "u3", "u4", "u5", "u6", "u7", "u8", "u9", "u10", "u11", "u12", "u13",
         "u14", "u15", "u16",

@@ -175,9 +175,14 @@ fn two_reference_traces_are_identical() {
 fn a_component_that_cannot_be_made_fails_the_run_by_name() {
     let mut spec = chain();
     spec.components[1].params = Default::default();
-    let sut = reference_run(&spec, &Registry::builtin(), 1, &mut |_, _, _| {});
+    let sut = reference_run(&spec, &Registry::builtin(), 1, &mut |_, _, _| {}).unwrap_err();
     assert_eq!(
-        sut,
-        Err("component 'B': param 'k' (f64) is required for type 'gain'".into())
+        sut.to_string(),
+        "component 'B': param 'k' (f64) is required for type 'gain'"
+    );
+    let source = std::error::Error::source(&sut).map(|s| s.to_string());
+    assert_eq!(
+        source.as_deref(),
+        Some("param 'k' (f64) is required for type 'gain'")
     );
 }

@@ -34,10 +34,11 @@
 //! ```
 //!
 //! # Layout
-//! - this file: the checked description ([`SystemSpec`] and its parts), [`SystemError`], the
-//!   entry points [`load`], [`load_str`], [`load_with_vars`], [`load_str_with_vars`] and, with
+//! - this file: the checked description ([`SystemSpec`] and its parts), the entry points [`load`], [`load_str`], [`load_with_vars`], [`load_str_with_vars`] and, with
 //!   a [`Registry`] of component types, [`load_with_registry`] and [`load_str_with_registry`];
 //!   [`parse_var`] for `--var KEY=VALUE`.
+//! - `error`: [`SystemError`] (`file:line: message`, with its cause), [`DeclError`] (what is
+//!   wrong with one declaration's values) and [`VarError`] (a bad `--var`).
 //! - `lua`: the sandboxed evaluation: which Lua libraries exist, the memory and instruction
 //!   budgets, the declaration functions (`domain`, `supervision`, `module`, `group`) and the
 //!   translation of Lua errors into [`SystemError`].
@@ -46,13 +47,14 @@
 //! - `decl`: what one declaration says, read field by field from its Lua table, with the
 //!   checks that need nothing but that table (ranges, policies, unknown fields).
 //! - `read`: typed values out of Lua values (strings, integers, seconds, lists, field tables),
-//!   each refusal a message that shows the value.
+//!   each refusal a [`DeclError`] that shows the value.
 //! - `validate`: the checks across declarations (duplicates, group members, timings), the
 //!   program lookup and the grid's checks, which produce the [`SystemSpec`].
 //! - [`program`]: how a program name becomes an executable path ([`DefaultResolver`]).
 
 pub mod assembly;
 mod decl;
+mod error;
 pub mod fuzz;
 mod grid_decl;
 mod lua;
@@ -77,12 +79,11 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use thiserror::Error;
-
 use modbot_core::transport::ReceiveMode;
 use modbot_grid::{GridSpec, Registry};
 
 pub use assembly::{assembly_names, load_assembly};
+pub use error::{DeclError, SystemError, VarError};
 pub use program::{DefaultResolver, ProgramResolver};
 
 /// A checked system description: everything the supervisor needs to start the robot.
@@ -296,32 +297,6 @@ pub struct GroupSpec {
     pub line: u32,
 }
 
-/// Why a system description was refused: `file:line: message`.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-#[error("{file}{}: {message}", line_suffix(.line))]
-pub struct SystemError {
-    /// The description file, as it was named.
-    pub file: String,
-    /// The line the problem is on, when it is on one.
-    pub line: Option<u32>,
-    /// What is wrong, and what was expected.
-    pub message: String,
-}
-
-fn line_suffix(line: &Option<u32>) -> String {
-    line.map(|l| format!(":{l}")).unwrap_or_default()
-}
-
-impl SystemError {
-    pub(crate) fn new(file: &str, line: Option<u32>, message: impl Into<String>) -> SystemError {
-        SystemError {
-            file: file.to_owned(),
-            line,
-            message: message.into(),
-        }
-    }
-}
-
 /// Reads, evaluates and checks the system description in the file `path`.
 pub fn load(path: &Path, resolver: &dyn ProgramResolver) -> Result<SystemSpec, SystemError> {
     load_with_vars(path, resolver, &[])
@@ -346,8 +321,9 @@ pub fn load_with_registry(
     registry: &Registry,
 ) -> Result<SystemSpec, SystemError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path)
-        .map_err(|e| SystemError::new(&file, None, format!("cannot read the description: {e}")))?;
+    let bytes = std::fs::read(path).map_err(|e| {
+        SystemError::new(&file, None, format!("cannot read the description: {e}")).because(e)
+    })?;
     let source = String::from_utf8(bytes).map_err(|e| {
         SystemError::new(
             &file,
@@ -394,22 +370,19 @@ pub fn load_str_with_registry(
 
 /// Reads one `--var KEY=VALUE`: the key is what comes before the first `=`, made of ASCII
 /// letters, digits, `_`, `-` and `.`; the value is the rest (it may be empty, and contain `=`).
-pub fn parse_var(text: &str) -> Result<(String, String), String> {
+pub fn parse_var(text: &str) -> Result<(String, String), VarError> {
     let Some((key, value)) = text.split_once('=') else {
-        return Err(format!("'{text}' is not KEY=VALUE (no '=')"));
+        return Err(VarError::NoEquals { text: text.into() });
     };
     if key.is_empty() {
-        return Err(format!(
-            "'{text}' has no key before the '=': write KEY=VALUE"
-        ));
+        return Err(VarError::NoKey { text: text.into() });
     }
-    if let Some(c) = key
+    if let Some(bad) = key
         .chars()
         .find(|c| !(c.is_ascii_alphanumeric() || "_-.".contains(*c)))
     {
-        return Err(format!(
-            "key '{key}' contains {c:?}: a key is made of ASCII letters, digits, '_', '-' and '.'"
-        ));
+        let key = key.into();
+        return Err(VarError::BadKey { key, bad });
     }
     Ok((key.to_owned(), value.to_owned()))
 }

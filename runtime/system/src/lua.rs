@@ -32,7 +32,7 @@ use mlua::{HookTriggers, Lua, LuaOptions, MultiValue, StdLib, Value, VmState};
 
 use super::decl::{self, Declarations};
 use super::grid_decl;
-use super::{GroupSpec, SystemError};
+use super::{DeclError, GroupSpec, SystemError};
 
 /// The most memory a description may use.
 pub(super) const MEMORY_LIMIT: usize = 16 << 20;
@@ -123,8 +123,8 @@ pub(super) struct Record {
     /// How many `bodies` there are of each kind (a declaration loop must not count them all
     /// at every call).
     counts: Vec<(&'static str, usize)>,
-    /// The first failure: its line (if any) and message.
-    failure: Option<(Option<u32>, String)>,
+    /// The first failure: its line (if any) and what it is.
+    failure: Option<(Option<u32>, DeclError)>,
     /// Instructions executed so far, counted by the hook.
     instructions: u64,
 }
@@ -157,8 +157,8 @@ pub(super) fn evaluate(
     let mut record = std::mem::take(&mut *record.borrow_mut());
     // Closing the state runs pending finalizers (user code, still under the hook).
     drop(lua);
-    if let Some((line, message)) = record.failure.take() {
-        return Err(SystemError::new(file, line, message));
+    if let Some((line, error)) = record.failure.take() {
+        return Err(SystemError::caused(file, line, error));
     }
     result.map_err(|e| translate(file, &e))?;
     if let Some(body) = record.bodies.iter().find(|b| !b.given) {
@@ -167,15 +167,12 @@ pub(super) fn evaluate(
             "component" => "{ type = ..., host = ... }",
             _ => "{ \"member\", ... }",
         };
-        return Err(SystemError::new(
-            file,
-            Some(body.line),
-            format!(
-                "{kind} '{name}' is declared without its table: write {kind} \"{name}\" {example}",
-                kind = body.kind,
-                name = body.name
-            ),
-        ));
+        let error = DeclError::NoTable {
+            kind: body.kind,
+            name: body.name.clone(),
+            example,
+        };
+        return Err(SystemError::caused(file, Some(body.line), error));
     }
     Ok(record.decls)
 }
@@ -222,8 +219,7 @@ fn sandbox(record: &Shared, vars: &[(String, String)]) -> mlua::Result<Lua> {
                     return Ok(VmState::Continue);
                 }
                 if record.failure.is_none() {
-                    let message = "the description ran too long (instruction limit)".to_owned();
-                    record.failure = Some((None, message));
+                    record.failure = Some((None, DeclError::InstructionLimit));
                 }
             }
             // From now on every instruction fails, so code that swallows errors (a finalizer,
@@ -247,8 +243,8 @@ fn domain_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
             .map_err(|m| fail(&record, line, m))?;
         let first = record.borrow().decls.domain.as_ref().map(|d| d.1);
         if let Some(first) = first {
-            let message = format!("domain is already declared at line {first}");
-            return Err(fail(&record, line, message));
+            let what = "domain";
+            return Err(fail(&record, line, DeclError::Duplicate { what, first }));
         }
         record.borrow_mut().decls.domain = Some((name, line));
         Ok(())
@@ -265,8 +261,8 @@ fn supervision_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
             .map_err(|m| fail(&record, line, m))?;
         let first = record.borrow().decls.supervision.as_ref().map(|s| s.1);
         if let Some(first) = first {
-            let message = format!("supervision is already declared at line {first}");
-            return Err(fail(&record, line, message));
+            let what = "supervision";
+            return Err(fail(&record, line, DeclError::Duplicate { what, first }));
         }
         record.borrow_mut().decls.supervision = Some((supervision, line));
         Ok(())
@@ -336,8 +332,7 @@ pub(super) fn open_body(
         .find(|(k, _)| *k == kind)
         .map_or(0, |(_, n)| *n);
     if count >= max {
-        let message = format!("too many {kind} declarations (at most {max})");
-        return Err(fail(record, line, message));
+        return Err(fail(record, line, DeclError::TooMany { kind, max }));
     }
     let mut record = record.borrow_mut();
     match record.counts.iter_mut().find(|(k, _)| *k == kind) {
@@ -360,19 +355,26 @@ pub(super) fn given(record: &Shared, index: usize) {
 }
 
 /// The single argument of a declaration; `usage` shows how it is written.
-pub(super) fn one_arg<'a>(args: &'a MultiValue, usage: &str) -> Result<&'a Value, String> {
+pub(super) fn one_arg<'a>(
+    args: &'a MultiValue,
+    usage: &'static str,
+) -> Result<&'a Value, DeclError> {
+    let arguments = DeclError::Arguments {
+        got: args.len(),
+        usage,
+    };
     match args.len() {
-        1 => args.front().ok_or_else(String::new),
-        n => Err(format!("expected one argument but got {n}: write {usage}")),
+        1 => args.front().ok_or(arguments),
+        _ => Err(arguments),
     }
 }
 
-/// Records `message` as the failure (unless there is one already) and returns the Lua error
+/// Records `error` as the failure (unless there is one already) and returns the Lua error
 /// that stops the script.
-pub(super) fn fail(record: &Shared, line: u32, message: String) -> mlua::Error {
+pub(super) fn fail(record: &Shared, line: u32, error: DeclError) -> mlua::Error {
     let mut record = record.borrow_mut();
     if record.failure.is_none() {
-        record.failure = Some((Some(line), message));
+        record.failure = Some((Some(line), error));
     }
     stop()
 }

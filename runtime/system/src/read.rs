@@ -1,12 +1,22 @@
 //! Reading typed values out of Lua values, for the declarations in `decl`.
 //!
-//! Every reader returns the value or a message that names the declaration (`what`, such as
-//! "module 'sonar'") and the field, and shows the value that was refused. Tables are read with
-//! raw access: no metamethod runs.
+//! Every reader returns the value or a [`DeclError`] that names the declaration (`what`, such
+//! as "module 'sonar'") and the field, and shows the value that was refused. Tables are read
+//! with raw access: no metamethod runs.
 
 use std::time::Duration;
 
 use mlua::{Lua, Value};
+
+use super::DeclError;
+
+/// Lua's failure while reading a table of `what`.
+pub(super) fn lua_failed(what: &str, e: &mlua::Error) -> DeclError {
+    DeclError::Lua {
+        what: what.to_owned(),
+        detail: e.to_string(),
+    }
+}
 
 /// A list of strings; numbers are converted as Lua's `tostring` does.
 pub(super) fn string_list(
@@ -14,16 +24,22 @@ pub(super) fn string_list(
     what: &str,
     field: &str,
     v: &Value,
-) -> Result<Vec<String>, String> {
-    let bad = || format!("{what}: field '{field}' must be a list of strings");
+) -> Result<Vec<String>, DeclError> {
+    let bad = || DeclError::Field {
+        what: what.to_owned(),
+        field: field.to_owned(),
+        expected: "a list of strings".into(),
+        got: None,
+    };
     let mut strings = Vec::new();
     for item in list(what, field, v).map_err(|_| bad())? {
         let s = coerce(lua, &item).ok_or_else(bad)?;
         if s.contains('\0') {
-            return Err(format!(
-                "{what}: field '{field}': item {} contains a NUL character",
+            let why = format!(
+                "field '{field}': item {} contains a NUL character",
                 strings.len() + 1
-            ));
+            );
+            return Err(DeclError::invalid(what, why));
         }
         strings.push(s);
     }
@@ -31,8 +47,13 @@ pub(super) fn string_list(
 }
 
 /// The items of a Lua sequence (a table whose keys are exactly 1..n).
-pub(super) fn list(what: &str, field: &str, v: &Value) -> Result<Vec<Value>, String> {
-    let not_a_list = || format!("{what}: field '{field}' must be a list");
+pub(super) fn list(what: &str, field: &str, v: &Value) -> Result<Vec<Value>, DeclError> {
+    let not_a_list = || DeclError::Field {
+        what: what.to_owned(),
+        field: field.to_owned(),
+        expected: "a list".into(),
+        got: None,
+    };
     let Value::Table(table) = v else {
         return Err(not_a_list());
     };
@@ -40,7 +61,7 @@ pub(super) fn list(what: &str, field: &str, v: &Value) -> Result<Vec<Value>, Str
     let len = table.raw_len();
     let mut items = Vec::new();
     for pair in table.pairs::<Value, Value>() {
-        let (key, value) = pair.map_err(|e| format!("{what}: {e}"))?;
+        let (key, value) = pair.map_err(|e| lua_failed(what, &e))?;
         let index = integer(&key)
             .and_then(|i| usize::try_from(i).ok())
             .filter(|i| (1..=len).contains(i))
@@ -59,33 +80,41 @@ pub(super) struct Fields(Vec<(String, Value)>);
 
 impl Fields {
     /// Reads the fields of table `v`; any other key is an error naming `what`.
-    pub(super) fn read(what: &str, v: &Value, expected: &[&str]) -> Result<Fields, String> {
+    pub(super) fn read(
+        what: &str,
+        v: &Value,
+        expected: &'static [&'static str],
+    ) -> Result<Fields, DeclError> {
         let Value::Table(table) = v else {
-            return Err(format!(
-                "{what} must be given a table of fields ({} = ...), not {}",
-                expected.first().copied().unwrap_or("name"),
-                show(v)
-            ));
+            let first = expected.first().copied().unwrap_or("name");
+            return Err(DeclError::Argument {
+                what: what.to_owned(),
+                expected: format!("a table of fields ({first} = ...)"),
+                got: show(v),
+            });
         };
         let mut fields = Vec::new();
         // Lua's iteration order is not stable across runs: sort, so the message is.
         let mut problems = Vec::new();
         for pair in table.pairs::<Value, Value>() {
-            let (key, value) = pair.map_err(|e| format!("{what}: {e}"))?;
+            let (key, value) = pair.map_err(|e| lua_failed(what, &e))?;
             match text(&key) {
                 Some(name) if expected.contains(&name.as_str()) => fields.push((name, value)),
-                Some(name) => problems.push(format!(
-                    "{what}: unknown field '{name}' (expected {})",
-                    expected.join(", ")
-                )),
-                None => problems.push(format!(
-                    "{what}: fields are written name = value, and [{}] = {} is not",
-                    show(&key),
-                    show(&value)
-                )),
+                Some(field) => problems.push(DeclError::UnknownField {
+                    what: what.to_owned(),
+                    field,
+                    expected,
+                }),
+                None => problems.push(DeclError::Unnamed {
+                    what: what.to_owned(),
+                    kind: "fields",
+                    key: show(&key),
+                    value: show(&value),
+                }),
             }
         }
-        problems.sort();
+        // The first by its message, as before the errors had types.
+        problems.sort_by_cached_key(|p| p.to_string());
         match problems.into_iter().next() {
             Some(problem) => Err(problem),
             None => Ok(Fields(fields)),
@@ -99,8 +128,8 @@ impl Fields {
     }
 }
 
-pub(super) fn string(what: &str, field: &str, v: &Value) -> Result<String, String> {
-    text(v).ok_or_else(|| format!("{what}: field '{field}' must be a string, not {}", show(v)))
+pub(super) fn string(what: &str, field: &str, v: &Value) -> Result<String, DeclError> {
+    text(v).ok_or_else(|| DeclError::field(what, field, "a string", show(v)))
 }
 
 pub(super) fn integer_in(
@@ -109,13 +138,13 @@ pub(super) fn integer_in(
     v: &Value,
     lo: i64,
     hi: i64,
-) -> Result<i64, String> {
+) -> Result<i64, DeclError> {
     match integer(v) {
         Some(i) if (lo..=hi).contains(&i) => Ok(i),
-        _ => Err(format!(
-            "{what}: field '{field}' must be an integer from {lo} to {hi}, not {}",
-            show(v)
-        )),
+        _ => {
+            let expected = format!("an integer from {lo} to {hi}");
+            Err(DeclError::field(what, field, expected, show(v)))
+        }
     }
 }
 
@@ -125,7 +154,7 @@ pub(super) fn seconds(
     field: &str,
     v: &Value,
     zero_ok: bool,
-) -> Result<Duration, String> {
+) -> Result<Duration, DeclError> {
     let secs = match v {
         Value::Integer(i) => *i as f64,
         Value::Number(n) => *n,
@@ -138,13 +167,10 @@ pub(super) fn seconds(
         "a positive number of seconds"
     };
     if !ok {
-        return Err(format!(
-            "{what}: field '{field}' must be {expected}, not {}",
-            show(v)
-        ));
+        return Err(DeclError::field(what, field, expected, show(v)));
     }
     Duration::try_from_secs_f64(secs)
-        .map_err(|_| format!("{what}: field '{field}' is too large ({secs} s)"))
+        .map_err(|_| DeclError::invalid(what, format!("field '{field}' is too large ({secs} s)")))
 }
 
 /// An integer, or a float with an integer value.

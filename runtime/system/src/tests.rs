@@ -303,11 +303,18 @@ fn a_var_argument_is_key_equals_value() {
     assert_eq!(parse_var("a.b-c_1="), Ok(("a.b-c_1".into(), "".into())));
     assert_eq!(parse_var("url=x=y"), Ok(("url".into(), "x=y".into())));
     let no_eq = parse_var("speed").unwrap_err();
-    assert!(no_eq.contains("no '='"), "{no_eq}");
+    assert!(no_eq.to_string().contains("no '='"), "{no_eq}");
     let no_key = parse_var("=2").unwrap_err();
-    assert!(no_key.contains("no key"), "{no_key}");
+    assert!(no_key.to_string().contains("no key"), "{no_key}");
     let bad_key = parse_var("my speed=2").unwrap_err();
-    assert!(bad_key.contains("' '"), "{bad_key}");
+    assert_eq!(
+        bad_key,
+        VarError::BadKey {
+            key: "my speed".into(),
+            bad: ' '
+        }
+    );
+    assert!(bad_key.to_string().contains("' '"), "{bad_key}");
 }
 
 // ---- errors, each with its line ----

@@ -125,7 +125,7 @@ pub(super) fn build(
         )?),
         Some(grid) => Some(
             GridSpec::build(grid, decls.components, decls.connections, registry)
-                .map_err(|e| SystemError::new(file, e.line, e.message))?,
+                .map_err(|e| SystemError::caused(file, e.line, e.kind))?,
         ),
         None => None,
     };
@@ -166,7 +166,7 @@ fn with_assemblies(
 ) -> Result<GridSpec, SystemError> {
     let Some(decl) = grid.assemblies.clone() else {
         return GridSpec::build(grid, components, connections, registry)
-            .map_err(|e| SystemError::new(file, e.line, e.message));
+            .map_err(|e| SystemError::caused(file, e.line, e.kind));
     };
     let here = Path::new(file).parent().unwrap_or(Path::new(""));
     let dir = here.join(&decl.dir);

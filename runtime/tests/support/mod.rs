@@ -145,7 +145,7 @@ struct Server {
     name: String,
     addr: Addr,
     stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<(), String>>>,
+    thread: Option<JoinHandle<Result<(), ModuleError>>>,
     /// Killed in place: its thread still runs, but it is no longer the module of its name.
     killed: bool,
 }
@@ -226,7 +226,7 @@ impl<B: Backend> TestDomain<B> {
         delay: Duration,
         state: S,
         configure: impl FnOnce(ModuleBuilder<S>) -> ModuleBuilder<S> + Send + 'static,
-    ) -> mpsc::Receiver<Result<(), String>> {
+    ) -> mpsc::Receiver<Result<(), ModuleError>> {
         let (ready_tx, ready) = mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
         let transport = self.transport.clone();
@@ -240,13 +240,17 @@ impl<B: Backend> TestDomain<B> {
                     configure(ModuleBuilder::new(&owned, addr)).every(STOP_CHECK, stop_when_asked);
                 let module = match builder.open(transport, state) {
                     Ok(m) => m,
+                    // Told to whoever waits for the module to open; else (no one waits) it
+                    // is what the thread ends with.
                     Err(e) => {
-                        let _ = ready_tx.send(Err(e.to_string()));
-                        return Err(e.to_string());
+                        return match ready_tx.send(Err(e)) {
+                            Ok(()) => Ok(()),
+                            Err(mpsc::SendError(unheard)) => unheard,
+                        }
                     }
                 };
                 let _ = ready_tx.send(Ok(()));
-                let result = module.run().map_err(|e| e.to_string());
+                let result = module.run();
                 if modbot_runtime::signals::termination_requested() {
                     eprintln!("interrupted");
                     std::process::exit(130);

@@ -28,8 +28,8 @@ use super::cia402::DriveState;
 use super::plant::PlantParams;
 use super::sim::SimBackend;
 use crate::component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Registry, Released, PERIOD_S,
+    Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
+    PortDecl, PortType, PortValue, Registry, Released, PERIOD_S,
 };
 use crate::control::handover;
 use modbot_ipc_schema::grid::Release;
@@ -40,14 +40,17 @@ pub fn register(registry: &mut Registry) {
     registry.register(enable_info, make_enable);
 }
 
-fn axes(p: &Params) -> Result<usize, String> {
+fn axes(p: &Params) -> Result<usize, ParamError> {
     let n = if p.get("axes").is_some() {
         p.i64("axes")?
     } else {
         6
     };
     if !(1..=16).contains(&n) {
-        return Err(format!("param 'axes' must be 1 to 16, not {n}"));
+        return Err(ParamError::invalid(
+            "axes",
+            format!("must be 1 to 16, not {n}"),
+        ));
     }
     Ok(n as usize)
 }
@@ -75,7 +78,7 @@ const BUS_OUT: [&str; 6] = [
     "demand_position",
 ];
 
-fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
+fn bus_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     watchdog_periods(p)?;
     let (mut inputs, mut outputs) = (ports(&BUS_IN, n), ports(&BUS_OUT, n));
@@ -103,27 +106,27 @@ fn bus_info(p: &Params) -> Result<ComponentInfo, String> {
 
 /// Param `watchdog`: the base periods without a release after which the bus bridge judges
 /// the coordinator lost and stops the drives (default [`bridge::LOST_AFTER`], 1 to 1000).
-pub fn watchdog_periods(p: &Params) -> Result<u64, String> {
+pub fn watchdog_periods(p: &Params) -> Result<u64, ParamError> {
     if p.get("watchdog").is_none() {
         return Ok(bridge::LOST_AFTER);
     }
     let periods = p.i64("watchdog")?;
     if !(1..=1000).contains(&periods) {
-        return Err(format!(
-            "param 'watchdog' must be 1 to 1000 base periods, not {periods}"
-        ));
+        let why = format!("must be 1 to 1000 base periods, not {periods}");
+        return Err(ParamError::invalid("watchdog", why));
     }
     Ok(periods as u64)
 }
 
 /// A `bus` with drives of its own: a private simulation (the reference run, tests).
-fn make_bus(p: &Params) -> Result<Box<dyn Component>, String> {
+fn make_bus(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     let n = axes(p)?;
     if p.get("backend").is_some() && p.text("backend")? != "sim" {
-        return Err(format!(
-            "unknown bus backend '{}' (known: sim)",
+        let why = format!(
+            "names an unknown bus backend '{}' (known: sim)",
             p.text("backend")?
-        ));
+        );
+        return Err(ParamError::invalid("backend", why).into());
     }
     let period_ns = (p.f64(PERIOD_S)? * 1e9).round() as u64;
     let bridge = Bridge::new(
@@ -143,7 +146,8 @@ pub fn register_bridge(registry: &mut Registry, bridge: Arc<Mutex<Bridge>>) {
         let n = axes(p)?;
         let axes = bridge::lock(&bridge).axes();
         if axes != n {
-            return Err(format!("the bus bridge has {axes} axes, the component {n}"));
+            let why = format!("must be {axes}, the axes of the bus bridge, not {n}");
+            return Err(ParamError::invalid("axes", why).into());
         }
         Ok(Box::new(Bus {
             bridge: bridge.clone(),
@@ -209,7 +213,7 @@ impl Component for Bus {
     }
 }
 
-fn enable_info(p: &Params) -> Result<ComponentInfo, String> {
+fn enable_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     Ok(ComponentInfo {
         type_name: "drive_enable",
@@ -224,7 +228,7 @@ fn enable_info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-fn make_enable(p: &Params) -> Result<Box<dyn Component>, String> {
+fn make_enable(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     let n = axes(p)?;
     let mode = if p.get("mode").is_some() {
         p.i64("mode")?
@@ -232,9 +236,8 @@ fn make_enable(p: &Params) -> Result<Box<dyn Component>, String> {
         8
     };
     if !(8..=10).contains(&mode) {
-        return Err(format!(
-            "param 'mode' must be 8 (CSP), 9 (CSV) or 10 (CST), not {mode}"
-        ));
+        let why = format!("must be 8 (CSP), 9 (CSV) or 10 (CST), not {mode}");
+        return Err(ParamError::invalid("mode", why).into());
     }
     let reset = p.get("reset_faults").is_some() && p.bool("reset_faults")?;
     Ok(Box::new(Enable {

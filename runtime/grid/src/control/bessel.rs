@@ -21,6 +21,18 @@
 //! leaves [a, b] by more than that fraction of |b − a|; the smooth inputs of a trajectory
 //! (bounded acceleration) overshoot far less.
 
+/// Why a filter cannot be made: its sample period or its cutoff.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum FilterError {
+    #[error("the sample period must be positive, not {period_s} s")]
+    Period { period_s: f64 },
+    #[error(
+        "the cutoff must be above 0 and below the Nyquist frequency {nyquist_hz} Hz, not \
+         {cutoff_hz} Hz"
+    )]
+    Cutoff { cutoff_hz: f64, nyquist_hz: f64 },
+}
+
 /// One 2nd-order section, direct form II transposed. `Copy`: no allocation anywhere.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bessel2 {
@@ -35,18 +47,16 @@ pub struct Bessel2 {
 impl Bessel2 {
     /// A filter with its −3 dB point at `cutoff_hz`, sampled every `period_s` seconds, at
     /// rest at 0. The cutoff must be positive and below the Nyquist frequency 1 / (2·period_s).
-    pub fn new(cutoff_hz: f64, period_s: f64) -> Result<Bessel2, String> {
+    pub fn new(cutoff_hz: f64, period_s: f64) -> Result<Bessel2, FilterError> {
         if !(period_s.is_finite() && period_s > 0.0) {
-            return Err(format!(
-                "the sample period must be positive, not {period_s} s"
-            ));
+            return Err(FilterError::Period { period_s });
         }
-        let nyquist = 0.5 / period_s;
-        if !(cutoff_hz.is_finite() && cutoff_hz > 0.0 && cutoff_hz < nyquist) {
-            return Err(format!(
-                "the cutoff must be above 0 and below the Nyquist frequency {nyquist} Hz, not \
-                 {cutoff_hz} Hz"
-            ));
+        let nyquist_hz = 0.5 / period_s;
+        if !(cutoff_hz.is_finite() && cutoff_hz > 0.0 && cutoff_hz < nyquist_hz) {
+            return Err(FilterError::Cutoff {
+                cutoff_hz,
+                nyquist_hz,
+            });
         }
         let prototype_cutoff = ((45f64.sqrt() - 3.0) / 2.0).sqrt();
         let u = prototype_cutoff / (std::f64::consts::PI * cutoff_hz * period_s).tan();
@@ -135,6 +145,13 @@ mod tests {
         let sut = Bessel2::new(500.0, 0.001).unwrap_err();
         assert_eq!(
             sut,
+            FilterError::Cutoff {
+                cutoff_hz: 500.0,
+                nyquist_hz: 500.0
+            }
+        );
+        assert_eq!(
+            sut.to_string(),
             "the cutoff must be above 0 and below the Nyquist frequency 500 Hz, not 500 Hz"
         );
         assert!(Bessel2::new(0.0, 0.001).is_err());

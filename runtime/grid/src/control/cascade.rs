@@ -19,9 +19,11 @@ use super::{
     array, array_mut, array_ports, at, axes, axes_decl, non_negative, per_axis, per_axis_decl,
     positive,
 };
-use crate::component::{Component, ComponentInfo, Params, PortValue, Released, PERIOD_S};
+use crate::component::{
+    Component, ComponentError, ComponentInfo, Params, PortValue, Released, PERIOD_S,
+};
 
-pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
+pub(super) fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     if !p.is_empty() {
         Cascade::new(p)?;
@@ -41,7 +43,7 @@ pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, String> {
+pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     Ok(Box::new(Cascade::new(p)?))
 }
 
@@ -57,7 +59,7 @@ struct Cascade {
 }
 
 impl Cascade {
-    fn new(p: &Params) -> Result<Cascade, String> {
+    fn new(p: &Params) -> Result<Cascade, ComponentError> {
         let n = axes(p)?;
         let gain = |name| per_axis(p, name, n, "0 or more", non_negative);
         Ok(Cascade {

@@ -25,14 +25,15 @@ use super::{
     per_axis_decl, per_axis_default, positive,
 };
 use crate::component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortValue, Released,
+    Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
+    PortValue, Released,
 };
 
 /// The 0-based axes of the shoulder and the elbow.
 const SHOULDER: usize = 1;
 const ELBOW: usize = 2;
 
-pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
+pub(super) fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     if !p.is_empty() {
         Feedforward::new(p)?;
@@ -52,7 +53,7 @@ pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, String> {
+pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     Ok(Box::new(Feedforward::new(p)?))
 }
 
@@ -65,11 +66,12 @@ struct Feedforward {
 }
 
 impl Feedforward {
-    fn new(p: &Params) -> Result<Feedforward, String> {
+    fn new(p: &Params) -> Result<Feedforward, ComponentError> {
         let n = axes(p)?;
         let coupling = p.f64("coupling")?;
         if !coupling.is_finite() {
-            return Err(format!("param 'coupling' must be finite, not {coupling}"));
+            let why = format!("must be finite, not {coupling}");
+            return Err(ParamError::invalid("coupling", why).into());
         }
         Ok(Feedforward {
             inertia: per_axis(p, "inertia", n, "positive", positive)?,

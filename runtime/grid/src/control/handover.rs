@@ -21,7 +21,9 @@
 //! `handover` (its input as of the last cycle). All three assume period 1.
 
 use super::{array, array_mut};
-use crate::component::{ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType, PortValue};
+use crate::component::{
+    ParamDecl, ParamError, ParamType, ParamValue, Params, PortDecl, PortType, PortValue,
+};
 
 /// The port's (and the param's) name.
 pub const NAME: &str = "handover";
@@ -40,7 +42,7 @@ pub fn param() -> ParamDecl {
 }
 
 /// Whether `p` asks for the handover input.
-pub fn wanted(p: &Params) -> Result<bool, String> {
+pub fn wanted(p: &Params) -> Result<bool, ParamError> {
     Ok(p.get(NAME).is_some() && p.bool(NAME)?)
 }
 

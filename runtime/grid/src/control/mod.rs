@@ -41,7 +41,9 @@ pub mod monitor;
 pub mod trajectory;
 pub mod waypoints;
 
-use super::component::{ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType, PortValue};
+use super::component::{
+    ParamDecl, ParamError, ParamType, ParamValue, Params, PortDecl, PortType, PortValue,
+};
 use super::Registry;
 
 /// The most axes a control component takes.
@@ -75,16 +77,15 @@ fn per_axis_default(name: &'static str, default: f64) -> ParamDecl {
 }
 
 /// The number of axes; the default when asked without parameters (the registry's probe).
-pub fn axes(p: &Params) -> Result<usize, String> {
+pub fn axes(p: &Params) -> Result<usize, ParamError> {
     let n = if p.is_empty() {
         DEFAULT_AXES
     } else {
         p.i64("axes")?
     };
     if !(1..=MAX_AXES).contains(&n) {
-        return Err(format!(
-            "param 'axes' must be from 1 to {MAX_AXES}, not {n}"
-        ));
+        let why = format!("must be from 1 to {MAX_AXES}, not {n}");
+        return Err(ParamError::invalid("axes", why));
     }
     Ok(usize::try_from(n).unwrap_or(1))
 }
@@ -97,22 +98,21 @@ pub fn per_axis(
     n: usize,
     what: &str,
     ok: fn(f64) -> bool,
-) -> Result<Vec<f64>, String> {
+) -> Result<Vec<f64>, ParamError> {
     let xs = p.f64s(name)?;
     let xs = match xs.len() {
         1 => vec![xs[0]; n],
         len if len == n => xs.to_vec(),
         len => {
-            return Err(format!(
-                "param '{name}' must have 1 value or {n} (one per axis), not {len}"
-            ))
+            let why = format!("must have 1 value or {n} (one per axis), not {len}");
+            return Err(ParamError::invalid(name, why));
         }
     };
     match xs.iter().position(|x| !ok(*x)) {
-        Some(i) => Err(format!(
-            "param '{name}' must be {what}, not {} (axis {i})",
-            xs[i]
-        )),
+        Some(i) => {
+            let why = format!("must be {what}, not {} (axis {i})", xs[i]);
+            Err(ParamError::invalid(name, why))
+        }
         None => Ok(xs),
     }
 }
@@ -228,7 +228,7 @@ mod harness {
         }
     }
 
-    /// Why `type_name` refuses `params`.
+    /// Why `type_name` refuses `params`, as a description's author reads it.
     pub fn refusal(type_name: &str, params: Params) -> String {
         let mut registry = Registry::new();
         register(&mut registry);
@@ -236,7 +236,7 @@ mod harness {
         params.set_timing(0.001, 1);
         match registry.instantiate(type_name, &params) {
             Ok(_) => panic!("{type_name} accepted {params:?}"),
-            Err(e) => e,
+            Err(e) => e.to_string(),
         }
     }
 }

@@ -20,7 +20,10 @@
 //! [q_min, q_max] that excludes 0 trips at once.
 
 use super::{array, array_ports, at, axes, axes_decl, finite, per_axis, per_axis_decl, positive};
-use crate::component::{Component, ComponentInfo, Params, PortDecl, PortType, PortValue, Released};
+use crate::component::{
+    Component, ComponentError, ComponentInfo, ParamError, Params, PortDecl, PortType, PortValue,
+    Released,
+};
 
 /// The codes of `code`.
 pub const OK: i64 = 0;
@@ -28,7 +31,7 @@ pub const POSITION_LIMIT: i64 = 1;
 pub const VELOCITY_LIMIT: i64 = 2;
 pub const FOLLOWING_ERROR: i64 = 3;
 
-pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
+pub(super) fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     if !p.is_empty() {
         Monitor::new(p)?;
@@ -52,7 +55,7 @@ pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, String> {
+pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     Ok(Box::new(Monitor::new(p)?))
 }
 
@@ -66,15 +69,16 @@ struct Monitor {
 }
 
 impl Monitor {
-    fn new(p: &Params) -> Result<Monitor, String> {
+    fn new(p: &Params) -> Result<Monitor, ComponentError> {
         let n = axes(p)?;
         let q_min = per_axis(p, "q_min", n, "finite", finite)?;
         let q_max = per_axis(p, "q_max", n, "finite", finite)?;
         if let Some(i) = (0..n).find(|&i| q_min[i] > q_max[i]) {
-            return Err(format!(
-                "param 'q_min' must not be above 'q_max': {} > {} (axis {i})",
+            let why = format!(
+                "must not be above 'q_max': {} > {} (axis {i})",
                 q_min[i], q_max[i]
-            ));
+            );
+            return Err(ParamError::invalid("q_min", why).into());
         }
         Ok(Monitor {
             q_min,

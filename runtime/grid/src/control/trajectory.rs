@@ -60,14 +60,14 @@ use super::{
     positive, rest,
 };
 use crate::component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Released, BASE_PERIOD_S, PERIOD_S,
+    Component, ComponentError, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl,
+    PortType, PortValue, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
 /// Within this of the goal (rad, rad/s, rad/s²) the filtered outputs have settled.
 const SETTLED: f64 = 1e-9;
 
-pub(super) fn ptp_info(p: &Params) -> Result<ComponentInfo, String> {
+pub(super) fn ptp_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     if !p.is_empty() {
         Ptp::new(p)?;
@@ -94,7 +94,7 @@ pub(super) fn ptp_info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-pub(super) fn make_ptp(p: &Params) -> Result<Box<dyn Component>, String> {
+pub(super) fn make_ptp(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     Ok(Box::new(Ptp::new(p)?))
 }
 
@@ -342,14 +342,14 @@ impl Brake {
 }
 
 impl Ptp {
-    fn new(p: &Params) -> Result<Ptp, String> {
+    fn new(p: &Params) -> Result<Ptp, ComponentError> {
         let n = axes(p)?;
         let bessel_hz = p.f64("bessel_hz")?;
         let filters = if bessel_hz == 0.0 {
             Vec::new()
         } else {
             let filter = Bessel2::new(bessel_hz, p.f64(PERIOD_S)?)
-                .map_err(|e| format!("param 'bessel_hz': {e}"))?;
+                .map_err(|e| ComponentError::param_refused("bessel_hz", e))?;
             vec![[filter; 3]; n]
         };
         Ok(Ptp {
@@ -594,7 +594,7 @@ impl Component for Ptp {
 /// The deceleration `hold_position` brakes with when it takes over a moving robot, rad/s².
 const HOLD_A_MAX: f64 = 4.0;
 
-pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
+pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     let mut inputs = array_ports(&["start"], n);
     if handover::wanted(p)? {
@@ -616,7 +616,7 @@ pub(super) fn hold_info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-pub(super) fn make_hold(p: &Params) -> Result<Box<dyn Component>, String> {
+pub(super) fn make_hold(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     let n = axes(p)?;
     let a_max = if p.get("a_max").is_some() {
         per_axis(p, "a_max", n, "positive", positive)?

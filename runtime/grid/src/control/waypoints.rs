@@ -11,14 +11,14 @@
 
 use super::{array_mut, array_ports, axes, axes_decl};
 use crate::component::{
-    Component, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl, PortType,
-    PortValue, Released, PERIOD_S,
+    Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
+    PortDecl, PortType, PortValue, Released, PERIOD_S,
 };
 
 /// Seconds without a reading of `done` = false after which a goal counts as reached.
 const NO_MOTION_S: f64 = 0.5;
 
-pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
+pub(super) fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     if !p.is_empty() {
         Waypoints::new(p)?;
@@ -36,7 +36,7 @@ pub(super) fn info(p: &Params) -> Result<ComponentInfo, String> {
     })
 }
 
-pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, String> {
+pub(super) fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     Ok(Box::new(Waypoints::new(p)?))
 }
 
@@ -56,21 +56,24 @@ struct Waypoints {
 }
 
 impl Waypoints {
-    fn new(p: &Params) -> Result<Waypoints, String> {
+    fn new(p: &Params) -> Result<Waypoints, ComponentError> {
         let n = axes(p)?;
         let points = p.f64s("points")?.to_vec();
         if points.len() < 2 * n || points.len() % n != 0 {
-            return Err(format!(
-                "param 'points' must hold whole points of {n} values each, at least two: {} values given",
+            let why = format!(
+                "must hold whole points of {n} values each, at least two: {} values given",
                 points.len()
-            ));
+            );
+            return Err(ParamError::invalid("points", why).into());
         }
         if let Some(i) = points.iter().position(|x| !x.is_finite()) {
-            return Err(format!("param 'points': value {i} is not finite"));
+            let why = format!("must be finite numbers, not {} (value {i})", points[i]);
+            return Err(ParamError::invalid("points", why).into());
         }
         let dwell = p.f64("dwell")?;
         if !(dwell.is_finite() && dwell >= 0.0) {
-            return Err(format!("param 'dwell' must be seconds >= 0, not {dwell}"));
+            let why = format!("must be seconds >= 0, not {dwell}");
+            return Err(ParamError::invalid("dwell", why).into());
         }
         let period = p.f64(PERIOD_S)?;
         let releases = |s: f64| (s / period).ceil() as u64;
@@ -177,6 +180,7 @@ mod tests {
             .with("points", ParamValue::F64s(vec![0.0, 0.0, 1.0]));
         params.set_timing(0.001, 1);
         let e = registry.instantiate("waypoints", &params).err().unwrap();
+        let e = e.to_string();
         assert!(e.contains("whole points of 2 values"), "{e}");
     }
 }

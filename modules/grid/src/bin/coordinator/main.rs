@@ -226,7 +226,8 @@ fn run() -> anyhow::Result<()> {
                     let _ = give_back.try_send(old);
                 }
                 FromTick::State(state, failure) => switching.state(state, failure),
-                FromTick::Began(r) => switching.began(&mut module, r),
+                // `Switching` keeps why a switch failed as text, for `assembly()`.
+                FromTick::Began(r) => switching.began(&mut module, r.map_err(|e| e.to_string())),
                 FromTick::Announced(at) => switching.announced(&mut module, at),
                 FromTick::Switched(generation, announced, at) => {
                     switching.switched(&mut module, generation, announced, at)

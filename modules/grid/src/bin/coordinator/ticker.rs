@@ -7,7 +7,7 @@ use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
 use std::time::{Duration, Instant};
 
 use modbot_runtime::clock::{Clock, MonotonicClock};
-use modbot_runtime::grid::coordinator::{Coordinator, HostLink, SwitchState};
+use modbot_runtime::grid::coordinator::{BeginSwitchError, Coordinator, HostLink, SwitchState};
 use modbot_runtime::grid::ledger;
 use modbot_runtime::grid::tick::{FreeTicks, TickSource, TimerTicks};
 use modbot_runtime::grid::{GridClock, GridSpec};
@@ -47,7 +47,7 @@ pub enum FromTick {
     /// The switch's state changed (with why an incoming assembly fails, once known).
     State(SwitchState, Option<String>),
     /// The answer to [`ToTick::Begin`].
-    Began(Result<(), String>),
+    Began(Result<(), BeginSwitchError>),
     /// The answer to [`ToTick::Announce`]: the tick of the switch.
     Announced(Option<u64>),
     /// An assembly took over: generation, announced tick, actual tick.

@@ -6,7 +6,7 @@
 //! with every check that needs the component types: known type, parameters, ports, exact port
 //! types, every input connected exactly once, at most [`MAX_SOURCES`] source components per
 //! component, periods that are whole multiples of the base tick. Errors carry the line of the
-//! offending declaration ([`GridError`]).
+//! offending declaration and what is wrong with it ([`GridError`], in `error`).
 
 use std::collections::HashMap;
 use std::time::Duration;
@@ -15,6 +15,9 @@ use modbot_ipc_schema::grid::MAX_SOURCES;
 
 use super::component::{ComponentInfo, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS};
 use modbot_core::transport::check_name;
+
+mod error;
+pub use error::{GridError, GridErrorKind, HostNameError, PeriodError};
 
 /// The most components a grid may have (indices are 16 bits on the wire).
 pub const MAX_COMPONENTS: usize = 65535;
@@ -239,28 +242,10 @@ pub struct ConnectDecl {
     pub line: u32,
 }
 
-/// Why declarations are not a valid grid: the line (when there is one) and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct GridError {
-    pub line: Option<u32>,
-    pub message: String,
-}
-
-impl std::fmt::Display for GridError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self.line {
-            Some(line) => write!(f, "line {line}: {}", self.message),
-            None => f.write_str(&self.message),
-        }
-    }
-}
-
-impl std::error::Error for GridError {}
-
-fn at(line: u32, message: String) -> GridError {
+fn at(line: u32, kind: GridErrorKind) -> GridError {
     GridError {
         line: Some(line),
-        message,
+        kind,
     }
 }
 
@@ -314,14 +299,11 @@ fn generation_suffix(name: &str) -> Option<(&str, u16)> {
 
 /// A host name: 1 to 32 characters of `a-z`, `0-9` and `_` (it names a process), not ending
 /// in `_g` and a number (that names an assembly's generation: see [`GridRole`]).
-pub fn check_host(host: &str) -> Result<(), String> {
+pub fn check_host(host: &str) -> Result<(), HostNameError> {
     if is_plain_name(host) && generation_suffix(host).is_none() {
         Ok(())
     } else {
-        Err(format!(
-            "host name '{host}' is invalid: use 1 to 32 characters of a-z, 0-9 and _, not \
-             ending in _g and a number"
-        ))
+        Err(HostNameError { host: host.into() })
     }
 }
 
@@ -334,25 +316,21 @@ pub fn is_plain_name(name: &str) -> bool {
 }
 
 /// The period in base ticks, or why it is not a whole multiple of the base tick.
-fn ticks(period: Period, base: Duration) -> Result<u64, String> {
+fn ticks(period: Period, base: Duration) -> Result<u64, PeriodError> {
     let base_s = base.as_secs_f64();
-    let (ratio, shown) = match period {
-        Period::Ticks(k) => (k, format!("{k} ticks ({} s)", k * base_s)),
-        Period::Seconds(s) => (s / base_s, format!("{s} s")),
+    let ratio = match period {
+        Period::Ticks(k) => k,
+        Period::Seconds(s) => s / base_s,
     };
     if !ratio.is_finite() || ratio <= 0.0 {
-        return Err(format!("period must be positive, not {shown}"));
+        return Err(PeriodError::NotPositive { period, base_s });
     }
     let k = ratio.round();
     if (ratio - k).abs() > 1e-9 * k.max(1.0) || k < 1.0 {
-        return Err(format!(
-            "period {shown} is not a multiple of the base tick ({base_s} s)"
-        ));
+        return Err(PeriodError::NotMultiple { period, base_s });
     }
     if k > MAX_PERIOD_TICKS as f64 {
-        return Err(format!(
-            "period {shown} is too long (at most {MAX_PERIOD_TICKS} base ticks)"
-        ));
+        return Err(PeriodError::TooLong { period, base_s });
     }
     Ok(k as u64)
 }
@@ -363,23 +341,34 @@ fn component(
     base: Duration,
     registry: &Registry,
 ) -> Result<ComponentSpec, GridError> {
-    let fail = |m: String| at(d.line, format!("component '{}': {m}", d.name));
+    let component = || d.name.clone();
     if check_name(&d.name).is_err() {
-        return Err(fail(
-            "the name is invalid: use 1 to 48 characters of a-z, A-Z, 0-9, _ and -".into(),
+        let component = component();
+        return Err(at(d.line, GridErrorKind::ComponentName { component }));
+    }
+    check_host(&d.host).map_err(|error| {
+        let component = component();
+        at(d.line, GridErrorKind::Host { component, error })
+    })?;
+    let period = ticks(d.period, base).map_err(|error| {
+        let component = component();
+        at(d.line, GridErrorKind::Period { component, error })
+    })?;
+    if let Some(&param) = AUTOMATIC_PARAMS.iter().find(|n| d.params.get(n).is_some()) {
+        let component = component();
+        return Err(at(
+            d.line,
+            GridErrorKind::AutomaticParam { component, param },
         ));
     }
-    check_host(&d.host).map_err(fail)?;
-    let period = ticks(d.period, base).map_err(fail)?;
-    if let Some(name) = AUTOMATIC_PARAMS.iter().find(|n| d.params.get(n).is_some()) {
-        return Err(fail(format!(
-            "param '{name}' is set automatically and cannot be given"
-        )));
-    }
+    let refused = |error| {
+        let component = component();
+        at(d.line, GridErrorKind::Component { component, error })
+    };
     let mut params = d.params;
     params.set_timing(base.as_secs_f64(), period);
-    let params = registry.complete(&d.type_name, &params).map_err(fail)?;
-    let info = registry.info(&d.type_name, &params).map_err(fail)?;
+    let params = registry.complete(&d.type_name, &params).map_err(refused)?;
+    let info = registry.info(&d.type_name, &params).map_err(refused)?;
     Ok(ComponentSpec {
         name: d.name,
         type_name: d.type_name,
@@ -400,36 +389,27 @@ fn connect(
 ) -> Result<Connection, GridError> {
     let find = |name: &str| {
         names.get(name).copied().ok_or_else(|| {
-            let known: Vec<&str> = specs.iter().map(|s| s.name.as_str()).take(20).collect();
-            let more = if specs.len() > known.len() {
-                ", ..."
-            } else {
-                ""
+            let known: Vec<String> = specs.iter().map(|s| s.name.clone()).take(20).collect();
+            let more = specs.len() > known.len();
+            let kind = GridErrorKind::NoComponent {
+                connect: format!("{}.{} -> {}.{}", c.from.0, c.from.1, c.to.0, c.to.1),
+                name: name.to_owned(),
+                known,
+                more,
             };
-            at(
-                c.line,
-                format!(
-                    "connect {}.{} -> {}.{}: no component is named '{name}' (components: {}{more})",
-                    c.from.0,
-                    c.from.1,
-                    c.to.0,
-                    c.to.1,
-                    known.join(", ")
-                ),
-            )
+            at(c.line, kind)
         })
     };
     let (from_c, to_c) = (find(&c.from.0)?, find(&c.to.0)?);
     let (src, dst) = (&specs[from_c].info, &specs[to_c].info);
-    let no_port = |side: &str, (component, port): &(String, String), ports: &[PortDecl]| {
-        let names: Vec<&str> = ports.iter().map(|p| p.name).collect();
-        let names = if names.is_empty() {
-            "none".to_owned()
-        } else {
-            names.join(", ")
+    let no_port = |side, (component, port): &(String, String), ports: &[PortDecl]| {
+        let kind = GridErrorKind::NoPort {
+            component: component.clone(),
+            side,
+            port: port.clone(),
+            ports: ports.iter().map(|p| p.name).collect(),
         };
-        let message = format!("component '{component}' has no {side} '{port}' ({side}s: {names})");
-        at(c.line, message)
+        at(c.line, kind)
     };
     let from_p = src
         .output(&c.from.1)
@@ -439,13 +419,13 @@ fn connect(
         .ok_or_else(|| no_port("input", &c.to, &dst.inputs))?;
     let (from_ty, to_ty) = (src.outputs[from_p].ty, dst.inputs[to_p].ty);
     if from_ty != to_ty {
-        return Err(at(
-            c.line,
-            format!(
-                "{}.{} is {from_ty} but {}.{} is {to_ty}",
-                c.from.0, c.from.1, c.to.0, c.to.1
-            ),
-        ));
+        let kind = GridErrorKind::TypeMismatch {
+            from: format!("{}.{}", c.from.0, c.from.1),
+            from_ty,
+            to: format!("{}.{}", c.to.0, c.to.1),
+            to_ty,
+        };
+        return Err(at(c.line, kind));
     }
     Ok(Connection {
         from: PortRef {
@@ -476,29 +456,24 @@ impl GridSpec {
         registry: &Registry,
     ) -> Result<GridSpec, GridError> {
         if grid.base_period.is_zero() {
-            return Err(at(grid.line, "grid: base_period must be positive".into()));
+            return Err(at(grid.line, GridErrorKind::BasePeriod));
         }
         if components.is_empty() {
-            return Err(at(
-                grid.line,
-                "the grid has no components: add component \"name\" { type = ..., host = ... }"
-                    .into(),
-            ));
+            return Err(at(grid.line, GridErrorKind::NoComponents));
         }
         let mut specs: Vec<ComponentSpec> = Vec::with_capacity(components.len());
         let mut names: HashMap<String, usize> = HashMap::with_capacity(components.len());
         for d in components {
             if specs.len() >= MAX_COMPONENTS {
-                let message = format!("too many components (at most {MAX_COMPONENTS})");
-                return Err(at(d.line, message));
+                return Err(at(d.line, GridErrorKind::TooManyComponents));
             }
             if let Some(&first) = names.get(&d.name) {
                 let first = specs[first].line;
-                let message = format!(
-                    "component name '{}' is already declared at line {first}",
-                    d.name
-                );
-                return Err(at(d.line, message));
+                let name = d.name.clone();
+                return Err(at(
+                    d.line,
+                    GridErrorKind::DuplicateComponent { name, first },
+                ));
             }
             names.insert(d.name.clone(), specs.len());
             specs.push(component(d, grid.base_period, registry)?);
@@ -511,17 +486,15 @@ impl GridSpec {
             if let Some(&first) = feeding.get(&connection.to) {
                 let first = &checked[first];
                 let source = &specs[first.from.component];
-                return Err(at(
-                    c.line,
-                    format!(
-                        "{}.{} is already connected (from {}.{} at line {})",
-                        c.to.0,
-                        c.to.1,
-                        source.name,
-                        source.info.outputs[first.from.port].name,
-                        first.line
+                let kind = GridErrorKind::AlreadyConnected {
+                    input: format!("{}.{}", c.to.0, c.to.1),
+                    from: format!(
+                        "{}.{}",
+                        source.name, source.info.outputs[first.from.port].name
                     ),
-                ));
+                    first: first.line,
+                };
+                return Err(at(c.line, kind));
             }
             feeding.insert(connection.to, checked.len());
             checked.push(connection);
@@ -534,28 +507,22 @@ impl GridSpec {
                     port: i,
                 };
                 let Some(&k) = feeding.get(&to) else {
-                    return Err(at(
-                        c.line,
-                        format!(
-                            "component '{}': input '{}' is not connected: every input needs a \
-                             connect \"X.y -> {}.{}\"",
-                            c.name, input.name, c.name, input.name
-                        ),
-                    ));
+                    let kind = GridErrorKind::Unconnected {
+                        component: c.name.clone(),
+                        input: input.name,
+                    };
+                    return Err(at(c.line, kind));
                 };
                 sources.push(checked[k].from.component);
             }
             sources.sort_unstable();
             sources.dedup();
             if sources.len() > MAX_SOURCES {
-                return Err(at(
-                    c.line,
-                    format!(
-                        "component '{}' is fed by {} components; at most {MAX_SOURCES}",
-                        c.name,
-                        sources.len()
-                    ),
-                ));
+                let kind = GridErrorKind::TooManySources {
+                    component: c.name.clone(),
+                    sources: sources.len(),
+                };
+                return Err(at(c.line, kind));
             }
         }
         Ok(GridSpec {
@@ -715,7 +682,7 @@ impl GridSpec {
 
 #[cfg(test)]
 mod tests {
-    use super::{host_module_of, GridError, GridRole, COORDINATOR};
+    use super::{host_module_of, GridError, GridErrorKind, GridRole, COORDINATOR};
 
     #[test]
     fn a_grid_process_is_told_by_its_module_name_and_nothing_else_is_one() {
@@ -744,13 +711,17 @@ mod tests {
     fn a_grid_error_says_its_line() {
         let e = GridError {
             line: Some(3),
-            message: "bad".into(),
+            kind: GridErrorKind::BasePeriod,
         };
-        assert_eq!(e.to_string(), "line 3: bad");
+        assert_eq!(e.to_string(), "line 3: grid: base_period must be positive");
         let e: Box<dyn std::error::Error> = Box::new(GridError {
             line: None,
-            message: "x".into(),
+            kind: GridErrorKind::TooManyComponents,
         });
-        assert_eq!(e.to_string(), "x");
+        assert_eq!(e.to_string(), "too many components (at most 65535)");
+        assert_eq!(
+            e.source().map(|s| s.to_string()).as_deref(),
+            Some("too many components (at most 65535)")
+        );
     }
 }
