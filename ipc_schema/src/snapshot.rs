@@ -29,7 +29,7 @@ use zerocopy::byteorder::little_endian::{U16, U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use crate::addr::Addr;
-use crate::value::{F64s, Value, ValueKind};
+use crate::value::{AsValue, F64s, Value, ValueKind};
 
 pub const MAGIC: [u8; 4] = *b"MBBB";
 pub const VERSION: u16 = 1;
@@ -202,21 +202,24 @@ impl SnapshotLayout {
     }
 
     /// The snapshot's size with `values` (one per item, in item order).
-    pub fn encoded_len(&self, values: &[Value<'_>]) -> usize {
+    pub fn encoded_len<V: AsValue>(&self, values: &[V]) -> usize {
         HEADER_LEN
             + ENTRY_LEN * self.items.len()
             + self.names_len
-            + values.iter().map(value_len).sum::<usize>()
+            + values
+                .iter()
+                .map(|v| value_len(&v.as_value()))
+                .sum::<usize>()
     }
 
     /// Writes a snapshot with `values` (one per item, in item order) at the start of `out`.
-    pub fn write(
+    pub fn write<V: AsValue>(
         &self,
         out: &mut [u8],
         addr: Addr,
         seq: u64,
         stamp_ns: u64,
-        values: &[Value<'_>],
+        values: &[V],
     ) -> Result<usize, SnapshotError> {
         let needed = self.encoded_len(values);
         if out.len() < needed {
@@ -226,6 +229,7 @@ impl SnapshotLayout {
             });
         }
         for (item, v) in self.items.iter().zip(values) {
+            let v = v.as_value();
             if item.kind != v.kind() {
                 return Err(SnapshotError::ValueKindMismatch {
                     name: item.name.clone(),
@@ -250,6 +254,7 @@ impl SnapshotLayout {
         let mut name_at = HEADER_LEN + ENTRY_LEN * self.items.len();
         let mut val_at = name_at + self.names_len;
         for (i, (item, v)) in self.items.iter().zip(values).enumerate() {
+            let v = &v.as_value();
             let vlen = value_len(v);
             let entry = ItemEntry {
                 name_off: U32::new(name_at as u32),

@@ -406,6 +406,24 @@ pub enum OwnedValue {
     F64s(Vec<f64>),
 }
 
+/// Something that reads as a [`Value`]: a value itself, or an [`OwnedValue`] (so a list of
+/// either encodes without first building a list of values).
+pub trait AsValue {
+    fn as_value(&self) -> Value<'_>;
+}
+
+impl AsValue for Value<'_> {
+    fn as_value(&self) -> Value<'_> {
+        *self
+    }
+}
+
+impl AsValue for OwnedValue {
+    fn as_value(&self) -> Value<'_> {
+        OwnedValue::as_value(self)
+    }
+}
+
 impl OwnedValue {
     pub fn as_value(&self) -> Value<'_> {
         match self {

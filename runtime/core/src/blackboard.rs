@@ -269,15 +269,16 @@ impl Blackboard {
 
     /// The size of the next snapshot.
     pub fn snapshot_len(&self) -> usize {
-        let values: Vec<Value<'_>> = self.values.iter().map(OwnedValue::as_value).collect();
-        self.layout.encoded_len(&values)
+        self.layout.encoded_len(&self.values)
     }
 
     /// Writes a snapshot into `out` (shared memory), and clears the changed flag.
     pub fn write_snapshot(&mut self, out: &mut [u8], addr: Addr, stamp_ns: u64) {
         self.seq += 1;
-        let values: Vec<Value<'_>> = self.values.iter().map(OwnedValue::as_value).collect();
-        if let Err(e) = self.layout.write(out, addr, self.seq, stamp_ns, &values) {
+        if let Err(e) = self
+            .layout
+            .write(out, addr, self.seq, stamp_ns, &self.values)
+        {
             tracing::error!("snapshot not written: {e}");
         }
         self.changed = false;

@@ -60,11 +60,13 @@ pub(crate) fn dispatch<S>(
                 return;
             };
             let (handle, purpose) = (answered.handle, answered.purpose);
-            let module = ctx
-                .book
-                .get(src)
-                .map(|e| e.name.clone())
-                .unwrap_or_else(|| format!("module {src}"));
+            // The peer's name only when an error needs it: an answer allocates nothing.
+            let module = |ctx: &Ctx| {
+                ctx.book
+                    .get(src)
+                    .map(|e| e.name.clone())
+                    .unwrap_or_else(|| format!("module {src}"))
+            };
             let result = match frame.kind() {
                 FrameKind::Nak { code } => {
                     let detail = match frame.values().next() {
@@ -72,13 +74,13 @@ pub(crate) fn dispatch<S>(
                         _ => String::new(),
                     };
                     Err(CallError::Nak {
-                        module,
+                        module: module(ctx),
                         code,
                         detail,
                     })
                 }
                 _ => Args::decode(frame.values()).map_err(|e| CallError::BadAnswer {
-                    module,
+                    module: module(ctx),
                     detail: e.to_string(),
                 }),
             };

@@ -458,7 +458,18 @@ impl Transport for IpcTransport {
                 .create()
         )?;
         let node = std::rc::Rc::new(node);
+        let polled = listeners
+            .iter()
+            .map(|l| {
+                // SAFETY: the descriptor is the listener's socket; `IpcRx` holds the listener
+                // for as long as it holds this borrow (it drops `polled` first), and the
+                // descriptor is only polled, never closed here.
+                let fd = unsafe { BorrowedFd::borrow_raw(l.file_descriptor().native_handle()) };
+                PollFd::new(fd, PollFlags::POLLIN)
+            })
+            .collect();
         let rx = IpcRx {
+            polled,
             subs,
             listeners,
             next: 0,
@@ -550,6 +561,9 @@ impl Transport for IpcTransport {
 }
 
 struct IpcRx {
+    /// The listeners' sockets, polled in place (no allocation per wait). Declared first, so it
+    /// is dropped before the listeners whose descriptors it borrows.
+    polled: Vec<PollFd<'static>>,
     /// The inbox first, then broadcast and the groups.
     subs: Vec<Sub>,
     /// Wake-up listeners (blocking mode only): own, broadcast, groups.
@@ -582,25 +596,20 @@ impl Rx for IpcRx {
                 return Ok(());
             }
         }
-        let mut fds: Vec<PollFd<'_>> = self
-            .listeners
-            .iter()
-            .map(|l| {
-                // SAFETY: the listener owns this descriptor and outlives the poll below.
-                let fd = unsafe { BorrowedFd::borrow_raw(l.file_descriptor().native_handle()) };
-                PollFd::new(fd, PollFlags::POLLIN)
-            })
-            .collect();
         // A nanosecond timeout: `poll`'s milliseconds would turn a wait of less than one into
         // a busy loop until the deadline.
         let timeout = nix::sys::time::TimeSpec::from(timeout.min(Duration::from_secs(60)));
-        match nix::poll::ppoll(&mut fds, Some(timeout), None) {
+        match nix::poll::ppoll(&mut self.polled, Some(timeout), None) {
             Ok(_) | Err(nix::errno::Errno::EINTR) => {}
             Err(e) => return Err(ipc_err("poll")(&e)),
         }
-        drop(fds);
-        for l in &self.listeners {
-            ipc!("drain wake-ups", l.try_wait(|_| {}))?;
+        // Only a listener whose socket has a datagram was notified since it was last drained
+        // (a notifier sends one whenever the listener's state was clear): one read per
+        // wake-up, not one per listener.
+        for (l, fd) in self.listeners.iter().zip(&self.polled) {
+            if fd.revents().is_some_and(|r| !r.is_empty()) {
+                ipc!("drain wake-ups", l.try_wait(|_| {}))?;
+            }
         }
         Ok(())
     }
