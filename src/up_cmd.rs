@@ -4,6 +4,7 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
+use modbot_runtime::signals::Shutdown;
 use modbot_runtime::supervisor::processes::{self, GridRun};
 use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError};
 use modbot_runtime::system::{self, DefaultResolver};
@@ -34,7 +35,11 @@ pub fn up(
         None => None,
     };
     let domain = Domain::new(&spec.domain)?;
-    let sup = match Supervisor::start(spec) {
+    let shutdown = match Shutdown::on_signals() {
+        Ok(s) => s,
+        Err(e) => anyhow::bail!("cannot handle SIGINT/SIGTERM: {e}"),
+    };
+    let sup = match Supervisor::start(spec, shutdown) {
         Ok(sup) => sup,
         Err(e) => {
             // What this run started is stopped by now; a domain another system uses is

@@ -516,7 +516,7 @@ fn ticker(args: &[String]) -> anyhow::Result<()> {
         .map_err(ix("wake notifier"))?;
     let _fifo = procs::set_fifo(parse_prio(prio)?)?;
     let limit: u64 = limit.parse().context("TICKS")?;
-    let mut timer = TimerTicks::new(PERIOD_NS)?;
+    let mut timer = TimerTicks::new(PERIOD_NS, modbot_runtime::signals::Shutdown::on_signals()?)?;
     let (mut n, mut expirations) = (0, 0);
     while n < limit && !procs::interrupted() {
         match timer.wait() {

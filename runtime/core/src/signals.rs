@@ -1,6 +1,45 @@
-//! SIGTERM and SIGINT as a flag the main loop checks.
+//! SIGTERM and SIGINT as a flag the main loop checks, and [`Shutdown`]: what a loop is handed
+//! to know when to stop (the signals, or a flag its owner sets).
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// When a loop should stop: handed to it by whoever runs it. [`Shutdown::on_signals`] follows
+/// SIGINT/SIGTERM (what a program's `main` passes); [`Shutdown::new`] only its own
+/// [`Shutdown::request`] (tests, a supervisor embedded in another program). Clones share the
+/// request.
+#[derive(Debug, Clone, Default)]
+pub struct Shutdown {
+    requested: Arc<AtomicBool>,
+    signals: bool,
+}
+
+impl Shutdown {
+    /// A shutdown that only [`Shutdown::request`] asks for.
+    pub fn new() -> Shutdown {
+        Shutdown::default()
+    }
+
+    /// A shutdown that SIGINT and SIGTERM ask for too (installs their handler, see
+    /// [`install_termination_handler`]).
+    pub fn on_signals() -> Result<Shutdown, nix::Error> {
+        install_termination_handler()?;
+        Ok(Shutdown {
+            requested: Arc::default(),
+            signals: true,
+        })
+    }
+
+    /// Asks every holder of this shutdown (and its clones) to stop.
+    pub fn request(&self) {
+        self.requested.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether stopping was asked for.
+    pub fn requested(&self) -> bool {
+        self.requested.load(Ordering::Relaxed) || (self.signals && termination_requested())
+    }
+}
 
 static TERMINATE: AtomicBool = AtomicBool::new(false);
 
@@ -68,4 +107,19 @@ pub fn termination_requested() -> bool {
 /// Asks the main loop of this process to stop, as a signal would.
 pub fn request_termination() {
     TERMINATE.store(true, Ordering::SeqCst);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_shutdown_is_requested_through_any_of_its_clones_and_only_then() {
+        let sut = Shutdown::new();
+        let clone = sut.clone();
+        assert!(!sut.requested());
+        clone.request();
+        assert!(sut.requested());
+        assert!(!Shutdown::new().requested(), "a new one is its own");
+    }
 }

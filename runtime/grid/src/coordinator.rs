@@ -26,6 +26,7 @@ use super::recorder::{self, Recorder};
 use super::spec::{GridClock, GridSpec, OverrunPolicy};
 use super::tick::TickSource;
 use super::wire::{self, Listener, Notifier, Pub, Sub};
+use modbot_core::signals::Shutdown;
 use modbot_core::stats::Histogram;
 use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
@@ -174,6 +175,8 @@ pub struct Coordinator<W: Write> {
     done_wake: Listener,
     /// Scratch: the done notices of one sample.
     done_scratch: Vec<Done>,
+    /// Ends a wait for a due done notice early (see [`Coordinator::with_shutdown`]).
+    shutdown: Shutdown,
     recorder: Option<Recorder<W>>,
     /// Scratch: the valid version of every component, for the recorder.
     versions: Vec<u64>,
@@ -276,6 +279,7 @@ impl<W: Write> Coordinator<W> {
             done: wire::done_subscriber(node)?,
             done_wake: wire::done_wake_listener(node)?,
             done_scratch: Vec::with_capacity(wire::DONE_BATCH),
+            shutdown: Shutdown::new(),
             recorder,
             spec,
             tick: 0,
@@ -292,6 +296,13 @@ impl<W: Write> Coordinator<W> {
             retired_links: Vec::new(),
             state_text: String::with_capacity(128),
         })
+    }
+
+    /// Stops waiting for a due done notice when `shutdown` is requested (a lockstep grid waits
+    /// for them without a limit of time otherwise).
+    pub fn with_shutdown(mut self, shutdown: Shutdown) -> Self {
+        self.shutdown = shutdown;
+        self
     }
 
     /// Waits up to `grace_ns` at a tick for a due component's done notice before counting an
@@ -606,7 +617,7 @@ impl<W: Write> Coordinator<W> {
                 return;
             }
             let left = budget.saturating_sub(start.elapsed());
-            if left.is_zero() || modbot_core::signals::termination_requested() {
+            if left.is_zero() || self.shutdown.requested() {
                 if lockstep && left.is_zero() {
                     tracing::error!(
                         "lockstep: a release due at tick {n} is not done after {} s (a host \

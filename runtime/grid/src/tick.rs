@@ -3,6 +3,7 @@
 
 use std::os::fd::AsFd;
 
+use modbot_core::signals::Shutdown;
 use nix::sys::time::TimeSpec;
 use nix::sys::timerfd::{ClockId, Expiration, TimerFd, TimerFlags, TimerSetTimeFlags};
 
@@ -29,11 +30,14 @@ pub struct TimerTicks {
     fd: TimerFd,
     start_ns: u64,
     period_ns: u64,
+    /// A wait interrupted by a signal ends when this is requested (else it goes on).
+    shutdown: Shutdown,
 }
 
 impl TimerTicks {
-    /// Ticks every `period_ns`, the first one `period_ns` from now.
-    pub fn new(period_ns: u64) -> std::io::Result<TimerTicks> {
+    /// Ticks every `period_ns`, the first one `period_ns` from now; a wait ends early
+    /// (`Interrupted`) when `shutdown` is requested and a signal interrupts it.
+    pub fn new(period_ns: u64, shutdown: Shutdown) -> std::io::Result<TimerTicks> {
         let fd = TimerFd::new(ClockId::CLOCK_MONOTONIC, TimerFlags::TFD_CLOEXEC)?;
         let start_ns = monotonic_ns() + period_ns;
         let first = TimeSpec::from(core::time::Duration::from_nanos(start_ns));
@@ -46,6 +50,7 @@ impl TimerTicks {
             fd,
             start_ns,
             period_ns,
+            shutdown,
         })
     }
 
@@ -63,7 +68,7 @@ impl TickSource for TimerTicks {
                 Ok(8) => return Ok(u64::from_ne_bytes(buf)),
                 Ok(_) => return Err(std::io::Error::other("short read from the timerfd")),
                 Err(nix::errno::Errno::EINTR) => {
-                    if modbot_core::signals::termination_requested() {
+                    if self.shutdown.requested() {
                         return Err(std::io::Error::from(std::io::ErrorKind::Interrupted));
                     }
                 }
@@ -105,7 +110,7 @@ mod tests {
 
     #[test]
     fn a_timerfd_ticks_at_its_period_without_drift() {
-        let mut sut = TimerTicks::new(2_000_000).unwrap();
+        let mut sut = TimerTicks::new(2_000_000, Shutdown::new()).unwrap();
         let mut n = 0;
         while n < 10 {
             n += sut.wait().unwrap();

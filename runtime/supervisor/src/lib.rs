@@ -60,6 +60,7 @@ use modbot_core::ctx::Ctx;
 use modbot_core::domain::Domain;
 use modbot_core::error::MethodError;
 use modbot_core::module::{Module, ModuleBuilder, Reply};
+use modbot_core::signals::Shutdown;
 use modbot_core::transport::ipc::{HeartbeatMonitor, IpcTransport};
 use modbot_core::transport::{Directory, ReceiveMode, TransportError};
 use modbot_system::{GiveUp, SystemSpec};
@@ -201,6 +202,8 @@ impl Slot {
 /// A running system.
 pub struct Supervisor {
     spec: SystemSpec,
+    /// When to stop: handed over by the program that runs the supervisor.
+    shutdown: Shutdown,
     domain: Domain,
     slots: Vec<Slot>,
     endpoint: Module<Shared>,
@@ -233,8 +236,10 @@ pub struct Supervisor {
 }
 
 impl Supervisor {
-    /// Sweeps the domain, starts every module and waits until all have announced themselves.
-    pub fn start(spec: SystemSpec) -> Result<Supervisor, SupervisorError> {
+    /// Sweeps the domain, starts every module and waits until all have announced themselves;
+    /// `shutdown` ends the start-up, and later [`Supervisor::run`], when it is requested
+    /// ([`Shutdown::on_signals`]: on SIGINT/SIGTERM).
+    pub fn start(spec: SystemSpec, shutdown: Shutdown) -> Result<Supervisor, SupervisorError> {
         let domain = Domain::new(&spec.domain)?;
         let transport = IpcTransport::for_supervisor(&domain)?;
         let directory = transport.scanned_directory();
@@ -259,6 +264,7 @@ impl Supervisor {
         let name_width = spec.modules.iter().map(|m| m.name.len()).max().unwrap_or(4);
         let mut sup = Supervisor {
             spec,
+            shutdown,
             domain,
             slots,
             endpoint,
@@ -309,13 +315,9 @@ impl Supervisor {
         &self.domain
     }
 
-    /// Supervises until SIGINT/SIGTERM, `modbot down`, the end of `opts.run_for`, or a failed
+    /// Supervises until its shutdown is requested, `modbot down`, the end of `opts.run_for`, or a failed
     /// module whose policy stops the system; then stops everything and reports.
     pub fn run(mut self, opts: &RunOptions) -> Summary {
-        if let Err(e) = modbot_core::signals::install_termination_handler() {
-            self.say(&format!("cannot handle SIGTERM/SIGINT: {e}"));
-        }
-
         let started = Instant::now();
         let mut last_table = Instant::now() - Duration::from_secs(1);
         loop {
@@ -331,7 +333,7 @@ impl Supervisor {
                 last_table = Instant::now();
                 self.print_table();
             }
-            if modbot_core::signals::termination_requested() {
+            if self.shutdown.requested() {
                 self.say("termination requested: stopping");
                 break;
             }
@@ -578,7 +580,7 @@ impl Supervisor {
             if self.slots.iter().all(|s| s.state == RunState::Running) {
                 return Ok(());
             }
-            if modbot_core::signals::termination_requested() || Instant::now() >= deadline {
+            if self.shutdown.requested() || Instant::now() >= deadline {
                 let missing: Vec<&str> = self
                     .spec
                     .modules

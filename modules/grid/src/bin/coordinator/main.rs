@@ -146,7 +146,10 @@ fn run() -> anyhow::Result<()> {
     };
     // A due component's done notice may be on its way: wait up to a quarter of a tick for it
     // (no longer: every release of the tick, the bus's among them, waits with it).
-    let coord = Coordinator::new(&*node, grid.clone(), trace)?.with_grace(period_ns / 4);
+    let shutdown = signals::Shutdown::on_signals()?;
+    let coord = Coordinator::new(&*node, grid.clone(), trace)?
+        .with_grace(period_ns / 4)
+        .with_shutdown(shutdown.clone());
     let mut module = ModuleBuilder::new(
         cli.module.name.as_deref().unwrap_or("coordinator"),
         cli.module.addr.unwrap_or(250),
@@ -167,8 +170,7 @@ fn run() -> anyhow::Result<()> {
             status: String::new(),
         },
     )?;
-    signals::install_termination_handler()?;
-    wait_for_hosts(&mut module, &hosts)?;
+    wait_for_hosts(&mut module, &hosts, &shutdown)?;
 
     // `ledger` answers from the start: the tick thread refreshes it every 200 ms.
     let mut coord = coord;
@@ -185,6 +187,7 @@ fn run() -> anyhow::Result<()> {
         period_ns,
         max_ticks: cli.ticks,
         script: cli.switches.clone(),
+        shutdown: shutdown.clone(),
     };
     // `grid { mlock = true }`: locked before the tick thread starts.
     modbot_runtime::supervisor::env::apply_mlockall();
@@ -197,7 +200,7 @@ fn run() -> anyhow::Result<()> {
     let mut last_look = Instant::now();
     let mut result = Ok(());
     let mut ended = None;
-    while !signals::termination_requested() {
+    while !shutdown.requested() {
         let mut busy = false;
         for _ in 0..16 {
             if !module.poll_once()? {
@@ -316,7 +319,11 @@ fn notice_restarts(
 }
 
 /// Waits until every host module is up (they listen before they announce).
-fn wait_for_hosts(module: &mut Module<Shared>, hosts: &[String]) -> anyhow::Result<()> {
+fn wait_for_hosts(
+    module: &mut Module<Shared>,
+    hosts: &[String],
+    shutdown: &signals::Shutdown,
+) -> anyhow::Result<()> {
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         let up = module.list_modules()?;
@@ -327,7 +334,7 @@ fn wait_for_hosts(module: &mut Module<Shared>, hosts: &[String]) -> anyhow::Resu
         if missing.is_empty() {
             return Ok(());
         }
-        if Instant::now() > deadline || signals::termination_requested() {
+        if Instant::now() > deadline || shutdown.requested() {
             anyhow::bail!("host(s) {missing:?} did not come up within 30 s");
         }
         module.housekeeping();

@@ -11,7 +11,7 @@ use modbot_runtime::grid::coordinator::{BeginSwitchError, Coordinator, HostLink,
 use modbot_runtime::grid::ledger;
 use modbot_runtime::grid::tick::{FreeTicks, TickSource, TimerTicks};
 use modbot_runtime::grid::{GridClock, GridSpec};
-use modbot_runtime::signals;
+use modbot_runtime::signals::Shutdown;
 
 pub type Coord = Coordinator<modbot_runtime::grid::offload::Offload<std::fs::File>>;
 
@@ -77,11 +77,14 @@ pub struct Run {
     pub max_ticks: Option<u64>,
     /// Switches to ask for at ticks: (tick, assembly).
     pub script: Vec<(u64, String)>,
+    /// Ends the run when requested.
+    pub shutdown: Shutdown,
 }
 
 /// Runs the grid until a termination signal or `max_ticks`; tells `out` what happens.
 pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSender<FromTick>) {
     modbot_runtime::supervisor::rt::real_time_thread(coord.spec().priority, "tick thread");
+    let shutdown = run.shutdown.clone();
     if let Err(e) = tick(&mut coord, run, &commands, &out) {
         let _ = out.send(FromTick::Failed(e.to_string()));
         return;
@@ -103,7 +106,7 @@ pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSend
             return;
         }
     }
-    let reached = !signals::termination_requested();
+    let reached = !shutdown.requested();
     let _ = out.send(FromTick::Ended(reached));
 }
 
@@ -127,6 +130,7 @@ fn tick(
         period_ns,
         max_ticks,
         mut script,
+        shutdown,
     } = run;
     script.sort_by_key(|s| s.0);
     let mut script = Script {
@@ -157,12 +161,12 @@ fn tick(
     let mut ticks: Box<dyn TickSource> = if lockstep {
         Box::new(FreeTicks)
     } else {
-        Box::new(TimerTicks::new(period_ns)?)
+        Box::new(TimerTicks::new(period_ns, shutdown.clone())?)
     };
     let mut reported = Reported::default();
     let mut last_ticks = Instant::now();
     let mut last_ledger = Instant::now();
-    while !signals::termination_requested() && max_ticks.is_none_or(|n| coord.ticks() < n) {
+    while !shutdown.requested() && max_ticks.is_none_or(|n| coord.ticks() < n) {
         if script.due.front().is_some_and(|s| s.0 <= coord.ticks()) && !script.awaiting {
             if let Some((_, name)) = script.due.pop_front() {
                 script.awaiting = true;
