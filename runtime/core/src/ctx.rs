@@ -28,6 +28,55 @@ pub(crate) struct PendingCall {
     pub keep: bool,
 }
 
+/// The calls a module makes: the method queue and what waits beside it.
+pub(crate) struct Outgoing {
+    pub(crate) calls: MethodQueue,
+    /// Calls not sent yet: their peer's method table is not learned, or the peer is down.
+    pub(crate) pending: Vec<PendingCall>,
+    /// Calls that ended without an answer, to hand to the application.
+    pub(crate) failures: Vec<(CallHandle, CallError)>,
+    /// Peers whose `describe` is in flight.
+    pub(crate) describing: [bool; 256],
+    /// Answers that matched no waiting call (late, after a timeout).
+    pub(crate) stale: u64,
+}
+
+impl Default for Outgoing {
+    fn default() -> Self {
+        Outgoing {
+            calls: MethodQueue::default(),
+            pending: Vec::new(),
+            failures: Vec::new(),
+            describing: [false; 256],
+            stale: 0,
+        }
+    }
+}
+
+/// The frames a module serves: whose frame is being served, what was served lately, and what
+/// was refused.
+pub(crate) struct Serving {
+    /// The module whose frame is being served.
+    pub(crate) caller: Addr,
+    /// The requests served lately, to answer their retransmissions.
+    pub(crate) served: ServedLog,
+    /// Retransmitted requests answered from that record.
+    pub(crate) replayed: u64,
+    /// Malformed or misrouted frames received and dropped.
+    pub(crate) rejected: u64,
+}
+
+impl Default for Serving {
+    fn default() -> Self {
+        Serving {
+            caller: Addr::NONE,
+            served: ServedLog::default(),
+            replayed: 0,
+            rejected: 0,
+        }
+    }
+}
+
 /// A module's side of the runtime, lent to its methods and tasks.
 pub struct Ctx {
     pub(crate) addr: Addr,
@@ -38,25 +87,13 @@ pub struct Ctx {
     pub(crate) directory: Box<dyn Directory>,
     /// This module's blackboard.
     pub bb: Blackboard,
-    pub(crate) calls: MethodQueue,
+    /// The calls this module makes.
+    pub(crate) out: Outgoing,
     pub(crate) book: PhoneBook,
     pub(crate) clock: Arc<dyn Clock>,
-    pub(crate) pending: Vec<PendingCall>,
-    /// Calls that ended without an answer, to hand to the application.
-    pub(crate) failures: Vec<(CallHandle, CallError)>,
-    /// Peers whose `describe` is in flight.
-    pub(crate) describing: [bool; 256],
-    /// Malformed or misrouted frames received and dropped.
-    pub(crate) rejected: u64,
-    /// Answers that matched no waiting call (late, after a timeout).
-    pub(crate) stale: u64,
-    /// The requests served lately, to answer their retransmissions.
-    pub(crate) served: ServedLog,
-    /// Retransmitted requests answered from that record.
-    pub(crate) replayed: u64,
+    /// The frames it serves.
+    pub(crate) serving: Serving,
     pub(crate) stop: bool,
-    /// The module whose frame is being served.
-    pub(crate) caller: Addr,
     /// Traffic and call counters and the call latency histogram (the `stats` system method).
     pub(crate) stats: Stats,
     /// Whether the operator left the module active (`activate`/`deactivate`): while not, its
@@ -75,7 +112,7 @@ impl Ctx {
 
     /// The address of the module whose call or report is being served.
     pub fn caller(&self) -> Addr {
-        self.caller
+        self.serving.caller
     }
 
     pub fn now_ns(&self) -> u64 {
@@ -93,7 +130,7 @@ impl Ctx {
 
     /// Frames received malformed or misrouted, and dropped.
     pub fn rejected(&self) -> u64 {
-        self.rejected
+        self.serving.rejected
     }
 
     /// Frames this module could not deliver.
@@ -165,7 +202,7 @@ impl Ctx {
             }
         };
         let now = self.now_ns();
-        let (handle, seq) = self.calls.begin(addr, now, opts, Purpose::User)?;
+        let (handle, seq) = self.out.calls.begin(addr, now, opts, Purpose::User)?;
         match self.book.method_id(addr, method) {
             Some(Ok(id)) => match self.send_exec(handle, addr, seq, id, args, opts.keeps_payload())
             {
@@ -177,12 +214,12 @@ impl Ctx {
                     Ok(handle)
                 }
                 Err(e) => {
-                    self.calls.cancel(handle);
+                    self.out.calls.cancel(handle);
                     Err(self.explain(addr, e))
                 }
             },
             Some(Err(e)) => {
-                self.calls.cancel(handle);
+                self.out.calls.cancel(handle);
                 Err(e)
             }
             None => {
@@ -212,6 +249,7 @@ impl Ctx {
         };
         if keep {
             let mut buf = self
+                .out
                 .calls
                 .payload_buffer(handle)
                 .map(core::mem::take)
@@ -221,7 +259,7 @@ impl Ctx {
             if sent.is_ok() {
                 sent = self.send_raw(Dest::Module(addr), spec, &buf);
             }
-            if let Some(slot) = self.calls.payload_buffer(handle) {
+            if let Some(slot) = self.out.calls.payload_buffer(handle) {
                 *slot = buf;
             }
             sent?;
@@ -229,7 +267,7 @@ impl Ctx {
             self.send_values(Dest::Module(addr), spec, args)?;
         }
         let now = self.now_ns();
-        self.calls.sent(handle, id, now, keep);
+        self.out.calls.sent(handle, id, now, keep);
         Ok(())
     }
 
@@ -244,7 +282,7 @@ impl Ctx {
     ) -> Result<(), CallError> {
         let mut payload = Vec::with_capacity(value::encoded_len(args));
         encode_into(args, &mut payload)?;
-        self.pending.push(PendingCall {
+        self.out.pending.push(PendingCall {
             handle,
             addr,
             seq,
@@ -284,19 +322,19 @@ impl Ctx {
 
     /// Sends `describe` to `addr` unless one is in flight.
     pub(crate) fn describe(&mut self, addr: Addr) {
-        if self.describing[usize::from(addr.0)] {
+        if self.out.describing[usize::from(addr.0)] {
             return;
         }
         let now = self.now_ns();
         let opts = CallOptions::timeout(Duration::from_millis(1000));
-        let Ok((handle, seq)) = self.calls.begin(addr, now, opts, Purpose::Describe) else {
+        let Ok((handle, seq)) = self.out.calls.begin(addr, now, opts, Purpose::Describe) else {
             return;
         };
         match self.send_exec(handle, addr, seq, sysmethod::DESCRIBE, &[], true) {
-            Ok(()) => self.describing[usize::from(addr.0)] = true,
+            Ok(()) => self.out.describing[usize::from(addr.0)] = true,
             Err(e) => {
                 tracing::debug!("cannot ask module {addr} for its methods: {e}");
-                self.calls.cancel(handle);
+                self.out.calls.cancel(handle);
             }
         }
     }
@@ -440,14 +478,14 @@ impl Ctx {
 
     /// Sends the calls that wait for a method table or for their peer, where they now can go.
     pub(crate) fn flush_pending(&mut self) {
-        if self.pending.is_empty() {
+        if self.out.pending.is_empty() {
             return;
         }
         let mut i = 0;
-        while i < self.pending.len() {
-            let p = &self.pending[i];
-            if !self.calls.is_waiting(p.handle) {
-                self.pending.swap_remove(i); // expired meanwhile; already reported
+        while i < self.out.pending.len() {
+            let p = &self.out.pending[i];
+            if !self.out.calls.is_waiting(p.handle) {
+                self.out.pending.swap_remove(i); // expired meanwhile; already reported
                 continue;
             }
             let id = match self.book.method_id(p.addr, &p.method) {
@@ -460,14 +498,14 @@ impl Ctx {
                     continue;
                 }
                 Some(Err(e)) => {
-                    let p = self.pending.swap_remove(i);
-                    self.calls.cancel(p.handle);
-                    self.failures.push((p.handle, e));
+                    let p = self.out.pending.swap_remove(i);
+                    self.out.calls.cancel(p.handle);
+                    self.out.failures.push((p.handle, e));
                     continue;
                 }
                 Some(Ok(id)) => id,
             };
-            let p = self.pending.swap_remove(i);
+            let p = self.out.pending.swap_remove(i);
             let spec = FrameSpec {
                 dst: p.addr,
                 src: self.addr,
@@ -477,9 +515,9 @@ impl Ctx {
             match self.send_raw(Dest::Module(p.addr), spec, &p.payload) {
                 Ok(()) => {
                     let now = self.now_ns();
-                    self.calls.sent(p.handle, id, now, p.keep);
+                    self.out.calls.sent(p.handle, id, now, p.keep);
                     if p.keep {
-                        if let Some(slot) = self.calls.payload_buffer(p.handle) {
+                        if let Some(slot) = self.out.calls.payload_buffer(p.handle) {
                             *slot = p.payload;
                         }
                     }
@@ -487,13 +525,13 @@ impl Ctx {
                 Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
                     if p.wait_for_peer =>
                 {
-                    self.pending.push(p);
+                    self.out.pending.push(p);
                     i += 1;
                 }
                 Err(e) => {
-                    self.calls.cancel(p.handle);
+                    self.out.calls.cancel(p.handle);
                     let e = self.explain(p.addr, e);
-                    self.failures.push((p.handle, e));
+                    self.out.failures.push((p.handle, e));
                 }
             }
         }

@@ -31,13 +31,13 @@ pub(crate) fn dispatch<S>(
     let frame = match Frame::decode(bytes) {
         Ok(f) => f,
         Err(e) => {
-            ctx.rejected += 1;
+            ctx.serving.rejected += 1;
             tracing::debug!("dropped a malformed frame of {} bytes: {e}", bytes.len());
             return;
         }
     };
     if frame.dst() != ctx.addr && !frame.dst().is_broadcast() {
-        ctx.rejected += 1;
+        ctx.serving.rejected += 1;
         tracing::debug!(
             "dropped a frame for {} that reached {}",
             frame.dst(),
@@ -49,14 +49,14 @@ pub(crate) fn dispatch<S>(
     if src == ctx.addr && frame.dst().is_broadcast() {
         return; // our own broadcast or multicast, back from the shared bus
     }
-    ctx.caller = src;
+    ctx.serving.caller = src;
     match frame.kind() {
         FrameKind::Exec { method } | FrameKind::Retry { method } => {
             serve_request(def, state, ctx, reply, &frame, method);
         }
         FrameKind::Reply | FrameKind::Ack | FrameKind::Nak { .. } => {
-            let Some(answered) = ctx.calls.answer(src, frame.seq()) else {
-                ctx.stale += 1;
+            let Some(answered) = ctx.out.calls.answer(src, frame.seq()) else {
+                ctx.out.stale += 1;
                 return;
             };
             let (handle, purpose) = (answered.handle, answered.purpose);
@@ -86,7 +86,7 @@ pub(crate) fn dispatch<S>(
             };
             match purpose {
                 Purpose::Describe => {
-                    ctx.describing[usize::from(src.0)] = false;
+                    ctx.out.describing[usize::from(src.0)] = false;
                     match &result {
                         Ok(args) => {
                             if let Err(e) = ctx.book.learn(src, args) {
@@ -141,7 +141,7 @@ pub(crate) fn dispatch<S>(
                     }
                 }
                 Err(e) => {
-                    ctx.rejected += 1;
+                    ctx.serving.rejected += 1;
                     tracing::debug!("dropped a report from {src}: {e}");
                 }
             }
@@ -168,7 +168,7 @@ fn serve_request<S>(
         kind,
     };
     if answer && matches!(frame.kind(), FrameKind::Retry { .. }) {
-        let sent = match ctx.served.replay(src, seq, method) {
+        let sent = match ctx.serving.served.replay(src, seq, method) {
             Some(Replay::Answer { kind, payload }) => {
                 let mut kept = [0u8; KEPT_ANSWER];
                 let len = payload.len();
@@ -190,7 +190,7 @@ fn serve_request<S>(
             None => None,
         };
         if let Some(sent) = sent {
-            ctx.replayed += 1;
+            ctx.serving.replayed += 1;
             if let Err(e) = sent {
                 tracing::debug!("replayed answer to {src} not delivered: {e}");
             }
@@ -247,7 +247,7 @@ fn serve_request<S>(
         }
     };
     let buf = core::mem::take(&mut reply.buf);
-    ctx.served.record(src, seq, method, kind, &buf);
+    ctx.serving.served.record(src, seq, method, kind, &buf);
     let sent = ctx.send_raw(Dest::Module(src), spec(kind), &buf);
     reply.buf = buf;
     if let Err(e) = sent {
@@ -292,8 +292,8 @@ fn system_method<S>(
             reply.push(Value::Text(&methods.join(",")));
             reply.push(Value::Text(&ctx.bb.describe()));
             reply.push(Value::I64(ctx.tx.dropped() as i64));
-            reply.push(Value::I64(ctx.rejected as i64));
-            reply.push(Value::I64(ctx.replayed as i64));
+            reply.push(Value::I64(ctx.serving.rejected as i64));
+            reply.push(Value::I64(ctx.serving.replayed as i64));
             reply.push(Value::Bool(ctx.active));
             Ok(())
         }
@@ -331,7 +331,7 @@ fn system_method<S>(
             let active = id == sysmethod::ACTIVATE;
             if ctx.active != active {
                 ctx.active = active;
-                let (name, by) = (&ctx.name, ctx.caller);
+                let (name, by) = (&ctx.name, ctx.serving.caller);
                 if active {
                     tracing::info!("module {name} activated by {by}");
                 } else {

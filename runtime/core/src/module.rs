@@ -191,9 +191,10 @@ impl<S> Module<S> {
             }
         }
         let ctx = &mut self.ctx;
-        let (failures, book, describing) = (&mut ctx.failures, &ctx.book, &mut ctx.describing);
+        let (failures, book, describing) =
+            (&mut ctx.out.failures, &ctx.book, &mut ctx.out.describing);
         let (tx, me, sent) = (&mut ctx.tx, ctx.addr, &mut ctx.stats.frames_sent);
-        ctx.calls.expire(
+        ctx.out.calls.expire(
             now,
             |e| {
                 let name = book
@@ -247,13 +248,13 @@ impl<S> Module<S> {
                 } else {
                     tracing::debug!("module {name} ({addr}) died");
                 }
-                self.ctx.describing[usize::from(addr.0)] = false;
+                self.ctx.out.describing[usize::from(addr.0)] = false;
                 // The next process at this address may use a new inbox (its files were swept
                 // while it started, say): open the link again rather than keep sending into
                 // the dead one's.
                 self.ctx.tx.disconnect(addr);
-                let failures = &mut self.ctx.failures;
-                self.ctx.calls.fail_peer(addr, |e| {
+                let failures = &mut self.ctx.out.failures;
+                self.ctx.out.calls.fail_peer(addr, |e| {
                     if e.purpose == Purpose::User {
                         failures.push((
                             e.handle,
@@ -269,13 +270,14 @@ impl<S> Module<S> {
                 // A new process at `addr`: what it was served before died with the old one,
                 // and calls that wait for it go out again.
                 let ctx = &mut self.ctx;
-                ctx.served.forget(addr);
+                ctx.serving.served.forget(addr);
                 let (tx, me, sent) = (&mut ctx.tx, ctx.addr, &mut ctx.stats.frames_sent);
-                ctx.calls
-                    .resend_to(addr, |r| match crate::ctx::send_retry(tx.as_mut(), me, r) {
+                ctx.out.calls.resend_to(addr, |r| {
+                    match crate::ctx::send_retry(tx.as_mut(), me, r) {
                         Ok(()) => *sent += 1,
                         Err(e) => tracing::debug!("resend to {addr} not delivered: {e}"),
-                    });
+                    }
+                });
             }
             if !changes.appeared.is_empty() {
                 self.look_up_peers();
@@ -297,7 +299,7 @@ impl<S> Module<S> {
     }
 
     fn deliver_failures(&mut self, waiter: &mut Waiter<'_>) {
-        while let Some((handle, err)) = self.ctx.failures.pop() {
+        while let Some((handle, err)) = self.ctx.out.failures.pop() {
             self.ctx.stats.failed += 1;
             match waiter {
                 Some((h, f)) if *h == handle => f(Err(&err)),
@@ -326,8 +328,8 @@ impl<S> Module<S> {
         self.beats += 1;
         let counters = Counters {
             dropped: self.ctx.tx.dropped(),
-            rejected: self.ctx.rejected,
-            replayed: self.ctx.replayed,
+            rejected: self.ctx.serving.rejected,
+            replayed: self.ctx.serving.replayed,
         };
         let hb = Heartbeat::new(
             self.ctx.addr,
@@ -388,8 +390,8 @@ impl<S> Module<S> {
                 Ok(true) => {
                     spins = 0;
                     self.deliver_failures(&mut waiter);
-                    if !self.ctx.calls.is_waiting(handle)
-                        && !self.ctx.pending.iter().any(|p| p.handle == handle)
+                    if !self.ctx.out.calls.is_waiting(handle)
+                        && !self.ctx.out.pending.iter().any(|p| p.handle == handle)
                     {
                         break;
                     }
@@ -407,8 +409,8 @@ impl<S> Module<S> {
             spins += 1;
             if spins.is_multiple_of(64) || self.ctx.mode == ReceiveMode::Blocking {
                 self.housekeeping_with(&mut waiter);
-                if !self.ctx.calls.is_waiting(handle)
-                    && !self.ctx.pending.iter().any(|p| p.handle == handle)
+                if !self.ctx.out.calls.is_waiting(handle)
+                    && !self.ctx.out.pending.iter().any(|p| p.handle == handle)
                 {
                     break;
                 }
@@ -474,7 +476,7 @@ impl<S> Module<S> {
         } else {
             self.last_snapshot_ns + self.def.snapshot_period_ns
         };
-        let pending = if self.ctx.pending.is_empty() {
+        let pending = if self.ctx.out.pending.is_empty() {
             u64::MAX
         } else {
             now + 1_000_000
@@ -486,7 +488,7 @@ impl<S> Module<S> {
             .chain([
                 refresh,
                 self.next_beat_ns,
-                self.ctx.calls.next_due_ns(),
+                self.ctx.out.calls.next_due_ns(),
                 snapshot,
                 pending,
             ])

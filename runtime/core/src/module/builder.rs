@@ -8,7 +8,6 @@ use modbot_ipc_schema::{sysmethod, Addr};
 
 use super::{ActivationFn, Definition, DoneFn, MethodFn, Module, Reply, ReportFn, TaskFn};
 use crate::blackboard::Blackboard;
-use crate::calls::MethodQueue;
 use crate::clock::{Clock, MonotonicClock};
 use crate::ctx::Ctx;
 use crate::error::ModuleError;
@@ -205,18 +204,11 @@ impl<S> ModuleBuilder<S> {
             snapshots: endpoint.snapshots,
             directory: endpoint.directory,
             bb: b.blackboard.unwrap_or_else(Blackboard::empty),
-            calls: MethodQueue::default(),
+            out: Default::default(),
             book: PhoneBook::new(),
             clock: b.clock,
-            pending: Vec::new(),
-            failures: Vec::new(),
-            describing: [false; 256],
-            rejected: 0,
-            stale: 0,
-            served: Default::default(),
-            replayed: 0,
+            serving: Default::default(),
             stop: false,
-            caller: Addr::NONE,
             stats: Stats::default(),
             active: true,
         };
