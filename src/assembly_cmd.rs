@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Subcommand;
-use modbot_runtime::grid::switch;
+use modbot_runtime::grid::switch::{self, Outcome};
 
 /// What `modbot assembly` does.
 #[derive(Debug, Subcommand)]
@@ -27,14 +27,19 @@ pub fn run(domain: &str, command: Option<AssemblyCommand>) -> anyhow::Result<Exi
     match command.unwrap_or(AssemblyCommand::Status) {
         AssemblyCommand::Status => match switch::status(&mut tool) {
             Ok(s) => {
-                println!("assembly {} (generation {})", s.current.0, s.current.1);
+                println!("assembly {} (generation {})", s.assembly, s.generation);
                 println!("switch: {}", s.state);
-                for (g, name, outcome) in &s.outcomes {
+                for outcome in &s.outcomes {
+                    let (g, name) = (outcome.generation(), outcome.assembly());
                     match outcome {
-                        Ok((announced, tick)) => println!(
+                        Outcome::Switched {
+                            announced, tick, ..
+                        } => println!(
                             "  generation {g} {name}: switched at tick {tick} (announced {announced})"
                         ),
-                        Err(why) => println!("  generation {g} {name}: not switched: {why}"),
+                        Outcome::Failed { reason, .. } => {
+                            println!("  generation {g} {name}: not switched: {reason}")
+                        }
                     }
                 }
                 Ok(ExitCode::SUCCESS)

@@ -84,7 +84,14 @@ enum Command {
     },
     /// The bus ledger: bus cycles, missed cycles, a safe stop if there was one, and every
     /// drive's CiA 402 state and mode.
-    Bus,
+    Bus {
+        /// Every assembly switch the bus saw instead: a line `max_step S max_velocity_step V`
+        /// (the largest steps within an assembly), then per switch `GENERATION TICK STEP
+        /// MISSED VSTEP` (the command's position step, the cycles missed within five ticks of
+        /// it, its velocity step).
+        #[arg(long)]
+        switches: bool,
+    },
     /// The grid's assemblies: `modbot assembly` shows where they stand, `modbot assembly
     /// switch NAME` swaps the control structure while the robot runs.
     Assembly {
@@ -179,7 +186,7 @@ fn main() -> ExitCode {
             },
         ),
         Command::Top { once } => tool::top(&cli.domain, once),
-        Command::Bus => tool::bus(&cli.domain),
+        Command::Bus { switches } => tool::bus(&cli.domain, switches),
         Command::Assembly { command } => assembly_cmd::run(&cli.domain, command),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),

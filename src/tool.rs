@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context};
 use modbot_ipc_schema::{sysmethod, Args, OwnedValue, SnapshotView, Value};
-use modbot_runtime::supervisor::status::Row;
+use modbot_runtime::supervisor::status::{self, Row};
 use modbot_runtime::tool::{Calls, Tool};
 use modbot_runtime::{CallError, CallOptions, Domain, Stats};
 
@@ -39,7 +39,7 @@ fn supervisor_rows(tool: &mut Tool) -> Option<Vec<Row>> {
         |r| {
             r.ok()
                 .and_then(|a| a.bytes(0).ok())
-                .and_then(|b| Row::parse_all(b).ok())
+                .and_then(|b| status::decode(b).ok())
         },
     )
 }
@@ -430,20 +430,28 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
     }
 }
 
-/// `modbot bus`: the bus bridge's ledger.
-pub fn bus(domain: &str) -> anyhow::Result<ExitCode> {
+/// `modbot bus`: the bus bridge's ledger, or with `--switches` its record of switches.
+pub fn bus(domain: &str, switches: bool) -> anyhow::Result<ExitCode> {
+    use modbot_runtime::bus::bridge::render_switches;
     let mut tool = open(domain)?;
     let module = modbot_runtime::supervisor::processes::host_module(
         modbot_runtime::supervisor::processes::BUS_HOST,
     );
     let text = tool.call_blocking(
         &module,
-        "bus",
+        if switches { "switches" } else { "bus" },
         &[],
         CallOptions::timeout(Duration::from_secs(1)),
         |r| -> Result<String, String> {
-            let args = r.map_err(|e| e.to_string())?;
-            args.text(0).map(str::to_owned).map_err(|e| e.to_string())
+            let args = r.map_err(|e| format!("no bus bridge answers in '{domain}': {e}"))?;
+            let answer = |e: &dyn std::fmt::Display| format!("the bus bridge's answer: {e}");
+            if switches {
+                let bytes = args.bytes(0).map_err(|e| answer(&e))?;
+                let record = modbot_ipc_schema::bus::decode(bytes).map_err(|e| answer(&e))?;
+                Ok(render_switches(&record))
+            } else {
+                args.text(0).map(str::to_owned).map_err(|e| answer(&e))
+            }
         },
     );
     match text {
@@ -452,7 +460,7 @@ pub fn bus(domain: &str) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Err(e) => {
-            eprintln!("modbot bus: no bus bridge answers in '{domain}': {e}");
+            eprintln!("modbot bus: {e}");
             Ok(ExitCode::from(1))
         }
     }

@@ -11,6 +11,8 @@ use std::time::Duration;
 
 use common::arm::{all_axes, arm, bus_ledger, one_arm_at_a_time};
 use common::TestDomain;
+use modbot_ipc_schema::{bus, hex};
+use modbot_runtime::bus::bridge::render_switches;
 use nix::sys::signal::Signal;
 
 /// `switched to NAME (generation G) at tick T, announced for tick A, ...` → (G, T, A).
@@ -157,27 +159,27 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
         // Let it move a little between swaps.
         std::thread::sleep(Duration::from_millis(20));
     }
-    // `modbot call` prints the text answer quoted, with its newlines escaped.
-    let switches = String::from_utf8_lossy(&sut.modbot(&["call", "host_bus.switches"]).stdout)
-        .trim()
-        .trim_matches('"')
-        .replace("\\n", "\n");
-    // The bus's own record: the tick of each generation's first cycle and the step.
+    // The bus's own record (`modbot_ipc_schema::bus`): the tick of each generation's first
+    // cycle and the step. `modbot call` prints a bytes answer as 0x and hex.
+    let answer = sut.modbot_ok(&["call", "host_bus.switches"]);
+    let bytes = hex::decode(answer.trim().trim_start_matches("0x"))
+        .unwrap_or_else(|e| panic!("host_bus.switches answers bytes: {e}: {answer}"));
+    let record = bus::decode(&bytes).expect("the bus's record of switches");
+    let switches = render_switches(&record);
+    // `modbot bus --switches` prints the same record: a line of the largest steps within an
+    // assembly, then one per switch.
+    let printed = sut.modbot_ok(&["bus", "--switches"]);
+    assert!(
+        printed.starts_with("max_step ") && printed.lines().count() == record.switches.len() + 1,
+        "{printed}"
+    );
     // v_max (rad/s) × base period, and a_max (rad/s²) × base period; the margin is the Bessel
     // filter's overshoot of `ptp_smooth`'s lower limits (0.43 %) and rounding.
     let one_tick = 1.0 * 0.001 * 1.005;
     let one_tick_of_a = 4.0 * 0.001 * 1.005;
     let mut seen = 0;
-    for line in switches.lines() {
-        let words: Vec<&str> = line.split_whitespace().collect();
-        let (Some(g), Some(t), Some(step), Some(velocity_step)) = (
-            words.first().and_then(|w| w.parse::<u16>().ok()),
-            words.get(1).and_then(|w| w.parse::<u64>().ok()),
-            words.get(2).and_then(|w| w.parse::<f64>().ok()),
-            words.get(4).and_then(|w| w.parse::<f64>().ok()),
-        ) else {
-            continue;
-        };
+    for s in &record.switches {
+        let (g, t, step, velocity_step) = (s.generation, s.tick, s.step, s.velocity_step);
         if let Some(&(_, at)) = announced.iter().find(|a| a.0 == g) {
             seen += 1;
             assert_eq!(
@@ -196,17 +198,7 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
         }
     }
     assert_eq!(seen, 100, "the bus saw every switch:\n{switches}");
-    let max_step: f64 = switches
-        .lines()
-        .find_map(|l| {
-            l.split("max_step ")
-                .nth(1)?
-                .split_whitespace()
-                .next()?
-                .parse()
-                .ok()
-        })
-        .unwrap_or(0.0);
+    let max_step = record.max_step;
     assert!(
         max_step > 1e-4,
         "the robot was moving: largest step {max_step} rad\n{switches}\n{}",

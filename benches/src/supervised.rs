@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+use modbot_ipc_schema::{ArgError, Args};
 use modbot_runtime::supervisor::status;
 use modbot_runtime::{CallOptions, Domain, IpcTransport, Module, ModuleBuilder, ReceiveMode};
 
@@ -226,16 +227,28 @@ impl Supervised {
 
     /// Calls a method that answers one text value.
     pub fn call_text(&mut self, module: &str, method: &str) -> anyhow::Result<String> {
+        self.call_one(module, method, |a| a.text(0).map(str::to_owned))
+    }
+
+    /// Calls a method that answers one bytes value.
+    pub fn call_bytes(&mut self, module: &str, method: &str) -> anyhow::Result<Vec<u8>> {
+        self.call_one(module, method, |a| a.bytes(0).map(<[u8]>::to_vec))
+    }
+
+    /// Calls a method without arguments and picks its answer.
+    fn call_one<T>(
+        &mut self,
+        module: &str,
+        method: &str,
+        pick: impl FnOnce(&Args<'_>) -> Result<T, ArgError>,
+    ) -> anyhow::Result<T> {
         self.tool()?.call_blocking(
             module,
             method,
             &[],
             CallOptions::timeout(Duration::from_secs(1)),
             |r| match r {
-                Ok(a) => a
-                    .text(0)
-                    .map(str::to_owned)
-                    .map_err(|e| anyhow::anyhow!("{module}.{method}: {e}")),
+                Ok(a) => pick(a).map_err(|e| anyhow::anyhow!("{module}.{method}: {e}")),
                 Err(e) => Err(anyhow::anyhow!("{module}.{method}: {e}")),
             },
         )
@@ -243,19 +256,8 @@ impl Supervised {
 
     /// The supervisor's table (`modbot ls`).
     pub fn status(&mut self) -> anyhow::Result<Vec<status::Row>> {
-        self.tool()?.call_blocking(
-            "supervisor",
-            "status",
-            &[],
-            CallOptions::timeout(Duration::from_secs(1)),
-            |r| match r {
-                Ok(a) => a
-                    .bytes(0)
-                    .map_err(|e| anyhow::anyhow!("supervisor.status: {e}"))
-                    .and_then(|b| status::Row::parse_all(b).map_err(anyhow::Error::msg)),
-                Err(e) => Err(anyhow::anyhow!("supervisor.status: {e}")),
-            },
-        )
+        let bytes = self.call_bytes("supervisor", "status")?;
+        status::decode(&bytes).context("supervisor.status")
     }
 
     /// The pid of the running module `name`.

@@ -18,7 +18,8 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::bail;
+use anyhow::{bail, Context};
+use modbot_ipc_schema::bus::Switches;
 use modbot_runtime::grid::switch;
 
 use crate::faults::start_arm;
@@ -71,7 +72,8 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         idle.saturating_record(after.saturating_sub(before));
     }
     let coordinator_idle = coordinator_missed(&mut sys);
-    let bus_record = sys.call_text("host_bus", "switches")?;
+    let bus_record = modbot_ipc_schema::bus::decode(&sys.call_bytes("host_bus", "switches")?)
+        .context("host_bus.switches")?;
     let ledger = sys.call_text("host_bus", "bus")?;
     let mut tick_error = crate::sample::histogram();
     let mut position_step = crate::sample::histogram();
@@ -262,29 +264,36 @@ pub(crate) fn ledger_number(ledger: &str, label: &str) -> anyhow::Result<u64> {
 }
 
 /// The tick at which the bus first served `generation`, and the position and velocity steps
-/// there (`host_bus.switches`: lines `GENERATION TICK STEP MISSED VSTEP` after a `max_step`
-/// line).
-fn bus_switch(record: &str, generation: u16) -> Option<(u64, f64, f64)> {
-    record.lines().find_map(|l| {
-        let mut w = l.split_whitespace();
-        let g: u16 = w.next()?.parse().ok()?;
-        let t: u64 = w.next()?.parse().ok()?;
-        let step: f64 = w.next()?.parse().ok()?;
-        let vstep: f64 = w.nth(1)?.parse().ok()?;
-        (g == generation).then_some((t, step, vstep))
-    })
+/// there (`host_bus.switches`, the bus's own record).
+fn bus_switch(record: &Switches, generation: u16) -> Option<(u64, f64, f64)> {
+    record
+        .switches
+        .iter()
+        .find(|s| s.generation == generation)
+        .map(|s| (s.tick, s.step, s.velocity_step))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use modbot_ipc_schema::bus::Switch;
 
     #[test]
     fn the_bus_records_read_back() {
-        let record =
-            "max_step 1e-3 max_velocity_step 4e-3\n2 5114 3e-4 0 2e-3\n3 5300 1e-4 1 3e-3\n";
-        assert_eq!(bus_switch(record, 3), Some((5300, 1e-4, 3e-3)));
-        assert_eq!(bus_switch(record, 4), None);
+        let switch = |generation, tick, step, velocity_step| Switch {
+            generation,
+            tick,
+            step,
+            velocity_step,
+            missed_near: 0,
+        };
+        let record = Switches {
+            max_step: 1e-3,
+            max_velocity_step: 4e-3,
+            switches: vec![switch(2, 5114, 3e-4, 2e-3), switch(3, 5300, 1e-4, 3e-3)],
+        };
+        assert_eq!(bus_switch(&record, 3), Some((5300, 1e-4, 3e-3)));
+        assert_eq!(bus_switch(&record, 4), None);
         let ledger = "bus sim  axes 6  cycles 9000  missed 2  running\nAXIS ...";
         assert_eq!(ledger_number(ledger, "missed").unwrap(), 2);
         assert_eq!(ledger_number(ledger, "cycles").unwrap(), 9000);

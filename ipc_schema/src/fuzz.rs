@@ -85,6 +85,55 @@ pub fn relay(data: &[u8]) {
     }
 }
 
+/// The coordinator's answer about switches, as `modbot assembly` reads it; what decodes
+/// encodes to an answer that decodes the same.
+pub fn switch(data: &[u8]) {
+    if let Ok(status) = crate::switch::decode(data) {
+        let _ = status.state.to_string();
+        let mut again = Vec::new();
+        status.encode(&mut again);
+        assert_eq!(crate::switch::decode(&again), Ok(status));
+    }
+}
+
+/// The supervisor's status rows, as `modbot ls` reads them; what decodes encodes to rows that
+/// decode the same.
+pub fn status(data: &[u8]) {
+    if let Ok(rows) = crate::status::decode(data) {
+        let mut again = Vec::new();
+        crate::status::encode(&rows, &mut again);
+        assert_eq!(crate::status::decode(&again), Ok(rows));
+    }
+}
+
+/// A call latency histogram, as `modbot call MODULE.stats` reads it; what decodes encodes to
+/// the same bytes (the layout has one form).
+pub fn latency(data: &[u8]) {
+    use crate::latency::{encode, View};
+    if let Ok(view) = View::parse(data) {
+        let mut again = Vec::new();
+        encode(&view.counts(), view.max(), &mut again);
+        // Reserved bytes: none; so the bytes come back exactly.
+        assert_eq!(again, data);
+    }
+}
+
+/// The bus bridge's record of switches, as `modbot bus --switches` reads it; what decodes
+/// encodes to a record that decodes the same.
+pub fn bus(data: &[u8]) {
+    if let Ok(record) = crate::bus::decode(data) {
+        let mut again = Vec::new();
+        let encoded = crate::bus::encode(
+            record.max_step,
+            record.max_velocity_step,
+            &record.switches,
+            &mut again,
+        );
+        assert_eq!(encoded, Ok(()));
+        assert_eq!(crate::bus::decode(&again), Ok(record));
+    }
+}
+
 /// One of the decoders above.
 pub type Decoder = fn(&[u8]);
 
@@ -97,4 +146,8 @@ pub const TARGETS: &[(&str, Decoder)] = &[
     ("grid", grid),
     ("directory", directory),
     ("relay", relay),
+    ("switch", switch),
+    ("status", status),
+    ("latency", latency),
+    ("bus", bus),
 ];

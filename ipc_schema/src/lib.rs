@@ -15,12 +15,17 @@
 //!   readable in place.
 //! - [`grid`]: the time grid's port values, output records and release/done notices.
 //! - [`ledger`]: the grid's overrun ledger (the coordinator's `ledger` answer).
+//! - [`switch`]: the coordinator's answers about assembly switches (`switch`, `assembly`).
+//! - [`bus`]: the bus bridge's record of assembly switches (its `switches` answer).
 //! - [`directory`]: the phone book a supervisor publishes for its domain, one image read in
 //!   place.
 //! - [`heartbeat`]: the fixed record a module publishes periodically, for hang detection.
 //! - [`sysmethod`]: method ids every module answers (describe, blackboard get/set, stats,
 //!   activate/deactivate).
 //! - [`relay`]: calls a supervisor makes for tools that hold no module address.
+//! - [`status`]: the supervisor's status rows (its `status` answer, `modbot ls`).
+//! - [`latency`]: the call latency histogram of the `stats` answer: its buckets and layout.
+//! - [`fields`]: answers laid out as a run of values, read field by field with named errors.
 //! - [`hex`]: hex helpers for the command line and the golden vectors.
 //!
 //! The byte layouts are written down in `ipc_schema/README.md`, with golden vectors that the
@@ -31,15 +36,20 @@ compile_error!("modbot's wire formats are little-endian and are read in place: b
 
 pub mod addr;
 pub mod args;
+pub mod bus;
 pub mod directory;
+pub mod fields;
 pub mod fuzz;
 pub mod grid;
 pub mod heartbeat;
 pub mod hex;
+pub mod latency;
 pub mod ledger;
 pub mod relay;
 pub mod rvmf;
 pub mod snapshot;
+pub mod status;
+pub mod switch;
 pub mod sysmethod;
 pub mod value;
 

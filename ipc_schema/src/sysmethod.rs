@@ -33,7 +33,7 @@ pub const BB_SNAPSHOT: u8 = 0xF3;
 /// included); calls the module's code made, those answered with a REPLY or an ACK, and those
 /// that failed (NAK, malformed answer, timeout, peer died). `latency` is the histogram of the
 /// answered calls' latencies (first send to answer, NAKs included) in ns, in the layout of
-/// `modbot_runtime::stats::Histogram::to_bytes` (log-linear buckets, 12.5 % resolution).
+/// [`crate::latency`] (log-linear buckets, 12.5 % resolution).
 pub const STATS: u8 = 0xF4;
 
 /// `activate()` → ACK: the operator (re)activates the module; it serves its own methods and

@@ -55,15 +55,20 @@ fn a_heartbeat_reader_ignores_its_reserved_byte() {
     assert_eq!(Heartbeat::parse(&bytes).unwrap().beat(), 5);
 }
 
-#[test]
-fn a_snapshot_reader_ignores_reserved_bits_and_requires_names_in_byte_order() {
+/// The bytes of the README's golden vector whose description starts with `description`.
+fn golden(description: &str) -> Vec<u8> {
     let readme = include_str!("../README.md");
     let line = readme
         .lines()
-        .find(|l| l.starts_with("snapshot addr=2"))
-        .expect("the golden snapshot");
+        .find(|l| l.starts_with(description))
+        .unwrap_or_else(|| panic!("the golden vector '{description}'"));
     let (_, text) = line.split_once("   ").unwrap();
-    let golden = hex::decode(&text.split_whitespace().collect::<String>()).unwrap();
+    hex::decode(text).unwrap()
+}
+
+#[test]
+fn a_snapshot_reader_ignores_reserved_bits_and_requires_names_in_byte_order() {
+    let golden = golden("snapshot addr=2");
     let mut bytes = golden.clone();
     bytes[7] = 0xff; // header flags
     bytes[10] = 0xff; // reserved
@@ -77,4 +82,13 @@ fn a_snapshot_reader_ignores_reserved_bits_and_requires_names_in_byte_order() {
     swapped.copy_within(b.clone(), a.start);
     swapped[b].copy_from_slice(&first);
     assert!(SnapshotView::parse(&swapped).is_err());
+}
+
+#[test]
+fn a_reader_of_the_bus_bridges_switches_ignores_its_reserved_bytes() {
+    let mut bytes = golden("switches max_step=");
+    let golden = modbot_ipc_schema::bus::decode(&bytes).unwrap();
+    bytes[5] = 0xaa; // header
+    bytes[24 + 2..24 + 8].fill(0xbb); // the record's
+    assert_eq!(modbot_ipc_schema::bus::decode(&bytes), Ok(golden));
 }

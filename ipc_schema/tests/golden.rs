@@ -220,6 +220,103 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 assert_eq!(decode(&bytes).unwrap(), (grid, vec![row]));
                 bytes
             }
+            "assembly" => {
+                use modbot_ipc_schema::switch::{decode, Outcome, State, Status};
+                let parts = |k| -> Vec<&str> { field(&desc, k).split(':').collect() };
+                let (announced, switched, failed) =
+                    (parts("announced"), parts("switched"), parts("failed"));
+                let status = Status {
+                    assembly: field(&desc, "name").to_owned(),
+                    generation: field(&desc, "generation").parse().unwrap(),
+                    state: State::Announced {
+                        generation: announced[0].parse().unwrap(),
+                        assembly: announced[1].to_owned(),
+                        tick: announced[2].parse().unwrap(),
+                    },
+                    outcomes: vec![
+                        Outcome::Switched {
+                            generation: switched[0].parse().unwrap(),
+                            assembly: switched[1].to_owned(),
+                            announced: switched[2].parse().unwrap(),
+                            tick: switched[3].parse().unwrap(),
+                        },
+                        Outcome::Failed {
+                            generation: failed[0].parse().unwrap(),
+                            assembly: failed[1].to_owned(),
+                            reason: failed[2].to_owned(),
+                        },
+                    ],
+                };
+                let mut bytes = Vec::new();
+                status.encode(&mut bytes);
+                assert_eq!(decode(&bytes).unwrap(), status);
+                bytes
+            }
+            "switches" => {
+                use modbot_ipc_schema::bus::{decode, encode, Switch, Switches};
+                let x = |k| field(&desc, k).parse::<f64>().unwrap();
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let record = Switches {
+                    max_step: x("max_step"),
+                    max_velocity_step: x("max_velocity_step"),
+                    switches: vec![Switch {
+                        generation: n("generation") as u16,
+                        tick: n("tick"),
+                        step: x("step"),
+                        velocity_step: x("velocity_step"),
+                        missed_near: n("missed"),
+                    }],
+                };
+                let mut bytes = Vec::new();
+                encode(
+                    record.max_step,
+                    record.max_velocity_step,
+                    &record.switches,
+                    &mut bytes,
+                )
+                .unwrap();
+                assert_eq!(decode(&bytes).unwrap(), record);
+                bytes
+            }
+            "status" => {
+                use modbot_ipc_schema::heartbeat::Counters;
+                use modbot_ipc_schema::status::{decode, encode, Row};
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let row = Row {
+                    name: field(&desc, "name").to_owned(),
+                    addr: n("addr") as u8,
+                    state: field(&desc, "state").to_owned(),
+                    pid: n("pid") as u32,
+                    restarts: n("restarts") as u32,
+                    last_exit: field(&desc, "last_exit").to_owned(),
+                    counters: Counters {
+                        dropped: n("dropped"),
+                        rejected: n("rejected"),
+                        replayed: n("replayed"),
+                    },
+                };
+                let mut bytes = Vec::new();
+                encode(std::slice::from_ref(&row), &mut bytes);
+                assert_eq!(decode(&bytes).unwrap(), vec![row]);
+                bytes
+            }
+            "latency" => {
+                use modbot_ipc_schema::latency::{bucket_of, encode, View, BUCKETS};
+                let values: Vec<u64> = field(&desc, "values")
+                    .split(',')
+                    .map(|v| v.parse().unwrap())
+                    .collect();
+                let mut counts = [0u64; BUCKETS];
+                for v in &values {
+                    counts[bucket_of(*v)] += 1;
+                }
+                let max = field(&desc, "max").parse().unwrap();
+                let mut bytes = Vec::new();
+                encode(&counts, max, &mut bytes);
+                let view = View::parse(&bytes).unwrap();
+                assert_eq!((view.max(), view.total()), (max, values.len() as u64));
+                bytes
+            }
             "snapshot" => {
                 let layout = SnapshotLayout::new(vec![
                     ItemSpec {

@@ -44,6 +44,110 @@ fn spec() -> impl Strategy<Value = FrameSpec> {
     })
 }
 
+fn name() -> impl Strategy<Value = String> {
+    "[a-z_]{0,12}|.{0,8}"
+}
+
+fn switch_status() -> impl Strategy<Value = modbot_ipc_schema::switch::Status> {
+    use modbot_ipc_schema::switch::{Outcome, State, Status};
+    let tick = 0..=i64::MAX as u64;
+    let state = prop_oneof![
+        Just(State::Idle),
+        (any::<u16>(), name()).prop_map(|(generation, assembly)| State::Preparing {
+            generation,
+            assembly
+        }),
+        (any::<u16>(), name(), tick.clone()).prop_map(|(generation, assembly, tick)| {
+            State::Announced {
+                generation,
+                assembly,
+                tick,
+            }
+        }),
+    ];
+    let outcome = prop_oneof![
+        (any::<u16>(), name(), tick.clone(), tick).prop_map(
+            |(generation, assembly, announced, tick)| Outcome::Switched {
+                generation,
+                assembly,
+                announced,
+                tick
+            }
+        ),
+        (any::<u16>(), name(), name()).prop_map(|(generation, assembly, reason)| {
+            Outcome::Failed {
+                generation,
+                assembly,
+                reason,
+            }
+        }),
+    ];
+    (
+        name(),
+        any::<u16>(),
+        state,
+        proptest::collection::vec(outcome, 0..5),
+    )
+        .prop_map(|(assembly, generation, state, outcomes)| Status {
+            assembly,
+            generation,
+            state,
+            outcomes,
+        })
+}
+
+fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
+    use modbot_ipc_schema::heartbeat::Counters;
+    let count = 0..=i64::MAX as u64;
+    (
+        (
+            name(),
+            any::<u8>(),
+            name(),
+            any::<u32>(),
+            any::<u32>(),
+            name(),
+        ),
+        (count.clone(), count.clone(), count),
+    )
+        .prop_map(
+            |((name, addr, state, pid, restarts, last_exit), (dropped, rejected, replayed))| {
+                modbot_ipc_schema::status::Row {
+                    name,
+                    addr,
+                    state,
+                    pid,
+                    restarts,
+                    last_exit,
+                    counters: Counters {
+                        dropped,
+                        rejected,
+                        replayed,
+                    },
+                }
+            },
+        )
+}
+
+fn bus_switch() -> impl Strategy<Value = modbot_ipc_schema::bus::Switch> {
+    (
+        any::<u16>(),
+        any::<u64>(),
+        0.0..1e3f64,
+        0.0..1e3f64,
+        any::<u64>(),
+    )
+        .prop_map(|(generation, tick, step, velocity_step, missed_near)| {
+            modbot_ipc_schema::bus::Switch {
+                generation,
+                tick,
+                step,
+                velocity_step,
+                missed_near,
+            }
+        })
+}
+
 proptest! {
     #[test]
     fn frames_round_trip_through_encode_and_decode(
@@ -78,6 +182,10 @@ proptest! {
         }
         if let Ok(hb) = modbot_ipc_schema::heartbeat::Heartbeat::parse(&bytes) {
             let _ = (hb.addr(), hb.state(), hb.counters());
+        }
+        // Every fuzz target's entry point, round trips included.
+        for (_, decode) in modbot_ipc_schema::fuzz::TARGETS {
+            decode(&bytes);
         }
     }
 
@@ -118,6 +226,42 @@ proptest! {
         prop_assert_eq!(view.seq(), seq);
         for (i, v) in vals.iter().enumerate() {
             prop_assert_eq!(view.value(&format!("n{i:02}")).unwrap(), *v);
+        }
+    }
+
+    #[test]
+    fn switch_answers_status_rows_and_bus_records_round_trip_and_survive_mutation(
+        status in switch_status(),
+        rows in proptest::collection::vec(status_row(), 0..4),
+        switches in proptest::collection::vec(bus_switch(), 0..4),
+        max_step in 0.0..1.0f64,
+        flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6),
+        cut in any::<usize>(),
+    ) {
+        use modbot_ipc_schema::{bus, fuzz, status as rows_format, switch};
+        let mut answer = Vec::new();
+        status.encode(&mut answer);
+        prop_assert_eq!(switch::decode(&answer), Ok(status));
+        let mut table = Vec::new();
+        rows_format::encode(&rows, &mut table);
+        prop_assert_eq!(rows_format::decode(&table), Ok(rows));
+        let mut record = Vec::new();
+        bus::encode(max_step, max_step * 4.0, &switches, &mut record).unwrap();
+        let back = bus::decode(&record).unwrap();
+        prop_assert_eq!(back.switches, switches);
+        for (bytes, decode) in [
+            (&mut answer, fuzz::switch as fn(&[u8])),
+            (&mut table, fuzz::status),
+            (&mut record, fuzz::bus),
+        ] {
+            decode(&bytes[..cut % (bytes.len() + 1)]);
+            if !bytes.is_empty() {
+                for (at, byte) in &flips {
+                    let i = at % bytes.len();
+                    bytes[i] ^= byte;
+                }
+            }
+            decode(bytes);
         }
     }
 }

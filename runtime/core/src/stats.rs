@@ -7,84 +7,37 @@
 //!
 //! # Histogram resolution
 //!
-//! The buckets are log-linear, as in HdrHistogram: each power of two from 128 ns (2^7) to
-//! 2^38 ns (about 275 s) is split into [`SUB_BUCKETS`] = 8 equal buckets, so a bucket is at
-//! most 12.5 % of its lower bound wide. Values below 128 ns share bucket 0; values of 2^38 ns
-//! and more share the last bucket. [`Histogram::percentile`] answers the upper end of the
-//! bucket that holds the percentile, capped at the largest value recorded: never below the
-//! true value, and at most one bucket width (12.5 %, or 128 ns under 1 µs) above it.
+//! The buckets are those of the wire format, [`modbot_ipc_schema::latency`]: log-linear, as in
+//! HdrHistogram, each power of two from 128 ns (2^7) to 2^38 ns (about 275 s) split into
+//! [`SUB_BUCKETS`] = 8 equal buckets, so a bucket is at most 12.5 % of its lower bound wide.
+//! Values below 128 ns share bucket 0; values of 2^38 ns and more share the last bucket.
+//! [`Histogram::percentile`] answers the upper end of the bucket that holds the percentile,
+//! capped at the largest value recorded: never below the true value, and at most one bucket
+//! width (12.5 %, or 128 ns under 1 µs) above it.
 //!
-//! # Wire layout ([`Histogram::to_bytes`])
+//! # Wire layout
 //!
-//! ```text
-//! offset size  field
-//! 0      4     magic "MBLH"
-//! 4      1     format version = 1
-//! 5      1     sub-bucket bits = 3 (8 buckets per power of two)
-//! 6      1     first exponent = 7 (bucket 0 holds 0..128 ns)
-//! 7      1     overflow exponent = 38 (the last bucket holds 2^38 ns and more)
-//! 8      8     largest value recorded, ns (u64 LE; 0 when nothing was recorded)
-//! 16     2     n, the number of buckets that follow (u16 LE)
-//! 18     10*n  bucket index (u16 LE), count (u64 LE, > 0); indexes strictly increasing
-//! ```
-//!
-//! Only buckets that counted something are sent: a typical latency histogram is a few hundred
-//! bytes. [`Histogram::from_bytes`] checks everything (it reads untrusted bytes from another
-//! process) and never panics.
+//! [`Histogram::to_bytes`] and [`Histogram::from_bytes`] write and read the layout of
+//! [`modbot_ipc_schema::latency`] (magic `MBLH`, the buckets that counted something), written
+//! down with a golden vector in `ipc_schema/README.md`.
 
 use core::fmt;
 
+use modbot_ipc_schema::latency::{self, HistogramError, View};
 use modbot_ipc_schema::{ArgError, Args, Value};
 use thiserror::Error;
 
 use crate::module::Reply;
 
-/// Buckets per power of two, as a number of bits.
-pub const SUB_BUCKET_BITS: u32 = 3;
-/// Buckets per power of two.
-pub const SUB_BUCKETS: usize = 1 << SUB_BUCKET_BITS;
-/// Values below `2^FIRST_EXP` ns share bucket 0.
-pub const FIRST_EXP: u32 = 7;
-/// Values of `2^OVERFLOW_EXP` ns and more share the last bucket.
-pub const OVERFLOW_EXP: u32 = 38;
-/// Number of buckets: one below, [`SUB_BUCKETS`] per power of two, one overflow.
-pub const BUCKETS: usize = 1 + (OVERFLOW_EXP - FIRST_EXP) as usize * SUB_BUCKETS + 1;
-
-/// The magic at the start of a serialized histogram.
-pub const MAGIC: [u8; 4] = *b"MBLH";
-/// The format version of [`Histogram::to_bytes`].
-pub const VERSION: u8 = 1;
-/// Bytes before the bucket entries.
-pub const HEADER_LEN: usize = 18;
-/// Bytes per bucket entry.
-pub const ENTRY_LEN: usize = 10;
+pub use modbot_ipc_schema::latency::{
+    BUCKETS, FIRST_EXP, OVERFLOW_EXP, SUB_BUCKETS, SUB_BUCKET_BITS,
+};
 
 /// Why bytes or an answer are not valid statistics.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum StatsError {
-    #[error("histogram truncated: {got} bytes, expected {expected}")]
-    Length { expected: usize, got: usize },
-    #[error("not a latency histogram (magic {0:02x?}, expected \"MBLH\")")]
-    Magic([u8; 4]),
-    #[error(
-        "unsupported histogram layout: version {version}, {sub_bits} sub-bucket bits, \
-         exponents {first_exp}..{overflow_exp} (this build reads version {VERSION}, \
-         {SUB_BUCKET_BITS} bits, exponents {FIRST_EXP}..{OVERFLOW_EXP})"
-    )]
-    Layout {
-        version: u8,
-        sub_bits: u8,
-        first_exp: u8,
-        overflow_exp: u8,
-    },
-    #[error("histogram bucket {index} is out of range or out of order (after {after:?}; {BUCKETS} buckets)")]
-    Bucket { index: u16, after: Option<u16> },
-    #[error("histogram bucket {0} is listed with a count of 0")]
-    EmptyBucket(u16),
-    #[error("histogram counts overflow u64")]
-    Overflow,
-    #[error("largest value {max} ns does not lie in the histogram's highest bucket ({bucket})")]
-    Max { max: u64, bucket: usize },
+    #[error("{0}")]
+    Histogram(#[from] HistogramError),
     #[error("stats answer: {0}")]
     Answer(#[from] ArgError),
     #[error("stats answer: {field} is negative ({value})")]
@@ -119,31 +72,15 @@ impl Histogram {
     }
 
     /// The bucket that holds `ns`.
+    #[inline]
     pub fn bucket_of(ns: u64) -> usize {
-        if ns < 1 << FIRST_EXP {
-            return 0;
-        }
-        let exp = 63 - ns.leading_zeros();
-        if exp >= OVERFLOW_EXP {
-            return BUCKETS - 1;
-        }
-        let sub = (ns >> (exp - SUB_BUCKET_BITS)) as usize & (SUB_BUCKETS - 1);
-        1 + (exp - FIRST_EXP) as usize * SUB_BUCKETS + sub
+        latency::bucket_of(ns)
     }
 
     /// The values bucket `index` holds: `lower..upper` in ns (`upper` is `u64::MAX` for the
     /// overflow bucket).
     pub fn bucket_range(index: usize) -> core::ops::Range<u64> {
-        match index {
-            0 => 0..1 << FIRST_EXP,
-            i if i >= BUCKETS - 1 => 1 << OVERFLOW_EXP..u64::MAX,
-            i => {
-                let exp = FIRST_EXP + ((i - 1) / SUB_BUCKETS) as u32;
-                let width = 1u64 << (exp - SUB_BUCKET_BITS);
-                let lower = (1u64 << exp) + ((i - 1) % SUB_BUCKETS) as u64 * width;
-                lower..lower + width
-            }
-        }
+        latency::bucket_range(index)
     }
 
     /// Records one value, in ns. Never allocates.
@@ -211,99 +148,22 @@ impl Histogram {
             .map(|(i, n)| (i, *n))
     }
 
-    /// The histogram in its wire layout (see the [module docs](self)).
+    /// The histogram in its wire layout ([`modbot_ipc_schema::latency`]).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let n = self.buckets().count();
-        let mut out = Vec::with_capacity(HEADER_LEN + ENTRY_LEN * n);
-        out.extend_from_slice(&MAGIC);
-        out.extend_from_slice(&[
-            VERSION,
-            SUB_BUCKET_BITS as u8,
-            FIRST_EXP as u8,
-            OVERFLOW_EXP as u8,
-        ]);
-        out.extend_from_slice(&self.max.to_le_bytes());
-        // BUCKETS < u16::MAX, so n fits.
-        out.extend_from_slice(&(n as u16).to_le_bytes());
-        for (i, count) in self.buckets() {
-            out.extend_from_slice(&(i as u16).to_le_bytes());
-            out.extend_from_slice(&count.to_le_bytes());
-        }
+        let mut out = Vec::new();
+        latency::encode(&self.counts, self.max, &mut out);
         out
     }
 
     /// Reads a histogram written by [`Histogram::to_bytes`], checking every field.
     pub fn from_bytes(bytes: &[u8]) -> Result<Histogram, StatsError> {
-        let header = bytes.get(..HEADER_LEN).ok_or(StatsError::Length {
-            expected: HEADER_LEN,
-            got: bytes.len(),
-        })?;
-        let magic = [header[0], header[1], header[2], header[3]];
-        if magic != MAGIC {
-            return Err(StatsError::Magic(magic));
-        }
-        let layout = [header[4], header[5], header[6], header[7]];
-        let expected = [
-            VERSION,
-            SUB_BUCKET_BITS as u8,
-            FIRST_EXP as u8,
-            OVERFLOW_EXP as u8,
-        ];
-        if layout != expected {
-            return Err(StatsError::Layout {
-                version: layout[0],
-                sub_bits: layout[1],
-                first_exp: layout[2],
-                overflow_exp: layout[3],
-            });
-        }
-        let max = u64_at(bytes, 8);
-        let n = usize::from(u16::from_le_bytes([header[16], header[17]]));
-        let expected = HEADER_LEN + ENTRY_LEN * n;
-        if bytes.len() != expected {
-            return Err(StatsError::Length {
-                expected,
-                got: bytes.len(),
-            });
-        }
-        let mut h = Histogram::new();
-        let mut after: Option<u16> = None;
-        for entry in bytes[HEADER_LEN..].chunks_exact(ENTRY_LEN) {
-            let index = u16::from_le_bytes([entry[0], entry[1]]);
-            let count = u64_at(entry, 2);
-            if usize::from(index) >= BUCKETS || after.is_some_and(|a| index <= a) {
-                return Err(StatsError::Bucket { index, after });
-            }
-            if count == 0 {
-                return Err(StatsError::EmptyBucket(index));
-            }
-            after = Some(index);
-            h.counts[usize::from(index)] = count;
-            h.total = h.total.checked_add(count).ok_or(StatsError::Overflow)?;
-        }
-        // The largest value lies in the highest bucket that counted something (0 when none).
-        let highest = after.map_or(0, usize::from);
-        let range = Self::bucket_range(highest);
-        let fits = match after {
-            None => max == 0,
-            Some(_) => range.contains(&max) || (highest == BUCKETS - 1 && max == u64::MAX),
-        };
-        if !fits {
-            return Err(StatsError::Max {
-                max,
-                bucket: highest,
-            });
-        }
-        h.max = max;
-        Ok(h)
+        let view = View::parse(bytes)?;
+        Ok(Histogram {
+            counts: view.counts(),
+            total: view.total(),
+            max: view.max(),
+        })
     }
-}
-
-/// The u64 (LE) at `at`; the caller checked the length.
-fn u64_at(bytes: &[u8], at: usize) -> u64 {
-    let mut b = [0u8; 8];
-    b.copy_from_slice(&bytes[at..at + 8]);
-    u64::from_le_bytes(b)
 }
 
 impl fmt::Debug for Histogram {
@@ -373,31 +233,6 @@ impl Stats {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn buckets_are_contiguous_and_each_value_lands_in_the_bucket_whose_range_holds_it() {
-        let mut end = 0;
-        for i in 0..BUCKETS {
-            let r = Histogram::bucket_range(i);
-            assert_eq!(
-                r.start,
-                end,
-                "bucket {i} starts where {} ends",
-                i.wrapping_sub(1)
-            );
-            assert!(r.end > r.start);
-            assert_eq!(Histogram::bucket_of(r.start), i);
-            assert_eq!(Histogram::bucket_of(r.end - 1), i);
-            if i > 0 && i < BUCKETS - 1 {
-                // 12.5 % resolution: a bucket is at most an eighth of its lower bound wide.
-                assert!((r.end - r.start) * 8 <= r.start, "bucket {i}: {r:?}");
-            }
-            end = r.end;
-        }
-        assert_eq!(end, u64::MAX);
-        assert_eq!(Histogram::bucket_of(u64::MAX), BUCKETS - 1);
-        assert_eq!(BUCKETS, 250);
-    }
 
     #[test]
     fn percentiles_of_known_values_are_the_upper_ends_of_their_buckets() {
@@ -473,89 +308,20 @@ mod tests {
         h
     }
 
-    /// The wire layout documented above, byte for byte.
-    const GOLDEN: &[u8] = &[
-        b'M', b'B', b'L', b'H', // magic
-        1, 3, 7, 38, // version, sub-bucket bits, first and overflow exponent
-        0x00, 0xb8, 0x64, 0xd9, 0x45, 0, 0, 0, // max = 300_000_000_000 ns
-        3, 0, // 3 buckets
-        0, 0, 1, 0, 0, 0, 0, 0, 0, 0, // bucket 0 (100 ns): 1
-        24, 0, 2, 0, 0, 0, 0, 0, 0, 0, // bucket 24 (960..1024 ns): 2
-        249, 0, 1, 0, 0, 0, 0, 0, 0, 0, // bucket 249 (overflow): 1
-    ];
-
     #[test]
-    fn bytes_match_the_golden_vector_and_round_trip() {
+    fn a_recorded_histogram_survives_its_bytes_and_bad_bytes_say_why() {
         let sut = golden();
-        assert_eq!(Histogram::bucket_of(1_000), 24);
-        assert_eq!(sut.to_bytes(), GOLDEN);
-        assert_eq!(Histogram::from_bytes(GOLDEN), Ok(sut));
+        let bytes = sut.to_bytes();
+        // The README's golden vector of the latency histogram holds these four values.
+        assert_eq!(bytes.len(), latency::HEADER_LEN + 3 * latency::ENTRY_LEN);
+        assert_eq!(Histogram::from_bytes(&bytes), Ok(sut));
         let empty = Histogram::new();
-        assert_eq!(empty.to_bytes().len(), HEADER_LEN);
+        assert_eq!(empty.to_bytes().len(), latency::HEADER_LEN);
         assert_eq!(Histogram::from_bytes(&empty.to_bytes()), Ok(empty));
-    }
-
-    #[test]
-    fn inconsistent_bytes_are_refused_with_what_is_wrong() {
-        let with = |at: usize, b: u8| {
-            let mut v = GOLDEN.to_vec();
-            v[at] = b;
-            Histogram::from_bytes(&v)
-        };
-        assert!(matches!(with(0, b'X'), Err(StatsError::Magic(_))));
         assert!(matches!(
-            with(4, 2),
-            Err(StatsError::Layout { version: 2, .. })
+            Histogram::from_bytes(&bytes[..bytes.len() - 1]),
+            Err(StatsError::Histogram(HistogramError::Length { .. }))
         ));
-        assert!(matches!(with(16, 4), Err(StatsError::Length { .. })));
-        assert!(matches!(
-            with(28, 0),
-            Err(StatsError::Bucket { index: 0, .. })
-        ));
-        assert!(matches!(
-            with(38, 250),
-            Err(StatsError::Bucket { index: 250, .. })
-        ));
-        assert!(matches!(with(30, 0), Err(StatsError::EmptyBucket(24))));
-        assert!(matches!(with(12, 0), Err(StatsError::Max { .. })));
-        let mut overflow = GOLDEN.to_vec();
-        overflow[20..28].copy_from_slice(&u64::MAX.to_le_bytes());
-        assert_eq!(Histogram::from_bytes(&overflow), Err(StatsError::Overflow));
-        assert!(matches!(
-            Histogram::from_bytes(&GOLDEN[..GOLDEN.len() - 1]),
-            Err(StatsError::Length { .. })
-        ));
-    }
-
-    #[test]
-    fn garbage_never_panics_and_what_is_accepted_round_trips() {
-        // A small deterministic generator: xorshift64*.
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state >> 12;
-            state ^= state << 25;
-            state ^= state >> 27;
-            state.wrapping_mul(0x2545_f491_4f6c_dd1d)
-        };
-        for round in 0..20_000 {
-            let len = (next() % 80) as usize;
-            let mut bytes: Vec<u8> = (0..len).map(|_| next() as u8).collect();
-            if round % 2 == 0 && len >= HEADER_LEN {
-                // A valid header with a matching length, entries with plausible indexes and
-                // small counts: so the entry checks are reached.
-                let n = (len - HEADER_LEN) / ENTRY_LEN;
-                bytes.truncate(HEADER_LEN + n * ENTRY_LEN);
-                bytes[..16].copy_from_slice(&GOLDEN[..16]);
-                bytes[16..18].copy_from_slice(&(n as u16).to_le_bytes());
-                for e in bytes[HEADER_LEN..].chunks_exact_mut(ENTRY_LEN) {
-                    e[1] = 0;
-                    e[3..].fill(0);
-                }
-            }
-            if let Ok(h) = Histogram::from_bytes(&bytes) {
-                assert_eq!(Histogram::from_bytes(&h.to_bytes()), Ok(h));
-            }
-        }
     }
 
     #[test]

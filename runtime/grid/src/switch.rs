@@ -2,9 +2,8 @@
 //! and waits until it took over (or until the coordinator says why not); [`status`] reads
 //! where the assemblies stand. `modbot assembly` is built on these.
 //!
-//! The coordinator answers `assembly()` with lines of text: `current NAME GENERATION`,
-//! `state idle` / `state preparing GEN NAME` / `state announced GEN NAME TICK`, then one line
-//! per recent outcome: `switched GEN NAME ANNOUNCED_TICK TICK` or `failed GEN NAME REASON`.
+//! The coordinator's answers to `switch(name)` and `assembly()` are in the format of
+//! `modbot_ipc_schema::switch`, whose types are re-exported here.
 
 use core::time::Duration;
 use std::time::Instant;
@@ -15,6 +14,9 @@ use super::spec::COORDINATOR;
 use modbot_core::calls::CallOptions;
 use modbot_core::error::CallError;
 use modbot_core::tool::Calls;
+use modbot_ipc_schema::switch::{decode, decode_generation};
+
+pub use modbot_ipc_schema::switch::{Outcome, State, Status, SwitchAnswerError};
 
 /// The outcome of one switch.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -42,75 +44,22 @@ pub enum SwitchError {
     #[error("no outcome for generation {generation} within {waited_ms} ms")]
     Timeout { generation: u16, waited_ms: u64 },
     #[error("the coordinator's answer is not understood: {0}")]
-    Answer(String),
-}
-
-/// Where the assemblies stand.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
-pub struct Status {
-    /// The running assembly and its generation.
-    pub current: (String, u16),
-    /// The state line as the coordinator wrote it (`idle`, `preparing ...`, `announced ...`).
-    pub state: String,
-    /// Recent outcomes.
-    pub outcomes: Vec<Outcome>,
-}
-
-/// A switch's outcome: generation, assembly, and (announced tick, actual tick) or the reason.
-pub type Outcome = (u16, String, Result<(u64, u64), String>);
-
-/// Reads the coordinator's answer to `assembly()`.
-pub fn parse_status(text: &str) -> Result<Status, String> {
-    let mut status = Status::default();
-    for line in text.lines() {
-        let mut words = line.splitn(2, ' ');
-        let (kind, rest) = (words.next().unwrap_or(""), words.next().unwrap_or(""));
-        let fields: Vec<&str> = rest.split(' ').collect();
-        let num = |i: usize| -> Result<u64, String> {
-            fields
-                .get(i)
-                .and_then(|f| f.parse().ok())
-                .ok_or_else(|| format!("bad line '{line}'"))
-        };
-        let gen = |i: usize| num(i).and_then(|g| u16::try_from(g).map_err(|e| e.to_string()));
-        match kind {
-            "current" => status.current = (fields.first().unwrap_or(&"").to_string(), gen(1)?),
-            "state" => status.state = rest.to_owned(),
-            "switched" => status.outcomes.push((
-                gen(0)?,
-                fields.get(1).unwrap_or(&"").to_string(),
-                Ok((num(2)?, num(3)?)),
-            )),
-            "failed" => {
-                let parts: Vec<&str> = rest.splitn(3, ' ').collect();
-                status.outcomes.push((
-                    gen(0)?,
-                    parts.get(1).unwrap_or(&"").to_string(),
-                    Err(parts.get(2).unwrap_or(&"").to_string()),
-                ));
-            }
-            "" => {}
-            other => return Err(format!("unknown line kind '{other}'")),
-        }
-    }
-    Ok(status)
+    Answer(#[from] SwitchAnswerError),
 }
 
 /// Asks the coordinator where the assemblies stand.
 pub fn status(module: &mut impl Calls) -> Result<Status, SwitchError> {
-    let text = module.call_blocking(
+    module.call_blocking(
         COORDINATOR,
         "assembly",
         &[],
         CallOptions::timeout(Duration::from_secs(3)),
-        |r| -> Result<String, SwitchError> {
+        |r| -> Result<Status, SwitchError> {
             let args = r.map_err(|e| SwitchError::Call(e.clone()))?;
-            args.text(0)
-                .map(str::to_owned)
-                .map_err(|e| SwitchError::Answer(e.to_string()))
+            let bytes = args.bytes(0).map_err(SwitchAnswerError::from)?;
+            Ok(decode(bytes)?)
         },
-    )?;
-    parse_status(&text).map_err(SwitchError::Answer)
+    )
 }
 
 /// Switches to assembly `name`: the coordinator prepares it while the running one goes on,
@@ -128,10 +77,7 @@ pub fn switch(
         CallOptions::timeout(Duration::from_secs(5)),
         |r| -> Result<u16, SwitchError> {
             let args = r.map_err(|e| SwitchError::Call(e.clone()))?;
-            let g = args
-                .i64(0)
-                .map_err(|e| SwitchError::Answer(e.to_string()))?;
-            u16::try_from(g).map_err(|e| SwitchError::Answer(e.to_string()))
+            Ok(decode_generation(args.as_slice())?)
         },
     )?;
     loop {
@@ -144,19 +90,30 @@ pub fn switch(
             }
             Err(e) => return Err(e),
         };
-        if let Some((_, assembly, outcome)) = now.outcomes.iter().find(|o| o.0 == generation) {
+        if let Some(outcome) = now
+            .outcomes
+            .into_iter()
+            .find(|o| o.generation() == generation)
+        {
             return match outcome {
-                Ok((announced, tick)) => Ok(Switched {
-                    assembly: assembly.clone(),
+                Outcome::Switched {
+                    assembly,
+                    announced,
+                    tick,
+                    ..
+                } => Ok(Switched {
+                    assembly,
                     generation,
-                    announced: *announced,
-                    tick: *tick,
+                    announced,
+                    tick,
                     took: asked.elapsed(),
                 }),
-                Err(reason) => Err(SwitchError::Failed {
-                    assembly: assembly.clone(),
+                Outcome::Failed {
+                    assembly, reason, ..
+                } => Err(SwitchError::Failed {
+                    assembly,
                     generation,
-                    reason: reason.clone(),
+                    reason,
                 }),
             };
         }
@@ -198,21 +155,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_status_answer_reads_back_with_outcomes_and_reasons() {
-        let text = "current ptp 3\nstate announced 4 hold 1234\nswitched 3 ptp 900 900\nfailed 2 nope no assembly named 'nope' in /x (assemblies: hold, ptp)\n";
-        let s = parse_status(text).unwrap();
-        assert_eq!(s.current, ("ptp".to_owned(), 3));
-        assert_eq!(s.state, "announced 4 hold 1234");
-        assert_eq!(s.outcomes[0], (3, "ptp".to_owned(), Ok((900, 900))));
-        assert_eq!(
-            s.outcomes[1],
-            (
-                2,
-                "nope".to_owned(),
-                Err("no assembly named 'nope' in /x (assemblies: hold, ptp)".to_owned())
-            )
-        );
-        assert!(parse_status("current x y").is_err());
-        assert!(parse_status("bogus 1").is_err());
+    fn scripted_switches_are_tick_colon_name() {
+        assert_eq!(parse_scripted("900:ptp"), Ok((900, "ptp".to_owned())));
+        assert!(parse_scripted("ptp").is_err());
+        assert!(parse_scripted("x:ptp").is_err());
+        assert!(parse_scripted("900:Bad-Name").is_err());
     }
 }

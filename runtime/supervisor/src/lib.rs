@@ -1069,9 +1069,7 @@ fn status_method(
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
     let mut bytes = Vec::with_capacity(64 * shared.rows.len());
-    for r in &shared.rows {
-        r.encode(&mut bytes);
-    }
+    status::encode(&shared.rows, &mut bytes);
     reply.push(Value::Bytes(&bytes));
     Ok(())
 }

@@ -19,11 +19,12 @@ use modbot_runtime::{Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
 /// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`);
-/// `switches()` → a line `max_step S max_velocity_step V` (the largest changes within an
-/// assembly), then one line per assembly switch: `GENERATION TICK STEP MISSED VSTEP` (the
-/// largest change of commanded position at that cycle, rad, the cycles missed within five
-/// ticks of it, and the largest change of commanded velocity, rad/s); `block(axis, on)` blocks or frees an axis's link in
-/// the simulation.
+/// `switches()` → the record of assembly switches, one bytes value in the format of
+/// `modbot_ipc_schema::bus` (the largest changes of commanded position and velocity within an
+/// assembly, then per switch its generation, tick, the largest change of commanded position
+/// at that cycle, rad, the cycles missed within five ticks of it, and the largest change of
+/// commanded velocity, rad/s; see `modbot bus --switches`); `block(axis, on)` blocks or frees
+/// an axis's link in the simulation.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-bus", version)]
 struct Cli {
@@ -67,8 +68,11 @@ fn switches_method(
     _: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    let text = l.view().switches_text();
-    reply.push(Value::Text(&text));
+    let mut record = Vec::new();
+    l.view()
+        .encode_switches(&mut record)
+        .map_err(|e| MethodError::Failed(e.to_string()))?;
+    reply.push(Value::Bytes(&record));
     Ok(())
 }
 

@@ -33,21 +33,7 @@ pub struct SafeStop {
     pub all_stopped: Option<(u64, u64)>,
 }
 
-/// An assembly taking over the bus.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Switch {
-    /// The assembly's generation.
-    pub generation: u16,
-    /// The tick of the first cycle it commanded.
-    pub tick: u64,
-    /// The largest change of commanded position on any axis from the cycle before, rad.
-    pub step: f64,
-    /// The largest change of commanded velocity (the position's change per cycle over the
-    /// base period) on any axis from the cycle before, rad/s.
-    pub velocity_step: f64,
-    /// Cycles missed within [`NEAR_SWITCH`] ticks of it, before or after.
-    pub missed_near: u64,
-}
+pub use modbot_ipc_schema::bus::{Switch, Switches, SwitchesError};
 
 /// How many ticks around a switch count as its neighbourhood for missed cycles.
 pub const NEAR_SWITCH: u64 = 5;
@@ -485,21 +471,26 @@ impl BusView {
         out
     }
 
-    /// `host_bus.switches`: a line `max_step S max_velocity_step V`, then per switch
-    /// `GENERATION TICK STEP MISSED VSTEP`.
-    pub fn switches_text(&self) -> String {
-        let mut text = format!(
-            "max_step {:e} max_velocity_step {:e}\n",
-            self.max_step, self.max_velocity_step
-        );
-        for s in &self.switches {
-            text.push_str(&format!(
-                "{} {} {:e} {} {:e}\n",
-                s.generation, s.tick, s.step, s.missed_near, s.velocity_step
-            ));
-        }
-        text
+    /// `host_bus.switches`: the record of switches, encoded (`modbot_ipc_schema::bus`).
+    pub fn encode_switches(&self, out: &mut Vec<u8>) -> Result<(), SwitchesError> {
+        modbot_ipc_schema::bus::encode(self.max_step, self.max_velocity_step, &self.switches, out)
     }
+}
+
+/// The record of switches as `modbot bus --switches` prints it: a line
+/// `max_step S max_velocity_step V`, then per switch `GENERATION TICK STEP MISSED VSTEP`.
+pub fn render_switches(record: &Switches) -> String {
+    let mut text = format!(
+        "max_step {:e} max_velocity_step {:e}\n",
+        record.max_step, record.max_velocity_step
+    );
+    for s in &record.switches {
+        text.push_str(&format!(
+            "{} {} {:e} {} {:e}\n",
+            s.generation, s.tick, s.step, s.missed_near, s.velocity_step
+        ));
+    }
+    text
 }
 
 /// What the grid's release of the bus says besides its inputs.
@@ -652,6 +643,25 @@ mod tests {
         assert_eq!(sut.switches.len(), 1);
         assert!((sut.switches[0].step - 0.0005).abs() < 1e-12);
         assert!((sut.demand_position(0) - 0.0015).abs() < 1e-12);
+        // The record as the `switches` method answers it, and as `modbot bus --switches`
+        // prints it.
+        let mut view = BusView::default();
+        view.copy_from(&sut);
+        let mut bytes = Vec::new();
+        view.encode_switches(&mut bytes).unwrap();
+        let record = modbot_ipc_schema::bus::decode(&bytes).unwrap();
+        assert_eq!(record.switches, sut.switches);
+        let text = render_switches(&record);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 2, "{text}");
+        assert!(
+            lines[0].starts_with("max_step 1e-3 max_velocity_step "),
+            "{text}"
+        );
+        assert!(
+            lines[1].starts_with("3 3 "),
+            "generation 3 at tick 3: {text}"
+        );
     }
 
     #[test]

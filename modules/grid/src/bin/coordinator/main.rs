@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use clap::Parser;
 use modbot_grid_processes::grid_args::GridArgs;
-use modbot_ipc_schema::{Args, Value};
+use modbot_ipc_schema::{switch, Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::grid::coordinator::Coordinator;
 use modbot_runtime::grid::offload::Offload;
@@ -33,7 +33,7 @@ use ticker::{FromTick, ToTick};
 /// Methods: `ledger()` → the overrun ledger (see `modbot top`); with assemblies,
 /// `switch(name)` → the generation the assembly gets (prepared while the current one runs,
 /// then switched at an announced tick), and `assembly()` → where the assemblies stand (see
-/// `modbot assembly`).
+/// `modbot assembly`; both answers are in the format of `modbot_ipc_schema::switch`).
 #[derive(Debug, Parser)]
 #[command(name = "modbot-coordinator", version)]
 struct Cli {
@@ -66,8 +66,9 @@ struct Shared {
     busy: bool,
     /// The generation the next switch gets.
     next_generation: u16,
-    /// `assembly()`'s answer, kept current by the main loop.
-    status: String,
+    /// `assembly()`'s answer, encoded (`modbot_ipc_schema::switch`), kept current by the main
+    /// loop.
+    status: Vec<u8>,
 }
 
 fn switch_method(
@@ -77,7 +78,7 @@ fn switch_method(
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
     let generation = request_switch(s, args.text(0)?)?;
-    reply.push(Value::I64(i64::from(generation)));
+    reply.push(switch::generation_value(generation));
     Ok(())
 }
 
@@ -110,7 +111,7 @@ fn assembly_method(
     _: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    reply.push(Value::Text(&s.status));
+    reply.push(Value::Bytes(&s.status));
     Ok(())
 }
 
@@ -167,7 +168,11 @@ fn run() -> anyhow::Result<()> {
             ledger: Vec::new(),
             requested: None,
             busy: false,
-            status: String::new(),
+            status: {
+                let mut answer = Vec::new();
+                switch::Status::default().encode(&mut answer);
+                answer
+            },
         },
     )?;
     wait_for_hosts(&mut module, &hosts, &shutdown)?;

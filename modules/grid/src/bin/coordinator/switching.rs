@@ -11,7 +11,7 @@ use modbot_ipc_schema::grid::Prepare;
 use modbot_ipc_schema::Value;
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::coordinator::{link, SwitchState};
-use modbot_runtime::grid::switch::Outcome;
+use modbot_runtime::grid::switch::{Outcome, State, Status};
 use modbot_runtime::grid::wire::{self, Pub};
 use modbot_runtime::grid::GridSpec;
 use modbot_runtime::transport::channels::Channels;
@@ -46,10 +46,9 @@ pub struct Switching {
     phase: Phase,
     /// (assembly, generation, when asked).
     job: Option<(String, u16, Instant)>,
-    /// Generation, assembly, and the announced and actual ticks or why not.
-    outcomes: Vec<Outcome>,
-    /// The running assembly.
-    current: (String, u16),
+    /// `assembly()`'s answer: the running assembly and the outcomes of the last switches (its
+    /// state is set when it is published).
+    status: Status,
     /// The tick thread's last word on the switch, and its tick count.
     state: SwitchState,
     failure: Option<String>,
@@ -69,8 +68,7 @@ impl Switching {
         Ok(Switching {
             phase: Phase::Idle,
             job: None,
-            outcomes: Vec::new(),
-            current: ("none".into(), 0),
+            status: Status::default(),
             state: SwitchState::Idle,
             failure: None,
             ticks: 0,
@@ -95,7 +93,8 @@ impl Switching {
     }
 
     pub fn current(&mut self, module: &mut Module<Shared>, name: String, generation: u16) {
-        self.current = (name, generation);
+        self.status.assembly = name;
+        self.status.generation = generation;
         self.publish(module);
     }
 
@@ -198,7 +197,12 @@ impl Switching {
             return;
         };
         if g == generation {
-            self.outcomes.push((generation, name, Ok((announced, at))));
+            self.status.outcomes.push(Outcome::Switched {
+                generation,
+                assembly: name,
+                announced,
+                tick: at,
+            });
             self.finish(module);
         }
     }
@@ -287,7 +291,11 @@ impl Switching {
         );
         // The tick thread gives the assembly up and names its hosts, to be retired.
         let _ = self.to_tick.send(ToTick::Abort);
-        self.outcomes.push((generation, name, Err(why)));
+        self.status.outcomes.push(Outcome::Failed {
+            generation,
+            assembly: name,
+            reason: why,
+        });
         self.finish(module);
     }
 
@@ -295,30 +303,30 @@ impl Switching {
         self.job = None;
         self.phase = Phase::Idle;
         self.failure = None;
-        if self.outcomes.len() > 64 {
-            let _ = self.outcomes.remove(0);
+        if self.status.outcomes.len() > 64 {
+            let _ = self.status.outcomes.remove(0);
         }
         module.state_mut().busy = false;
         self.publish(module);
     }
 
-    /// Writes `assembly()`'s answer: `current NAME GENERATION`, `state ...`, then one line
-    /// per outcome: `switched GEN NAME ANNOUNCED TOOK` or `failed GEN NAME REASON`.
-    fn publish(&self, module: &mut Module<Shared>) {
-        let mut text = format!("current {} {}\n", self.current.0, self.current.1);
-        text.push_str(&match (&self.job, &self.phase) {
-            (Some((name, g, _)), Phase::Announced(at)) => {
-                format!("state announced {g} {name} {at}\n")
-            }
-            (Some((name, g, _)), _) => format!("state preparing {g} {name}\n"),
-            _ => "state idle\n".to_owned(),
-        });
-        for (g, name, outcome) in &self.outcomes {
-            text.push_str(&match outcome {
-                Ok((announced, took)) => format!("switched {g} {name} {announced} {took}\n"),
-                Err(why) => format!("failed {g} {name} {why}\n"),
-            });
-        }
-        module.state_mut().status = text;
+    /// Writes `assembly()`'s answer: the running assembly, the switch under way, the recent
+    /// outcomes.
+    fn publish(&mut self, module: &mut Module<Shared>) {
+        self.status.state = match (&self.job, &self.phase) {
+            (Some((name, generation, _)), Phase::Announced(at)) => State::Announced {
+                generation: *generation,
+                assembly: name.clone(),
+                tick: *at,
+            },
+            (Some((name, generation, _)), _) => State::Preparing {
+                generation: *generation,
+                assembly: name.clone(),
+            },
+            _ => State::Idle,
+        };
+        let answer = &mut module.state_mut().status;
+        answer.clear();
+        self.status.encode(answer);
     }
 }
