@@ -109,6 +109,21 @@ fn grid_summary(grid: &modbot_runtime::grid::GridSpec) -> String {
         grid.hosts().join(", "),
         grid.connections.len()
     );
+    for t in &grid.declared {
+        let ports = |ps: &[modbot_runtime::grid::component::PortDecl]| {
+            ps.iter()
+                .map(|p| format!("{}:{}", p.name, p.ty))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        out += &format!(
+            "type {} (program {}): inputs [{}], outputs [{}]\n",
+            t.info.type_name,
+            t.program,
+            ports(&t.info.inputs),
+            ports(&t.info.outputs)
+        );
+    }
     let width = grid
         .components
         .iter()

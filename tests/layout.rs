@@ -20,6 +20,11 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot", ".", 8),
     ("modbot-benches", "benches", 8),
     ("modbot-example-first-module", "examples/first_module", 3),
+    (
+        "modbot-example-first-component",
+        "examples/first_component",
+        8,
+    ),
 ];
 
 /// The names in the `[dependencies]` of the manifest in `dir` (dev-dependencies are tests'

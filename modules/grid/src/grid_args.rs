@@ -28,10 +28,16 @@ pub struct GridArgs {
 }
 
 impl GridArgs {
-    /// Loads the description and returns its grid.
+    /// Loads the description and returns its grid, with the built-in component types.
     pub fn load(&self) -> anyhow::Result<GridSpec> {
+        self.load_with(&modbot_runtime::grid::Registry::builtin())
+    }
+
+    /// Loads the description and returns its grid, with the component types of `registry`
+    /// (a host program's own, checked against what the description declares of them).
+    pub fn load_with(&self, registry: &modbot_runtime::grid::Registry) -> anyhow::Result<GridSpec> {
         let resolver = DefaultResolver::for_file(&self.system);
-        let spec = system::load_with_vars(&self.system, &resolver, &self.vars)?;
+        let spec = system::load_with_registry(&self.system, &resolver, &self.vars, registry)?;
         let mut grid = spec
             .grid
             .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))?;
@@ -39,12 +45,9 @@ impl GridArgs {
             grid.timing.clock = modbot_runtime::grid::GridClock::Lockstep;
         }
         match (&self.assembly, self.generation) {
-            (Some(name), Some(generation)) => Ok(system::load_assembly(
-                &grid,
-                name,
-                generation,
-                &modbot_runtime::grid::Registry::builtin(),
-            )?),
+            (Some(name), Some(generation)) => {
+                Ok(system::load_assembly(&grid, name, generation, registry)?)
+            }
             _ => Ok(grid),
         }
     }

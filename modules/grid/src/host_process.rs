@@ -49,10 +49,26 @@ impl HostProcess {
     ) -> anyhow::Result<HostProcess> {
         let grid = args.grid.load()?;
         let registry = registry(&grid)?;
+        Self::start_loaded(args, grid, &registry)
+    }
+
+    /// Like [`HostProcess::start`], with the component types of `registry` from the start:
+    /// the description is loaded with them (a host program's own types are checked against
+    /// what the description declares of them).
+    pub fn start_with(args: HostArgs, registry: &Registry) -> anyhow::Result<HostProcess> {
+        let grid = args.grid.load_with(registry)?;
+        Self::start_loaded(args, grid, registry)
+    }
+
+    fn start_loaded(
+        args: HostArgs,
+        grid: GridSpec,
+        registry: &Registry,
+    ) -> anyhow::Result<HostProcess> {
         let transport = args.module.transport()?;
         let node: Arc<dyn Channels> =
             Arc::new(transport.channels(&format!("grid.host.{}", args.host))?);
-        let host = Host::new(&*node, &grid, &registry, &args.host)?;
+        let host = Host::new(&*node, &grid, registry, &args.host)?;
         signals::install_termination_handler()?;
         Ok(HostProcess {
             grid,
@@ -117,4 +133,32 @@ impl HostProcess {
             Err(_) => anyhow::bail!("the service thread panicked"),
         }
     }
+}
+
+/// The command line of a host program: what the supervisor passes.
+#[derive(Debug, clap::Parser)]
+struct HostCli {
+    #[command(flatten)]
+    host: HostArgs,
+}
+
+/// The `main` of a host program: `modbot-host` with the built-in component types, or a
+/// program of your own that adds its types to `registry` (a system description names it in
+/// `component_type "T" { program = ... }`). Steps the components the description puts on
+/// `--host` whenever the coordinator releases them.
+pub fn host_main(program: &str, registry: Registry) -> std::process::ExitCode {
+    modbot_modules::common::main(program, |cli: HostCli| {
+        let mut p = HostProcess::start_with(cli.host, &registry)?;
+        let name = p.grid.host_module(p.host_name());
+        let service = p.serve(name, 200, |module| module, ())?;
+        let now = || modbot_runtime::clock::Clock::now_ns(&modbot_runtime::clock::MonotonicClock);
+        while HostProcess::running(&service) {
+            // Wakes up for its releases; every 5 ms also to look at the termination flag.
+            p.host
+                .wait_and_serve(Some(std::time::Duration::from_millis(5)), &now)?;
+            p.host
+                .prepare_step(&p.node, crate::grid_args::load_assembly)?;
+        }
+        p.finish(service)
+    })
 }

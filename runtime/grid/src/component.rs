@@ -32,6 +32,21 @@ pub const PERIOD_S: &str = "period_s";
 /// The names of the automatic parameters.
 pub const AUTOMATIC_PARAMS: [&str; 2] = [BASE_PERIOD_S, PERIOD_S];
 
+/// `text` as a string that lives as long as the process: for the names of component types a
+/// description declares ([`Registry::declare`]), whose [`ComponentInfo`] holds `&'static str`
+/// like every registered type's. Each distinct text is kept once, so loading a description
+/// again (an assembly switch) keeps nothing more.
+pub fn intern(text: &str) -> &'static str {
+    static KEPT: std::sync::Mutex<Vec<&'static str>> = std::sync::Mutex::new(Vec::new());
+    let mut kept = KEPT.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some(&k) = kept.iter().find(|k| **k == text) {
+        return k;
+    }
+    let k: &'static str = Box::leak(text.to_owned().into_boxed_str());
+    kept.push(k);
+    k
+}
+
 /// A named input or output port and its type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PortDecl {
@@ -380,6 +395,26 @@ pub trait Component: Send {
     fn terminate(&mut self) {}
 }
 
+/// A component type a system description declares (`component_type`): its interface, and
+/// the host program that makes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeclaredType {
+    pub info: ComponentInfo,
+    pub program: String,
+    /// The line of its declaration.
+    pub line: u32,
+}
+
+/// A declared component type differs from the one the process registered itself.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("component type '{type_name}' of program '{program}': {why}")]
+pub struct DeclaredTypeError {
+    pub type_name: String,
+    pub program: String,
+    pub line: u32,
+    pub why: String,
+}
+
 /// Describes a component type for the given (complete) parameters.
 pub type InfoFn = fn(&Params) -> Result<ComponentInfo, ComponentError>;
 /// Makes an instance for the given (complete) parameters.
@@ -387,16 +422,23 @@ pub type MakeFn = fn(&Params) -> Result<Box<dyn Component>, ComponentError>;
 /// Makes an instance with what it was given when registered (see [`Registry::register_with`]).
 type Maker =
     std::sync::Arc<dyn Fn(&Params) -> Result<Box<dyn Component>, ComponentError> + Send + Sync>;
+/// Describes a type: a registered function, or what a description declared.
+type Describer =
+    std::sync::Arc<dyn Fn(&Params) -> Result<ComponentInfo, ComponentError> + Send + Sync>;
 
+#[derive(Clone)]
 struct Entry {
     /// What the type says about itself without parameters: its name and parameter list.
     probe: ComponentInfo,
-    info: InfoFn,
+    info: Describer,
     make: Maker,
+    /// For a type a description declares ([`Registry::declare`]): the host program that
+    /// makes it. `None`: this process makes it.
+    program: Option<String>,
 }
 
 /// The component types a system can use, by name.
-#[derive(Default)]
+#[derive(Default, Clone)]
 pub struct Registry {
     entries: Vec<Entry>,
 }
@@ -447,9 +489,104 @@ impl Registry {
         };
         let entry = Entry {
             probe,
-            info: info_fn,
+            info: std::sync::Arc::new(info_fn),
             make,
+            program: None,
         };
+        self.insert(entry);
+    }
+
+    /// Adds a type that a host program of its own makes (a system description's
+    /// `component_type`): `info` is its interface as declared, the same whatever the
+    /// parameters (the declared defaults filled in); this process can describe and check it,
+    /// not make it. A type this process registered itself is kept (see
+    /// [`Registry::agrees_with`]).
+    pub fn declare(&mut self, info: ComponentInfo, program: &str) {
+        if self
+            .entry(info.type_name)
+            .is_ok_and(|e| e.program.is_none())
+        {
+            return;
+        }
+        let (type_name, made_by) = (info.type_name, program.to_owned());
+        let declared = info.clone();
+        self.insert(Entry {
+            probe: info,
+            info: std::sync::Arc::new(move |_| Ok(declared.clone())),
+            make: std::sync::Arc::new(move |_| {
+                Err(ComponentError::MadeElsewhere {
+                    type_name: type_name.to_owned(),
+                    program: made_by.clone(),
+                })
+            }),
+            program: Some(program.to_owned()),
+        });
+    }
+
+    /// This registry with the types a description declares: each is [declared](Self::declare),
+    /// or, if this process registered it itself, checked against what it registered.
+    pub fn with_declared(&self, types: &[DeclaredType]) -> Result<Registry, DeclaredTypeError> {
+        let mut registry = self.clone();
+        for t in types {
+            let native = self
+                .entry(t.info.type_name)
+                .is_ok_and(|e| e.program.is_none());
+            if native {
+                if let Err(why) = self.agrees_with(&t.info) {
+                    return Err(DeclaredTypeError {
+                        type_name: t.info.type_name.to_owned(),
+                        program: t.program.clone(),
+                        line: t.line,
+                        why,
+                    });
+                }
+            } else {
+                registry.declare(t.info.clone(), &t.program);
+            }
+        }
+        Ok(registry)
+    }
+
+    /// The host program that makes `type_name`, if a description declared it (`None`: this
+    /// process makes it, or it is unknown).
+    pub fn program_of(&self, type_name: &str) -> Option<&str> {
+        self.entry(type_name).ok()?.program.as_deref()
+    }
+
+    /// Whether `declared`, the interface a description declares for a type this process
+    /// registered itself, is the registered one: the same ports (names and types, in order)
+    /// and parameters (names and types). `Err` says what differs.
+    pub fn agrees_with(&self, declared: &ComponentInfo) -> Result<(), String> {
+        let Ok(own) = self.entry(declared.type_name) else {
+            return Ok(());
+        };
+        let own = &own.probe;
+        let ports = |ps: &[PortDecl]| {
+            ps.iter()
+                .map(|p| format!("{}:{}", p.name, p.ty))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let params = |ps: &[ParamDecl]| {
+            let mut all: Vec<String> = ps.iter().map(|p| format!("{}:{}", p.name, p.ty)).collect();
+            all.sort();
+            all.join(", ")
+        };
+        for (what, mine, theirs) in [
+            ("inputs", ports(&own.inputs), ports(&declared.inputs)),
+            ("outputs", ports(&own.outputs), ports(&declared.outputs)),
+            ("params", params(&own.params), params(&declared.params)),
+        ] {
+            if mine != theirs {
+                return Err(format!(
+                    "its {what} are declared as [{theirs}], the program registers [{mine}]"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn insert(&mut self, entry: Entry) {
         match self
             .entries
             .iter_mut()
@@ -623,6 +760,10 @@ pub enum ComponentError {
         type_name: String,
         known: Vec<&'static str>,
     },
+    /// The type is declared by the description and made by a host program of its own: this
+    /// process cannot make it.
+    #[error("component type '{type_name}' is made by the program '{program}', not by this one (give its components a host of their own, which that program runs)")]
+    MadeElsewhere { type_name: String, program: String },
     /// Anything else a component type refuses for (a device that cannot be opened, say): for
     /// component types outside this crate, with their own errors.
     #[error(transparent)]

@@ -103,6 +103,8 @@ enum SpawnHostError {
     Exists { name: String },
     #[error("no address is free")]
     NoAddress,
+    #[error("the program '{0}' makes no component type the description declares")]
+    UnknownProgram(String),
     #[error(transparent)]
     Spawn(#[from] SupervisorError),
 }
@@ -152,6 +154,8 @@ enum HostRequest {
         host: String,
         assembly: String,
         generation: u16,
+        /// The host's own program (a declared component type's), else the built-in one.
+        program: Option<String>,
     },
     Retire(String),
 }
@@ -388,8 +392,10 @@ impl Supervisor {
                     host,
                     assembly,
                     generation,
+                    program,
                 } => {
-                    if let Err(e) = self.spawn_host(&host, &assembly, generation) {
+                    let spawned = self.spawn_host(&host, &assembly, generation, program.as_deref());
+                    if let Err(e) = spawned {
                         self.say(&format!(
                             "cannot start host {host} of assembly {assembly}: {e}"
                         ));
@@ -405,10 +411,18 @@ impl Supervisor {
         host: &str,
         assembly: &str,
         generation: u16,
+        program: Option<&str>,
     ) -> Result<(), SpawnHostError> {
-        let Some(template) = self.spec.host_template.clone() else {
+        let Some(mut template) = self.spec.host_template.clone() else {
             return Err(SpawnHostError::NoAssemblies);
         };
+        if let Some(program) = program {
+            let Some((_, path)) = self.spec.host_programs.iter().find(|(n, _)| n == program) else {
+                return Err(SpawnHostError::UnknownProgram(program.to_owned()));
+            };
+            template.program = path.clone();
+            template.program_name = program.to_owned();
+        }
         let name = modbot_grid::spec::host_module_of(host, generation);
         if let Some(i) = self.spec.modules.iter().position(|m| m.name == name) {
             if self.slots[i].state != RunState::Retired {
@@ -1091,6 +1105,11 @@ fn spawn_host_method(
     _: &mut Reply,
 ) -> Result<(), MethodError> {
     let (host, assembly, generation) = (args.text(0)?, args.text(1)?, args.i64(2)?);
+    // The host's program if a declared component type needs one of its own ("": the built-in).
+    let program = match args.get(3) {
+        Some(_) => args.text(3)?,
+        None => "",
+    };
     if !shared.hosts_allowed {
         return Err(MethodError::Failed(
             "this system has no assemblies: no host can be started".into(),
@@ -1104,6 +1123,7 @@ fn spawn_host_method(
         host: (*host).to_owned(),
         assembly: (*assembly).to_owned(),
         generation,
+        program: (!program.is_empty()).then(|| program.to_owned()),
     });
     Ok(())
 }

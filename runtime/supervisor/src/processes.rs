@@ -179,11 +179,21 @@ pub fn add_processes(
             addr: next_addr().ok_or(GridProcessError::NoAddress {
                 what: "the grid's hosts",
             })?,
-            program: program(host_program(&host))?,
-            program_name: host_program(&host).into(),
+            program: program(grid.host_program(&host).unwrap_or(host_program(&host)))?,
+            program_name: grid
+                .host_program(&host)
+                .unwrap_or(host_program(&host))
+                .into(),
             args,
             ..template.clone()
         });
+    }
+    // The programs of declared component types, for hosts of assemblies swapped in later.
+    for t in &grid.declared {
+        if !spec.host_programs.iter().any(|(n, _)| *n == t.program) {
+            spec.host_programs
+                .push((t.program.clone(), program(&t.program)?));
+        }
     }
     if grid.assembly.is_some() {
         // The hosts of assemblies swapped in later: the supervisor adds the host, the

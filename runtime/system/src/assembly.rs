@@ -130,6 +130,9 @@ pub fn load_assembly(
         c.line += LINE_OFFSET;
         c
     }));
+    let registry = &registry
+        .with_declared(&system.declared)
+        .map_err(|e| SystemError::new(system_file, Some(e.line), e.to_string()))?;
     let mut spec =
         GridSpec::build(grid.clone(), components, connections, registry).map_err(|e| {
             match e.line {
@@ -149,6 +152,7 @@ pub fn load_assembly(
     }
     // How the grid keeps time is the running system's (`modbot up --lockstep` included).
     spec.timing = system.timing;
+    spec.declared = system.declared.clone();
     spec.assembly = Some(Assembly {
         name: name.to_owned(),
         generation,

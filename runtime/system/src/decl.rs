@@ -17,6 +17,7 @@ use super::read::{
 };
 use super::{DeclError, GiveUp, GroupSpec, ModuleSpec, Restart, RestartPolicy, Supervision};
 use modbot_core::transport::{check_name, ReceiveMode};
+use modbot_grid::component::DeclaredType;
 use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl};
 
 /// Everything the description declared, in order, before the cross-checks.
@@ -32,6 +33,8 @@ pub(super) struct Declarations {
     pub groups: Vec<GroupSpec>,
     /// The `grid` declaration.
     pub grid: Option<GridDecl>,
+    /// The `component_type` declarations in order.
+    pub component_types: Vec<DeclaredType>,
     /// The `component` declarations in order (their indices on the grid).
     pub components: Vec<ComponentDecl>,
     /// The `connect` declarations in order.

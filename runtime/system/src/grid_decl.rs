@@ -6,6 +6,11 @@
 //! component "A" { type = "counter", host = "h1", period = 1, params = { start = 0 } }
 //! component "B" { type = "gain", host = "h2", period_s = 0.002, params = { k = 0.5 }, policy = "fault" }
 //! connect "A.y -> B.u"                                                         -- or connect("A.y", "B.u")
+//! component_type "scaler" {                          -- a type a host program of its own makes
+//!   program = "my-host", doc = "y = k u",
+//!   inputs = { "u:f64" }, outputs = { "y:f64" },     -- name:type (f64, i64, bool, f64[N]), in order
+//!   params = { k = 1.0 },                            -- name = default
+//! }
 //! ```
 //!
 //! Like `decl`, each reader checks only what its own table says (field names, value types);
@@ -19,9 +24,11 @@ use mlua::{Lua, MultiValue, Table, Value};
 
 use super::decl::{self, realtime};
 use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
-use super::read::{integer_in, list, lua_failed, show, string, text, Fields};
+use super::read::{integer_in, list, lua_failed, show, string, string_list, text, Fields};
 use super::DeclError;
-use modbot_grid::component::{ParamValue, Params};
+use modbot_grid::component::{
+    intern, ComponentInfo, DeclaredType, ParamDecl, ParamValue, Params, PortDecl, PortType,
+};
 use modbot_grid::spec::{
     AssembliesDecl, ComponentDecl, ConnectDecl, GridClock, GridDecl, GridTiming, OverrunPolicy,
     Period, MAX_COMPONENTS,
@@ -39,6 +46,9 @@ const GRID_FIELDS: &[&str] = &[
     "spin_us",
 ];
 const COMPONENT_FIELDS: &[&str] = &["type", "host", "period", "period_s", "params", "policy"];
+const TYPE_FIELDS: &[&str] = &["program", "doc", "inputs", "outputs", "params"];
+/// At most this many `component_type` declarations.
+const MAX_TYPES: usize = 256;
 /// The base period when `grid {}` does not say.
 const DEFAULT_BASE_PERIOD: Duration = Duration::from_millis(1);
 /// At most this many `connect` declarations (they are kept outside Lua's memory limit).
@@ -49,6 +59,7 @@ pub(super) fn register(lua: &Lua, globals: &Table, record: &Shared) -> mlua::Res
     globals.raw_set("grid", grid_fn(lua, record)?)?;
     globals.raw_set("component", component_fn(lua, record)?)?;
     globals.raw_set("connect", connect_fn(lua, record)?)?;
+    globals.raw_set("component_type", component_type_fn(lua, record)?)?;
     Ok(())
 }
 
@@ -87,6 +98,39 @@ fn component_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
                 .and_then(|v| component(&name, line, v))
                 .map_err(|m| fail(&record, line, m))?;
             record.borrow_mut().decls.components.push(component);
+            Ok(())
+        })
+    })
+}
+
+/// `component_type "name"`, which returns the function that takes the type's table.
+fn component_type_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
+    let record = record.clone();
+    lua.create_function(move |lua, args: MultiValue| {
+        let line = caller_line(lua);
+        let usage = "component_type \"scaler\" { program = \"my-host\", inputs = { \"u:f64\" }, outputs = { \"y:f64\" } }";
+        let name = one_arg(&args, usage)
+            .and_then(|v| decl::name("component_type", v))
+            .map_err(|m| fail(&record, line, m))?;
+        let index = open_body(&record, "component_type", &name, line, MAX_TYPES)?;
+        let record = record.clone();
+        lua.create_function(move |lua, args: MultiValue| {
+            given(&record, index);
+            let declared = one_arg(&args, usage)
+                .and_then(|v| component_type(lua, &name, line, v))
+                .map_err(|m| fail(&record, line, m))?;
+            let first = record
+                .borrow()
+                .decls
+                .component_types
+                .iter()
+                .find(|t| t.info.type_name == declared.info.type_name)
+                .map(|t| t.line);
+            if let Some(first) = first {
+                let what = "component_type";
+                return Err(fail(&record, line, DeclError::Duplicate { what, first }));
+            }
+            record.borrow_mut().decls.component_types.push(declared);
             Ok(())
         })
     })
@@ -217,6 +261,94 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclErro
         line,
     })
 }
+
+/// The table of `component_type "name" { ... }`, declared at `line`.
+fn component_type(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<DeclaredType, DeclError> {
+    let what = format!("component_type '{name}'");
+    let what = what.as_str();
+    let mut fields = Fields::read(what, v, TYPE_FIELDS)?;
+    let program = match fields.take("program") {
+        Some(v) => string(what, "program", &v)?,
+        None => {
+            return Err(DeclError::missing(
+                what,
+                "program",
+                " (the host program that makes it)",
+            ))
+        }
+    };
+    let doc = match fields.take("doc") {
+        Some(v) => string(what, "doc", &v)?,
+        None => String::new(),
+    };
+    let ports = |field: &str, fields: &mut Fields| -> Result<Vec<PortDecl>, DeclError> {
+        let Some(v) = fields.take(field) else {
+            return Ok(Vec::new());
+        };
+        string_list(lua, what, field, &v)?
+            .iter()
+            .map(|text| port(what, field, text))
+            .collect()
+    };
+    let inputs = ports("inputs", &mut fields)?;
+    let outputs = ports("outputs", &mut fields)?;
+    if outputs.is_empty() {
+        let why = "it has no outputs: give outputs = { \"y:f64\" }";
+        return Err(DeclError::invalid(what, why));
+    }
+    let params = match fields.take("params") {
+        Some(v) => params(what, &v)?
+            .iter()
+            .map(|(n, value)| ParamDecl::optional(intern(n), value.param_type(), value.clone()))
+            .collect(),
+        None => Vec::new(),
+    };
+    Ok(DeclaredType {
+        info: ComponentInfo {
+            type_name: intern(name),
+            doc: intern(&doc),
+            inputs,
+            outputs,
+            params,
+        },
+        program,
+        line,
+    })
+}
+
+/// One port of a declared type, written `name:type` (`u:f64`, `n:i64`, `on:bool`,
+/// `q:f64[6]`).
+fn port(what: &str, field: &str, text: &str) -> Result<PortDecl, DeclError> {
+    let bad = |why: String| DeclError::invalid(what, format!("{field}: '{text}' {why}"));
+    let (name, ty) = text
+        .split_once(':')
+        .ok_or_else(|| bad("is not name:type".into()))?;
+    let (name, ty) = (name.trim(), ty.trim());
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        return Err(bad("has no valid name (letters, digits, _)".into()));
+    }
+    let ty = match ty {
+        "f64" => PortType::F64,
+        "i64" => PortType::I64,
+        "bool" => PortType::Bool,
+        array => match array
+            .strip_prefix("f64[")
+            .and_then(|n| n.strip_suffix(']'))
+            .and_then(|n| n.parse::<usize>().ok())
+        {
+            Some(n) if (1..=MAX_ARRAY).contains(&n) => PortType::F64s(n),
+            _ => {
+                return Err(bad(format!(
+                    "has type '{array}': use f64, i64, bool or f64[N] (N from 1 to {MAX_ARRAY})"
+                )))
+            }
+        },
+    };
+    Ok(PortDecl::new(intern(name), ty))
+}
+
+/// The longest f64 array port a declared type may have.
+const MAX_ARRAY: usize = 4096;
 
 /// `params = { name = value, ... }`: booleans, integers (i64), other numbers (f64), strings
 /// and lists of numbers (f64 lists), sorted by name. Their names and types are checked

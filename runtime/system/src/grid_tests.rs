@@ -550,3 +550,80 @@ fn grid_demo_example_loads_and_runs_the_same_twice() {
     assert_eq!(trace.lines().count(), 101);
     assert_eq!(trace, modbot_grid::reference_trace(&sut, &registry, 100));
 }
+
+/// Finds the program `my-host` (and no other).
+fn my_host(name: &str) -> Option<std::path::PathBuf> {
+    (name == "my-host").then(|| std::path::PathBuf::from("/usr/bin/my-host"))
+}
+
+const DECLARED: &str = r#"domain "d"
+grid {}
+component_type "scaler" { program = "my-host", doc = "y = k u", inputs = { "u:f64" }, outputs = { "y:f64", "n:i64" }, params = { k = 1.0 } }
+component "src" { type = "ramp", host = "h1" }
+component "s" { type = "scaler", host = "h2", params = { k = 3 } }
+connect "src.y -> s.u"
+"#;
+
+#[test]
+fn a_declared_component_type_is_used_like_a_registered_one_and_names_its_host_program() {
+    let spec = load_str("robot.lua", DECLARED, &my_host).unwrap();
+    let grid = spec.grid.unwrap();
+    let s = &grid.components[grid.component("s").unwrap()];
+    assert_eq!(s.program.as_deref(), Some("my-host"));
+    assert_eq!(s.params.get("k"), Some(&ParamValue::F64(3.0)));
+    assert_eq!(s.info.output_types(), vec![PortType::F64, PortType::I64]);
+    assert_eq!(grid.host_program("h2"), Some("my-host"));
+    assert_eq!(grid.host_program("h1"), None);
+    assert_eq!(grid.declared.len(), 1);
+}
+
+#[test]
+fn a_declared_component_type_with_a_bad_port_is_refused_at_its_line() {
+    let source = DECLARED.replace("\"u:f64\"", "\"u:f32\"");
+    let sut = load_str("robot.lua", &source, &my_host).unwrap_err();
+    assert_eq!(sut.line, Some(3), "{sut}");
+    assert!(
+        sut.message
+            .contains("inputs: 'u:f32' has type 'f32': use f64, i64, bool or f64[N]"),
+        "{sut}"
+    );
+}
+
+#[test]
+fn two_programs_on_one_host_are_refused() {
+    let source = DECLARED.replace("host = \"h2\"", "host = \"h1\"").replace(
+        "component \"src\" { type = \"ramp\", host = \"h1\" }",
+        "component_type \"other\" { program = \"my-host2\", outputs = { \"y:f64\" } }\n\
+         component \"src\" { type = \"other\", host = \"h1\" }",
+    );
+    let both = |n: &str| my_host(n).or_else(|| (n == "my-host2").then(|| "/x".into()));
+    let sut = load_str("robot.lua", &source, &both).unwrap_err();
+    assert!(
+        sut.message.contains("host 'h1' would need two programs"),
+        "{sut}"
+    );
+}
+
+#[test]
+fn a_type_the_process_registers_itself_must_agree_with_its_declaration() {
+    let mut registry = Registry::builtin();
+    registry.register(
+        |_| {
+            Ok(ComponentInfo {
+                type_name: "scaler",
+                doc: "",
+                inputs: vec![PortDecl::new("u", PortType::F64)],
+                outputs: vec![PortDecl::new("y", PortType::F64)],
+                params: vec![],
+            })
+        },
+        |_| Err(ComponentError::Other("not made in this test".into())),
+    );
+    let sut = load_str_with_registry("robot.lua", DECLARED, &my_host, &[], &registry).unwrap_err();
+    assert_eq!(sut.line, Some(3), "{sut}");
+    assert!(
+        sut.message
+            .contains("its outputs are declared as [y:f64, n:i64], the program registers [y:f64]"),
+        "{sut}"
+    );
+}

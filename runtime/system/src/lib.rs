@@ -105,6 +105,9 @@ pub struct SystemSpec {
     /// `modbot_supervisor::processes::add_processes` when the grid has assemblies): the host's
     /// module with the arguments every host gets; the supervisor adds the rest.
     pub host_template: Option<ModuleSpec>,
+    /// The host programs of the component types the description declares
+    /// (`component_type`), found where they are: (name, path).
+    pub host_programs: Vec<(String, PathBuf)>,
 }
 
 /// The supervisor's timings.

@@ -165,6 +165,7 @@ pub(super) fn evaluate(
         let example = match body.kind {
             "module" => "{ addr = ..., program = ... }",
             "component" => "{ type = ..., host = ... }",
+            "component_type" => "{ program = ..., outputs = { \"y:f64\" } }",
             _ => "{ \"member\", ... }",
         };
         let error = DeclError::NoTable {

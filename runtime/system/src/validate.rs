@@ -13,6 +13,7 @@ use std::path::Path;
 use super::assembly::load_assembly;
 use super::decl::{Declarations, ModuleDecl};
 use super::{ProgramResolver, SystemError, SystemSpec};
+use modbot_grid::component::DeclaredType;
 use modbot_grid::spec::{Assembly, ComponentDecl, ConnectDecl, GridDecl};
 use modbot_grid::{GridSpec, Registry};
 
@@ -114,6 +115,31 @@ pub(super) fn build(
         }
     }
 
+    // The component types the description declares, next to the registered ones; their
+    // programs are found as modules' are.
+    let declared = decls.component_types;
+    for t in &declared {
+        if resolver.resolve(&t.program).is_none() {
+            return Err(error(
+                t.line,
+                format!(
+                    "unknown program '{}' for component type '{}': {}",
+                    t.program,
+                    t.info.type_name,
+                    resolver.searched(&t.program)
+                ),
+            ));
+        }
+    }
+    if decls.grid.is_none() {
+        if let Some(t) = declared.first() {
+            let why = "component_type declares a type for the grid, and there is no grid { ... }";
+            return Err(error(t.line, why.to_owned()));
+        }
+    }
+    let registry = &registry
+        .with_declared(&declared)
+        .map_err(|e| error(e.line, e.to_string()))?;
     let grid = match decls.grid {
         Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
             file,
@@ -122,6 +148,7 @@ pub(super) fn build(
             decls.connections,
             registry,
             vars,
+            &declared,
         )?),
         Some(grid) => Some(
             GridSpec::build(grid, decls.components, decls.connections, registry)
@@ -129,6 +156,10 @@ pub(super) fn build(
         ),
         None => None,
     };
+    let grid = grid.map(|mut g| {
+        g.declared = declared;
+        g
+    });
 
     let groups = decls.groups;
     let modules = decls
@@ -152,6 +183,7 @@ pub(super) fn build(
         groups,
         grid,
         host_template: None,
+        host_programs: Vec::new(),
     })
 }
 
@@ -163,6 +195,7 @@ fn with_assemblies(
     connections: Vec<ConnectDecl>,
     registry: &Registry,
     vars: &[(String, String)],
+    declared: &[DeclaredType],
 ) -> Result<GridSpec, SystemError> {
     let Some(decl) = grid.assemblies.clone() else {
         return GridSpec::build(grid, components, connections, registry)
@@ -192,6 +225,7 @@ fn with_assemblies(
         connections: Vec::new(),
         line,
         timing: grid.timing,
+        declared: declared.to_vec(),
         assembly: Some(Assembly {
             name: String::new(),
             generation: 0,

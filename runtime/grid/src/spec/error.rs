@@ -31,6 +31,8 @@ pub enum GridErrorKind {
     NoComponents,
     #[error("too many components (at most {MAX_COMPONENTS})")]
     TooManyComponents,
+    #[error(transparent)]
+    HostPrograms(Box<HostPrograms>),
     #[error("component name '{name}' is already declared at line {first}")]
     DuplicateComponent { name: String, first: u32 },
     #[error(
@@ -143,4 +145,14 @@ fn shown(period: &Period, base_s: &f64) -> String {
         Period::Ticks(k) => format!("{k} ticks ({} s)", k * base_s),
         Period::Seconds(s) => format!("{s} s"),
     }
+}
+
+/// Two components of one host whose types are made by different programs.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("host '{host}' would need two programs: component '{}' is made by '{}', component '{}' by '{}'; give them hosts of their own", .first.0, .first.1, .second.0, .second.1)]
+pub struct HostPrograms {
+    pub host: String,
+    /// (component, program) of each.
+    pub first: (String, String),
+    pub second: (String, String),
 }

@@ -13,11 +13,13 @@ use std::time::Duration;
 
 use modbot_ipc_schema::grid::MAX_SOURCES;
 
-use super::component::{ComponentInfo, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS};
+use super::component::{
+    ComponentInfo, DeclaredType, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS,
+};
 use modbot_core::transport::check_name;
 
 mod error;
-pub use error::{GridError, GridErrorKind, HostNameError, PeriodError};
+pub use error::{GridError, GridErrorKind, HostNameError, HostPrograms, PeriodError};
 
 /// The most components a grid may have (indices are 16 bits on the wire).
 pub const MAX_COMPONENTS: usize = 65535;
@@ -73,6 +75,10 @@ pub struct GridSpec {
     pub timing: GridTiming,
     /// When the grid runs assemblies: which one this spec holds, and how to load others.
     pub assembly: Option<Assembly>,
+    /// The component types the description declares (`component_type`), made by host
+    /// programs of their own: every process that loads this grid or its assemblies knows
+    /// them (see [`Registry::with_declared`]).
+    pub declared: Vec<DeclaredType>,
 }
 
 /// Where the base tick comes from.
@@ -167,6 +173,9 @@ pub struct ComponentSpec {
     pub name: String,
     /// Its type in the [`Registry`].
     pub type_name: String,
+    /// The host program that makes its type, if a description declared the type
+    /// (`component_type`); `None`: a type every host program makes (the built-ins).
+    pub program: Option<String>,
     /// The host process that steps it.
     pub host: String,
     /// Its period in base ticks (≥ 1): released at every tick that is a multiple of it.
@@ -369,8 +378,10 @@ fn component(
     params.set_timing(base.as_secs_f64(), period);
     let params = registry.complete(&d.type_name, &params).map_err(refused)?;
     let info = registry.info(&d.type_name, &params).map_err(refused)?;
+    let program = registry.program_of(&d.type_name).map(str::to_owned);
     Ok(ComponentSpec {
         name: d.name,
+        program,
         type_name: d.type_name,
         host: d.host,
         period,
@@ -478,6 +489,25 @@ impl GridSpec {
             names.insert(d.name.clone(), specs.len());
             specs.push(component(d, grid.base_period, registry)?);
         }
+        // One host, one program: the types of a host's components are made by one program.
+        for (i, c) in specs.iter().enumerate() {
+            let Some(program) = c.program.as_deref() else {
+                continue;
+            };
+            let other = specs[..i]
+                .iter()
+                .find(|o| o.host == c.host && o.program.as_deref().is_some_and(|p| p != program));
+            if let Some(o) = other {
+                return Err(at(
+                    c.line,
+                    GridErrorKind::HostPrograms(Box::new(HostPrograms {
+                        host: c.host.clone(),
+                        first: (o.name.clone(), o.program.clone().unwrap_or_default()),
+                        second: (c.name.clone(), program.to_owned()),
+                    })),
+                ));
+            }
+        }
         // For every input, the connection feeding it.
         let mut feeding: HashMap<PortRef, usize> = HashMap::with_capacity(connections.len());
         let mut checked: Vec<Connection> = Vec::with_capacity(connections.len());
@@ -535,6 +565,7 @@ impl GridSpec {
             line: grid.line,
             timing: grid.timing,
             assembly: None,
+            declared: Vec::new(),
         })
     }
 
@@ -623,6 +654,15 @@ impl GridSpec {
             }
         }
         hosts
+    }
+
+    /// The program that must run `host`: the one that makes its components' declared types
+    /// (`None`: the built-in host program will do).
+    pub fn host_program(&self, host: &str) -> Option<&str> {
+        self.components
+            .iter()
+            .filter(|c| c.host == host)
+            .find_map(|c| c.program.as_deref())
     }
 
     /// The components `host` steps, in index order.

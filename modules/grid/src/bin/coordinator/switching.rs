@@ -135,6 +135,7 @@ impl Switching {
                 Value::Text(h),
                 Value::Text(&name),
                 Value::I64(i64::from(generation)),
+                Value::Text(spec.host_program(h).unwrap_or("")),
             ];
             if let Err(e) = module.ctx().call("supervisor", "spawn_host", &args) {
                 return self.fail(module, format!("the supervisor cannot start host {h}: {e}"));
