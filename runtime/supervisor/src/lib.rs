@@ -23,6 +23,11 @@
 //!   (SIGTERM, then SIGKILL after the grace period) and removes the domain's shared memory.
 //!
 //! # Layout
+//! - this file: the supervisor's life cycle — start, watch (exits, heartbeats, restarts),
+//!   shut down — and its output;
+//! - `endpoint`: its own module and methods (`status`, `down`);
+//! - `hosts`: the hosts of assemblies, started and retired at the coordinator's request;
+//! - `sweep`: refusing a domain in use, clearing what dead processes left;
 //! - [`env`]: what a module process learns from its environment.
 //! - `child`: spawning one module process and forwarding its output.
 //! - [`policy`]: restart decisions and exit reasons.
@@ -32,6 +37,9 @@
 //! - [`status`]: the status rows and table.
 
 mod child;
+mod endpoint;
+mod hosts;
+mod sweep;
 pub use modbot_transport::launch as env;
 pub mod policy;
 pub mod processes;
@@ -41,7 +49,6 @@ pub mod rt;
 pub mod status;
 
 use core::time::Duration;
-use modbot_grid::spec::GridRole;
 use std::io::Write;
 use std::process::Child;
 use std::time::Instant;
@@ -49,25 +56,25 @@ use std::time::Instant;
 use crossbeam::channel::{unbounded, Receiver, Sender};
 use modbot_ipc_schema::directory::Listing;
 use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
-use modbot_ipc_schema::{Addr, Args, Value};
+use modbot_ipc_schema::Addr;
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 use thiserror::Error;
 
 use child::LogLine;
+use endpoint::{open_endpoint, Shared};
 use modbot_core::clock::{Clock, MonotonicClock};
-use modbot_core::ctx::Ctx;
 use modbot_core::domain::Domain;
-use modbot_core::error::MethodError;
-use modbot_core::module::{Module, ModuleBuilder, Reply};
+use modbot_core::module::Module;
 use modbot_core::signals::Shutdown;
 use modbot_core::transport::ipc::{HeartbeatMonitor, IpcTransport};
-use modbot_core::transport::{Directory, ReceiveMode, TransportError};
+use modbot_core::transport::TransportError;
 use modbot_system::{GiveUp, SystemSpec};
 use policy::{Decision, ExitReason, RestartTracker};
 use relay::Relay;
 use roster::Roster;
 use status::{Row, RunState};
+use sweep::sweep;
 
 /// Why the supervisor could not start or run a system.
 #[derive(Debug, Error)]
@@ -94,21 +101,6 @@ pub enum SupervisorError {
     Module(#[from] modbot_core::error::ModuleError),
 }
 
-/// Why a host of an assembly could not be started (`spawn_host`).
-#[derive(Debug, Error)]
-enum SpawnHostError {
-    #[error("the system has no assemblies")]
-    NoAssemblies,
-    #[error("module {name} exists already")]
-    Exists { name: String },
-    #[error("no address is free")]
-    NoAddress,
-    #[error("the program '{0}' makes no component type the description declares")]
-    UnknownProgram(String),
-    #[error(transparent)]
-    Spawn(#[from] SupervisorError),
-}
-
 /// The longest the supervisor sleeps between looks at heartbeats and deadlines (calls to it
 /// and its children's ends wake it at once).
 const IDLE_WAIT: Duration = Duration::from_millis(20);
@@ -133,31 +125,6 @@ pub struct Summary {
     pub problems: Vec<String>,
     /// How long the system ran.
     pub ran_for: Duration,
-}
-
-/// The supervisor module's state, shared with its method handlers.
-#[derive(Debug, Default)]
-struct Shared {
-    rows: Vec<Row>,
-    down_requested: bool,
-    /// Host processes of assemblies to start or stop, in the order asked.
-    requests: Vec<HostRequest>,
-    /// Whether the system can start assembly hosts (it has a grid with assemblies).
-    hosts_allowed: bool,
-    /// Relayed calls that ended: their handles and the tools' answers.
-    relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
-}
-
-#[derive(Debug, Clone, PartialEq, Eq)]
-enum HostRequest {
-    Spawn {
-        host: String,
-        assembly: String,
-        generation: u16,
-        /// The host's own program (a declared component type's), else the built-in one.
-        program: Option<String>,
-    },
-    Retire(String),
 }
 
 /// One supervised module.
@@ -381,124 +348,6 @@ impl Supervisor {
             .chain([IDLE_WAIT])
             .min()
             .unwrap_or(IDLE_WAIT)
-    }
-
-    /// Starts and stops the assembly hosts the coordinator asked for.
-    fn handle_host_requests(&mut self) {
-        let requests = std::mem::take(&mut self.endpoint.state_mut().requests);
-        for request in requests {
-            match request {
-                HostRequest::Spawn {
-                    host,
-                    assembly,
-                    generation,
-                    program,
-                } => {
-                    let spawned = self.spawn_host(&host, &assembly, generation, program.as_deref());
-                    if let Err(e) = spawned {
-                        self.say(&format!(
-                            "cannot start host {host} of assembly {assembly}: {e}"
-                        ));
-                    }
-                }
-                HostRequest::Retire(name) => self.retire(&name),
-            }
-        }
-    }
-
-    fn spawn_host(
-        &mut self,
-        host: &str,
-        assembly: &str,
-        generation: u16,
-        program: Option<&str>,
-    ) -> Result<(), SpawnHostError> {
-        let Some(mut template) = self.spec.host_template.clone() else {
-            return Err(SpawnHostError::NoAssemblies);
-        };
-        if let Some(program) = program {
-            let Some((_, path)) = self.spec.host_programs.iter().find(|(n, _)| n == program) else {
-                return Err(SpawnHostError::UnknownProgram(program.to_owned()));
-            };
-            template.program = path.clone();
-            template.program_name = program.to_owned();
-        }
-        let name = modbot_grid::spec::host_module_of(host, generation);
-        if let Some(i) = self.spec.modules.iter().position(|m| m.name == name) {
-            if self.slots[i].state != RunState::Retired {
-                return Err(SpawnHostError::Exists { name });
-            }
-        }
-        let own = self.endpoint.addr().0;
-        let busy: Vec<u8> = self
-            .spec
-            .modules
-            .iter()
-            .zip(&self.slots)
-            .filter(|(_, s)| s.state != RunState::Retired || s.child.is_some())
-            .map(|(m, _)| m.addr)
-            .collect();
-        let addr = (Addr::FIRST..=Addr::LAST)
-            .rev()
-            .find(|a| *a != own && !busy.contains(a))
-            .ok_or(SpawnHostError::NoAddress)?;
-        let mut m = template;
-        m.name = name.clone();
-        m.addr = addr;
-        m.args.extend([
-            "--host".to_owned(),
-            host.to_owned(),
-            "--assembly".to_owned(),
-            assembly.to_owned(),
-            "--generation".to_owned(),
-            generation.to_string(),
-        ]);
-        let slot = Slot::new(m.restart.clone());
-        // A retired slot is reused, so that a run of many swaps keeps a short table.
-        let reuse = self
-            .slots
-            .iter()
-            .position(|s| s.state == RunState::Retired && s.child.is_none());
-        let i = match reuse {
-            Some(i) => {
-                self.spec.modules[i] = m;
-                self.slots[i] = slot;
-                i
-            }
-            None => {
-                self.spec.modules.push(m);
-                self.slots.push(slot);
-                self.spec.modules.len() - 1
-            }
-        };
-        self.name_width = self.name_width.max(name.len());
-        self.spawn(i).map_err(|e| {
-            self.slots[i].state = RunState::Retired;
-            SpawnHostError::Spawn(e)
-        })?;
-        self.say(&format!(
-            "{name}: host {host} of assembly {assembly} (generation {generation}) started"
-        ));
-        Ok(())
-    }
-
-    /// Stops module `name` for good (SIGTERM; SIGKILL after the grace period, by `watch`).
-    fn retire(&mut self, name: &str) {
-        let Some(i) = self.spec.modules.iter().position(|m| m.name == name) else {
-            return;
-        };
-        let slot = &mut self.slots[i];
-        slot.retiring = true;
-        slot.restart_at_ns = self.epoch.elapsed().as_nanos() as u64
-            + self.spec.supervision.stop_grace.as_nanos() as u64;
-        match &slot.child {
-            Some(_) => {
-                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGCONT);
-                let _ = kill(Pid::from_raw(slot.pid as i32), Signal::SIGTERM);
-            }
-            None => slot.state = RunState::Retired,
-        }
-        self.changes += 1;
     }
 
     fn now_ns(&self) -> u64 {
@@ -992,81 +841,6 @@ impl Drop for Supervisor {
     }
 }
 
-/// Opens the supervisor's own module endpoint at the highest address the description leaves
-/// free (a tool such as `modbot ls` may hold one for a moment: then the next one).
-fn open_endpoint(transport: &IpcTransport, used: &[u8]) -> Result<Module<Shared>, SupervisorError> {
-    let mut last = SupervisorError::NoAddressLeft;
-    for addr in (Addr::FIRST..=Addr::LAST)
-        .rev()
-        .filter(|a| !used.contains(a))
-    {
-        let opened = ModuleBuilder::new("supervisor", addr)
-            .mode(ReceiveMode::Blocking)
-            .method("status", status_method)
-            .method("down", down_method)
-            .method("spawn_host", spawn_host_method)
-            .method("retire", retire_method)
-            .on_done(relay::on_done)
-            .open(transport.clone(), Shared::default());
-        match opened {
-            Ok(m) => return Ok(m),
-            Err(modbot_core::error::ModuleError::Open {
-                source: TransportError::AddressTaken { .. },
-                ..
-            }) => continue,
-            Err(modbot_core::error::ModuleError::Open {
-                source: TransportError::NameTaken { pid, .. },
-                ..
-            }) => {
-                return Err(SupervisorError::DomainInUse {
-                    domain: transport.domain().name().to_owned(),
-                    modules: format!("supervisor (pid {pid})"),
-                })
-            }
-            Err(e) => last = e.into(),
-        }
-    }
-    Err(last)
-}
-
-/// Refuses a domain where another system runs (a live supervisor, or live modules at the
-/// addresses this description needs); cleans what dead processes left, and removes the
-/// domain's files if nothing of it lives.
-fn sweep(domain: &Domain, dir: &dyn Directory, used: &[u8]) -> Result<(), SupervisorError> {
-    // A tool may be starting in the domain while we look (`modbot ls` polling for the system to
-    // come up): only files older than this look are removed, so what it creates meanwhile stays.
-    let before = std::time::SystemTime::now();
-    let mut conflicts = Vec::new();
-    let mut live = 0;
-    dir.list(&mut |p| {
-        if p.alive {
-            live += 1;
-            if p.name == "supervisor" || used.contains(&p.addr.0) {
-                conflicts.push(format!("{} at address {} (pid {})", p.name, p.addr, p.pid));
-            }
-        }
-    })?;
-    if !conflicts.is_empty() {
-        return Err(SupervisorError::DomainInUse {
-            domain: domain.name().to_owned(),
-            modules: conflicts.join(", "),
-        });
-    }
-    let reaped = dir.reap_dead();
-    let removed = if live == 0 {
-        domain.remove_files_older_than(before)
-    } else {
-        0
-    };
-    if reaped + removed > 0 {
-        tracing::info!(
-            "swept domain '{}': {reaped} dead node(s), {removed} stale file(s)",
-            domain.name()
-        );
-    }
-    Ok(())
-}
-
 fn reason_of(status: std::process::ExitStatus) -> ExitReason {
     use std::os::unix::process::ExitStatusExt;
     match (status.code(), status.signal()) {
@@ -1074,78 +848,4 @@ fn reason_of(status: std::process::ExitStatus) -> ExitReason {
         (None, Some(sig)) => ExitReason::Signaled(sig),
         (None, None) => ExitReason::Exited(-1),
     }
-}
-
-fn status_method(
-    shared: &mut Shared,
-    _: &mut Ctx,
-    _: &Args<'_>,
-    reply: &mut Reply,
-) -> Result<(), MethodError> {
-    let mut bytes = Vec::with_capacity(64 * shared.rows.len());
-    status::encode(&shared.rows, &mut bytes);
-    reply.push(Value::Bytes(&bytes));
-    Ok(())
-}
-
-fn down_method(
-    shared: &mut Shared,
-    _: &mut Ctx,
-    _: &Args<'_>,
-    _: &mut Reply,
-) -> Result<(), MethodError> {
-    shared.down_requested = true;
-    Ok(())
-}
-
-fn spawn_host_method(
-    shared: &mut Shared,
-    _: &mut Ctx,
-    args: &Args<'_>,
-    _: &mut Reply,
-) -> Result<(), MethodError> {
-    let (host, assembly, generation) = (args.text(0)?, args.text(1)?, args.i64(2)?);
-    // The host's program if a declared component type needs one of its own ("": the built-in).
-    let program = match args.get(3) {
-        Some(_) => args.text(3)?,
-        None => "",
-    };
-    if !shared.hosts_allowed {
-        return Err(MethodError::Failed(
-            "this system has no assemblies: no host can be started".into(),
-        ));
-    }
-    let generation = u16::try_from(generation)
-        .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
-    modbot_grid::spec::check_host(host).map_err(|e| MethodError::Failed(e.to_string()))?;
-    modbot_system::assembly::check_assembly_name(assembly).map_err(MethodError::Failed)?;
-    shared.requests.push(HostRequest::Spawn {
-        host: (*host).to_owned(),
-        assembly: (*assembly).to_owned(),
-        generation,
-        program: (!program.is_empty()).then(|| program.to_owned()),
-    });
-    Ok(())
-}
-
-fn retire_method(
-    shared: &mut Shared,
-    _: &mut Ctx,
-    args: &Args<'_>,
-    _: &mut Reply,
-) -> Result<(), MethodError> {
-    let name = args.text(0)?;
-    let of_an_assembly = matches!(
-        GridRole::of(name),
-        Some(GridRole::Host { generation, .. }) if generation > 0
-    );
-    if !shared.hosts_allowed || !of_an_assembly {
-        return Err(MethodError::Failed(format!(
-            "only the host of an assembly can be retired, not {name}"
-        )));
-    }
-    shared
-        .requests
-        .push(HostRequest::Retire((*name).to_owned()));
-    Ok(())
 }

@@ -1,0 +1,88 @@
+//! The supervisor's own module, `supervisor` in the domain: its methods (`status`, `down`,
+//! and the hosts' `spawn_host` and `retire`) and the state they share with the supervisor.
+
+use modbot_ipc_schema::{Addr, Args, Value};
+
+use super::hosts::{retire_method, spawn_host_method, HostRequest};
+use super::status::{self, Row};
+use super::{relay, SupervisorError};
+use modbot_core::ctx::Ctx;
+use modbot_core::error::MethodError;
+use modbot_core::module::{Module, ModuleBuilder, Reply};
+use modbot_core::transport::ipc::IpcTransport;
+use modbot_core::transport::{ReceiveMode, TransportError};
+
+/// The supervisor module's state, shared with its method handlers.
+#[derive(Debug, Default)]
+pub(super) struct Shared {
+    pub(super) rows: Vec<Row>,
+    pub(super) down_requested: bool,
+    /// Host processes of assemblies to start or stop, in the order asked.
+    pub(super) requests: Vec<HostRequest>,
+    /// Whether the system can start assembly hosts (it has a grid with assemblies).
+    pub(super) hosts_allowed: bool,
+    /// Relayed calls that ended: their handles and the tools' answers.
+    pub(super) relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
+}
+
+/// Opens the supervisor's own module endpoint at the highest address the description leaves
+/// free (a tool such as `modbot ls` may hold one for a moment: then the next one).
+pub(super) fn open_endpoint(
+    transport: &IpcTransport,
+    used: &[u8],
+) -> Result<Module<Shared>, SupervisorError> {
+    let mut last = SupervisorError::NoAddressLeft;
+    for addr in (Addr::FIRST..=Addr::LAST)
+        .rev()
+        .filter(|a| !used.contains(a))
+    {
+        let opened = ModuleBuilder::new("supervisor", addr)
+            .mode(ReceiveMode::Blocking)
+            .method("status", status_method)
+            .method("down", down_method)
+            .method("spawn_host", spawn_host_method)
+            .method("retire", retire_method)
+            .on_done(relay::on_done)
+            .open(transport.clone(), Shared::default());
+        match opened {
+            Ok(m) => return Ok(m),
+            Err(modbot_core::error::ModuleError::Open {
+                source: TransportError::AddressTaken { .. },
+                ..
+            }) => continue,
+            Err(modbot_core::error::ModuleError::Open {
+                source: TransportError::NameTaken { pid, .. },
+                ..
+            }) => {
+                return Err(SupervisorError::DomainInUse {
+                    domain: transport.domain().name().to_owned(),
+                    modules: format!("supervisor (pid {pid})"),
+                })
+            }
+            Err(e) => last = e.into(),
+        }
+    }
+    Err(last)
+}
+
+fn status_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let mut bytes = Vec::with_capacity(64 * shared.rows.len());
+    status::encode(&shared.rows, &mut bytes);
+    reply.push(Value::Bytes(&bytes));
+    Ok(())
+}
+
+fn down_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    shared.down_requested = true;
+    Ok(())
+}
