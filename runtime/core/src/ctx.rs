@@ -416,15 +416,8 @@ impl Ctx {
         spec: FrameSpec,
         values: &[Value<'_>],
     ) -> Result<(), CallError> {
-        let payload_len = value::encoded_len(values);
-        let len = spec.encoded_len(payload_len);
-        let mut result = Ok(0);
-        self.tx
-            .send(to, len, &mut |buf| result = spec.encode_values(values, buf))?;
-        self.stats.frames_sent += 1;
-        result
-            .map(|_| ())
-            .map_err(|e| CallError::Encode(e.to_string()))
+        let len = spec.encoded_len(value::encoded_len(values));
+        self.send_frame(to, len, &mut |buf| spec.encode_values(values, buf))
     }
 
     /// Sends a frame whose payload is already encoded.
@@ -435,9 +428,18 @@ impl Ctx {
         payload: &[u8],
     ) -> Result<(), CallError> {
         let len = spec.encoded_len(payload.len());
+        self.send_frame(to, len, &mut |buf| spec.encode(payload, buf))
+    }
+
+    /// Sends a frame of `len` bytes that `encode` writes in place, and counts it.
+    fn send_frame<E: core::fmt::Display>(
+        &mut self,
+        to: Dest<'_>,
+        len: usize,
+        encode: &mut dyn FnMut(&mut [u8]) -> Result<usize, E>,
+    ) -> Result<(), CallError> {
         let mut result = Ok(0);
-        self.tx
-            .send(to, len, &mut |buf| result = spec.encode(payload, buf))?;
+        self.tx.send(to, len, &mut |buf| result = encode(buf))?;
         self.stats.frames_sent += 1;
         result
             .map(|_| ())

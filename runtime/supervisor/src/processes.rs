@@ -195,11 +195,6 @@ pub fn add_processes(
                 .push((t.program.clone(), program(&t.program)?));
         }
     }
-    if grid.assembly.is_some() {
-        // The hosts of assemblies swapped in later: the supervisor adds the host, the
-        // assembly and its generation.
-        spec.host_template = Some(template);
-    }
     let mut args = common;
     if let Some(n) = run.ticks {
         args.extend(["--ticks".to_owned(), n.to_string()]);
@@ -225,13 +220,13 @@ pub fn add_processes(
         },
         cpus: grid.cpus.clone(),
         // The coordinator puts its tick thread under SCHED_FIFO itself, and nothing else.
-        priority: None,
-        mlock: grid.mlock,
-        env: Vec::new(),
-        mode: ReceiveMode::Blocking,
-        groups: Vec::new(),
-        line: grid.line,
+        ..template.clone()
     });
+    if grid.assembly.is_some() {
+        // The hosts of assemblies swapped in later: the supervisor adds the host, the
+        // assembly and its generation.
+        spec.host_template = Some(template);
+    }
     spec.modules.extend(added);
     Ok(())
 }
