@@ -66,6 +66,40 @@ use thiserror::Error;
 use zerocopy::byteorder::little_endian::{U16, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
+/// A base tick of the grid, counted by the coordinator from 0: the time of the grid's
+/// semantics (a release at tick n reads what is valid at n).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Tick(pub u64);
+
+impl Tick {
+    /// The tick `ticks` after this one.
+    pub fn after(self, ticks: u64) -> Tick {
+        Tick(self.0 + ticks)
+    }
+}
+
+impl core::fmt::Display for Tick {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
+/// An assembly generation: 0 for the system's own components (or a grid without assemblies),
+/// then one more for each assembly prepared.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Generation(pub u16);
+
+impl Generation {
+    /// The system's own components, whatever the assembly.
+    pub const SYSTEM: Generation = Generation(0);
+}
+
+impl core::fmt::Display for Generation {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
 /// The component index of a warm-up release: the host answers it at once with a done notice
 /// of the same index, so that the notice channels and the host's paths are warm before tick 0.
 pub const PING: u16 = u16::MAX;

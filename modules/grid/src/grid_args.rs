@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use modbot_runtime::grid::component::Generation;
 use modbot_runtime::grid::GridSpec;
 use modbot_runtime::system::{self, DefaultResolver};
 
@@ -45,9 +46,12 @@ impl GridArgs {
             grid.timing.clock = modbot_runtime::grid::GridClock::Lockstep;
         }
         match (&self.assembly, self.generation) {
-            (Some(name), Some(generation)) => {
-                Ok(system::load_assembly(&grid, name, generation, registry)?)
-            }
+            (Some(name), Some(generation)) => Ok(system::load_assembly(
+                &grid,
+                name,
+                Generation(generation),
+                registry,
+            )?),
             _ => Ok(grid),
         }
     }
@@ -58,7 +62,7 @@ impl GridArgs {
 pub fn load_assembly(
     system: &GridSpec,
     name: &str,
-    generation: u16,
+    generation: Generation,
 ) -> Result<GridSpec, modbot_runtime::grid::host::LoadError> {
     let registry = modbot_runtime::grid::Registry::builtin();
     Ok(system::load_assembly(system, name, generation, &registry)?)

@@ -143,7 +143,7 @@ struct Ramp {
 
 impl Component for Ramp {
     fn step(&mut self, rel: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         put(&mut outputs[0], self.slope * tick as f64 * self.dt);
     }
 }
@@ -163,7 +163,7 @@ struct Sine {
 
 impl Component for Sine {
     fn step(&mut self, rel: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         let y = self.amplitude * (2.0 * PI * self.freq * tick as f64 * self.dt).sin();
         put(&mut outputs[0], y);
     }
@@ -343,7 +343,7 @@ struct Sleeper {
 
 impl Component for Sleeper {
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         if (self.at == Some(tick) || self.live) && !self.sleep.is_zero() {
             std::thread::sleep(self.sleep);
         }

@@ -23,7 +23,7 @@ use thiserror::Error;
 
 use super::builtin;
 
-pub use modbot_ipc_schema::grid::{PortType, PortValue};
+pub use modbot_ipc_schema::grid::{Generation, PortType, PortValue, Tick};
 
 /// The automatic parameter holding the base tick, in seconds (f64).
 pub const BASE_PERIOD_S: &str = "base_period_s";
@@ -340,9 +340,9 @@ impl ComponentInfo {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Released {
     /// The tick the component is released at.
-    pub tick: u64,
+    pub tick: Tick,
     /// The assembly generation of the release (0 in a grid without assemblies).
-    pub generation: u16,
+    pub generation: Generation,
     /// The release's flags (`modbot_ipc_schema::grid::Release::SAFE_STOP`: the running
     /// assembly faulted; `TRACK`: the component tracks).
     pub flags: u16,
@@ -355,7 +355,7 @@ impl Released {
     /// A release at `tick` and nothing more (generation 0, no flags, the clock at 0).
     pub fn at(tick: u64) -> Released {
         Released {
-            tick,
+            tick: Tick(tick),
             ..Released::default()
         }
     }

@@ -21,7 +21,7 @@ use modbot_ipc_schema::grid::{
 };
 use zerocopy::IntoBytes;
 
-use super::component::{Component, ComponentError, Registry, Released};
+use super::component::{Component, ComponentError, Generation, Registry, Released, Tick};
 use super::spec::GridSpec;
 use super::versions::{self, Versions};
 use super::wire::{self, Listener, Notifier, Pub, Sub};
@@ -32,7 +32,7 @@ type Source = Versions;
 
 /// Loads assembly `name` as generation `generation` for the running grid `system` (the
 /// system descriptions' loader: the grid itself reads no description).
-pub type LoadAssembly = fn(&GridSpec, &str, u16) -> Result<GridSpec, LoadError>;
+pub type LoadAssembly = fn(&GridSpec, &str, Generation) -> Result<GridSpec, LoadError>;
 
 /// Why an assembly could not be loaded: the loader's own error (the grid, which reads no
 /// description, does not know its type).
@@ -40,7 +40,7 @@ pub type LoadError = Box<dyn std::error::Error + Send + Sync>;
 
 /// Where one component's inputs come from, for one assembly generation.
 struct Binding {
-    generation: u16,
+    generation: Generation,
     sources: Vec<Source>,
     /// For each input: (source position, output port of that source).
     inputs: Vec<(usize, usize)>,
@@ -72,7 +72,7 @@ struct Preparing {
 /// The components of one host, and its notice channels.
 pub struct Host {
     name: String,
-    generation: u16,
+    generation: Generation,
     hosted: Vec<Hosted>,
     releases: Sub,
     done: Pub,
@@ -86,7 +86,10 @@ pub struct Host {
     /// A host of the system's own components in a grid with assemblies: the assembly notices.
     prepare: Option<Sub>,
     /// The newest generation it was asked to prepare, and its loader.
-    loading: Option<(u16, std::sync::mpsc::Receiver<Result<GridSpec, LoadError>>)>,
+    loading: Option<(
+        Generation,
+        std::sync::mpsc::Receiver<Result<GridSpec, LoadError>>,
+    )>,
     preparing: Option<Preparing>,
     /// The spec it was made from, to load other assemblies against.
     spec: GridSpec,
@@ -210,7 +213,7 @@ impl Host {
                 out_len,
             });
         }
-        let prepare = if spec.assembly.is_some() && generation == 0 {
+        let prepare = if spec.assembly.is_some() && generation == Generation::SYSTEM {
             Some(wire::prepare_subscriber(node)?)
         } else {
             None
@@ -325,7 +328,7 @@ impl Host {
         while let Ok(true) = notices.receive(&mut |sample| {
             notice = Prepare::parse(sample)
                 .ok()
-                .and_then(|p| Some((p.generation.get(), p.name()?.to_owned())));
+                .and_then(|p| Some((Generation(p.generation.get()), p.name()?.to_owned())));
         }) {
             let Some((generation, name)) = notice.take() else {
                 continue;
@@ -428,16 +431,16 @@ impl Host {
         self.answer_ready(generation, Done::OK)
     }
 
-    fn answer_ready(&mut self, generation: u16, status: u16) -> Result<(), TransportError> {
-        let done = Done::new(0, READY, status, 0, 0).of_generation(generation);
+    fn answer_ready(&mut self, generation: Generation, status: u16) -> Result<(), TransportError> {
+        let done = Done::new(0, READY, status, 0, 0).of_generation(generation.0);
         self.done.send_bytes(done.as_bytes())
     }
 
     fn step(&mut self, release: &Release, now: &dyn Fn() -> u64) -> Result<(), TransportError> {
         let n = release.tick.get();
-        let generation = release.generation.get();
+        let generation = Generation(release.generation.get());
         if release.component.get() == PING {
-            let done = Done::new(n, PING, Done::OK, 0, 0).of_generation(self.generation);
+            let done = Done::new(n, PING, Done::OK, 0, 0).of_generation(self.generation.0);
             return self.push_done(&done);
         }
         let c = usize::from(release.component.get());
@@ -492,12 +495,12 @@ impl Host {
                  held up); the release is not executed",
                 h.name
             );
-            let done = Done::new(n, c as u16, Done::STALE, 0, 0).of_generation(generation);
+            let done = Done::new(n, c as u16, Done::STALE, 0, 0).of_generation(generation.0);
             return self.push_done(&done);
         }
         let start = now();
         let rel = Released {
-            tick: n,
+            tick: Tick(n),
             generation,
             flags: release.flags.get(),
             now_ns: start,
@@ -531,7 +534,7 @@ impl Host {
             end.saturating_sub(start),
             start.saturating_sub(release.released_ns.get()),
         )
-        .of_generation(generation);
+        .of_generation(generation.0);
         self.push_done(&done)
     }
 }

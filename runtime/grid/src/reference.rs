@@ -17,7 +17,7 @@
 
 use thiserror::Error;
 
-use super::component::{Component, ComponentError, PortValue, Registry, Released};
+use super::component::{Component, ComponentError, PortValue, Registry, Released, Tick};
 use super::spec::GridSpec;
 use super::trace::TraceWriter;
 
@@ -267,7 +267,7 @@ pub fn run(
             }
             let slot = &mut slots[c];
             let rel = Released {
-                tick: n,
+                tick: Tick(n),
                 generation: spec.generation_of(c),
                 flags: 0,
                 now_ns: n.saturating_mul(base_ns),

@@ -2,6 +2,7 @@
 //! the system runs: `spawn_host(host, assembly, generation[, program])` and `retire(module)`,
 //! handled between the supervisor's other work.
 
+use modbot_grid::component::Generation;
 use modbot_grid::spec::GridRole;
 use modbot_ipc_schema::{Addr, Args};
 use nix::sys::signal::{kill, Signal};
@@ -35,7 +36,7 @@ pub(super) enum HostRequest {
     Spawn {
         host: String,
         assembly: String,
-        generation: u16,
+        generation: Generation,
         /// The host's own program (a declared component type's), else the built-in one.
         program: Option<String>,
     },
@@ -70,7 +71,7 @@ impl Supervisor {
         &mut self,
         host: &str,
         assembly: &str,
-        generation: u16,
+        generation: Generation,
         program: Option<&str>,
     ) -> Result<(), SpawnHostError> {
         let Some(mut template) = self.spec.host_template.clone() else {
@@ -180,6 +181,7 @@ pub(super) fn spawn_host_method(
         ));
     }
     let generation = u16::try_from(generation)
+        .map(Generation)
         .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
     modbot_grid::spec::check_host(host).map_err(|e| MethodError::Failed(e.to_string()))?;
     modbot_system::assembly::check_assembly_name(assembly).map_err(MethodError::Failed)?;
@@ -201,7 +203,7 @@ pub(super) fn retire_method(
     let name = args.text(0)?;
     let of_an_assembly = matches!(
         GridRole::of(name),
-        Some(GridRole::Host { generation, .. }) if generation > 0
+        Some(GridRole::Host { generation, .. }) if generation != Generation::SYSTEM
     );
     if !shared.hosts_allowed || !of_an_assembly {
         return Err(MethodError::Failed(format!(

@@ -20,7 +20,7 @@ pub const BUS_PROGRAM: &str = "modbot-bus";
 /// The module name of host `host` of the system's own components, or of a grid without
 /// assemblies (an assembly's hosts: [`modbot_grid::GridSpec::host_module`]).
 pub fn host_module(host: &str) -> String {
-    modbot_grid::spec::host_module_of(host, 0)
+    modbot_grid::spec::host_module_of(host, modbot_grid::component::Generation::SYSTEM)
 }
 
 /// The program of host `host`: the bus bridge for [`BUS_HOST`], else the generic host.
@@ -166,7 +166,7 @@ pub fn add_processes(
         }
         let mut args = common.clone();
         args.extend(["--host".to_owned(), host.clone()]);
-        if let (Some(a), g @ 1..) = (&grid.assembly, grid.host_generation(&host)) {
+        if let (Some(a), g @ 1..) = (&grid.assembly, grid.host_generation(&host).0) {
             args.extend([
                 "--assembly".to_owned(),
                 a.name.clone(),

@@ -14,6 +14,7 @@
 use std::path::Path;
 
 use super::{lua, SystemError};
+use modbot_grid::component::Generation;
 use modbot_grid::spec::{Assembly, GridSpec};
 use modbot_grid::Registry;
 
@@ -44,7 +45,7 @@ pub fn assembly_names(dir: &Path) -> Vec<String> {
 pub fn load_assembly(
     system: &GridSpec,
     name: &str,
-    generation: u16,
+    generation: Generation,
     registry: &Registry,
 ) -> Result<GridSpec, SystemError> {
     let Some(current) = &system.assembly else {

@@ -13,7 +13,7 @@ use std::path::Path;
 use super::assembly::load_assembly;
 use super::decl::{Declarations, ModuleDecl};
 use super::{ProgramResolver, SystemError, SystemSpec};
-use modbot_grid::component::DeclaredType;
+use modbot_grid::component::{DeclaredType, Generation};
 use modbot_grid::spec::{Assembly, ComponentDecl, ConnectDecl, GridDecl};
 use modbot_grid::{GridSpec, Registry};
 
@@ -228,7 +228,7 @@ fn with_assemblies(
         declared: declared.to_vec(),
         assembly: Some(Assembly {
             name: String::new(),
-            generation: 0,
+            generation: Generation::SYSTEM,
             dir,
             base: components.len(),
             decls: (grid, components, connections),
@@ -236,7 +236,7 @@ fn with_assemblies(
             system_file: file.to_owned(),
         }),
     };
-    load_assembly(&unloaded, &decl.first, 1, registry).map_err(|mut e| {
+    load_assembly(&unloaded, &decl.first, Generation(1), registry).map_err(|mut e| {
         if e.file.is_empty() {
             e.file = file.to_owned();
             e.line = Some(line);

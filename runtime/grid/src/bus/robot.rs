@@ -170,8 +170,8 @@ impl Component for Bus {
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let input = |port: usize, i: usize| slice(&inputs[port]).get(i).copied().unwrap_or(0.0);
         let served = Served {
-            tick: rel.tick,
-            generation: rel.generation,
+            tick: rel.tick.0,
+            generation: rel.generation.0,
             safe_stop: rel.flags & Release::SAFE_STOP != 0,
         };
         let mut b = bridge::lock(&self.bridge);

@@ -566,7 +566,7 @@ impl Ptp {
 
 impl Component for Ptp {
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         self.command(tick, inputs, outputs);
         self.write_handover(tick, &mut outputs[4]);
     }
@@ -575,7 +575,7 @@ impl Component for Ptp {
     /// reads, else `start` carried ahead: see [`Lead`]); the first goal it sees after that is
     /// new, so it then moves from there.
     fn track(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         let mut ahead = std::mem::take(&mut self.ahead);
         let taken = self.handover(inputs);
         let extrapolated = ahead.track(array(&inputs[1]));
@@ -699,7 +699,7 @@ impl Hold {
 
 impl Component for Hold {
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         self.command(tick, inputs, outputs);
         self.write_handover(tick, &mut outputs[3]);
     }
@@ -707,7 +707,7 @@ impl Component for Hold {
     /// Follows the handover it reads, else `start` carried ahead (see [`Lead`]), until it
     /// takes over, then holds there.
     fn track(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
-        let tick = rel.tick;
+        let tick = rel.tick.0;
         let taken = self.handover(inputs);
         let extrapolated = self.ahead.track(array(&inputs[0]));
         let ahead = match taken {

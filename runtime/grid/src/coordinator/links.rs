@@ -3,7 +3,7 @@
 
 use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
-use modbot_ipc_schema::grid::{Release, MAX_SOURCES};
+use modbot_ipc_schema::grid::{Generation, Release, MAX_SOURCES};
 use zerocopy::IntoBytes;
 
 use super::Comp;
@@ -15,7 +15,7 @@ use crate::wire::{self, Notifier, Pub};
 pub struct HostLink {
     /// The host's name and the generation of its components (0: the system's own).
     pub(super) name: String,
-    pub(super) generation: u16,
+    pub(super) generation: Generation,
     pub(super) release: Pub,
     pub(super) wake: Notifier,
     /// The releases of this tick, sent as one sample with one wake-up when the tick's releases
@@ -42,7 +42,7 @@ pub fn link(node: &dyn Channels, spec: &GridSpec, host: &str) -> Result<HostLink
 pub(super) struct ReleaseAt {
     pub(super) n: u64,
     pub(super) now_ns: u64,
-    pub(super) generation: u16,
+    pub(super) generation: Generation,
     pub(super) flags: u16,
 }
 
@@ -59,7 +59,7 @@ pub(super) fn release(
     let Ok(notice) = Release::new(at.n, at.now_ns, c as u16, &versions[..k]) else {
         return;
     };
-    let notice = notice.with(at.generation, at.flags);
+    let notice = notice.with(at.generation.0, at.flags);
     if send_release(&mut hosts[comp.host], &notice) {
         comp.pending = Some(at.n);
         comp.releases += 1;

@@ -24,7 +24,7 @@
 
 use std::io::Write;
 
-use modbot_ipc_schema::grid::{Done, Release, MAX_SOURCES, PING, READY};
+use modbot_ipc_schema::grid::{Done, Generation, Release, MAX_SOURCES, PING, READY};
 use zerocopy::IntoBytes;
 
 use super::ledger::{self, ComponentRow, GridRow};
@@ -159,7 +159,7 @@ pub struct Coordinator<W: Write> {
     /// The assembly being prepared, if one is.
     incoming: Option<Incoming>,
     /// Switches done: (generation, assembly, announced tick, tick it took over).
-    switches: Vec<(u16, String, u64, u64)>,
+    switches: Vec<(Generation, String, u64, u64)>,
     /// Host processes of replaced assemblies, to be stopped (module names).
     retired: Vec<String>,
     /// Links to hosts no longer released, to be dropped off the tick thread.
@@ -384,8 +384,8 @@ impl<W: Write> Coordinator<W> {
     }
 
     /// Takes one done notice at tick `n`.
-    fn take_one_done(&mut self, n: u64, base: usize, current: u16, done: &Done) {
-        let (c, g) = (done.component.get(), done.generation.get());
+    fn take_one_done(&mut self, n: u64, base: usize, current: Generation, done: &Done) {
+        let (c, g) = (done.component.get(), Generation(done.generation.get()));
         let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
         if c == PING || c == READY {
             if let Some(inc) = inc {

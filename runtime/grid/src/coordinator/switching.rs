@@ -5,7 +5,7 @@
 
 use std::io::Write;
 
-use modbot_ipc_schema::grid::{Release, MAX_SOURCES, PING};
+use modbot_ipc_schema::grid::{Generation, Release, MAX_SOURCES, PING};
 
 use super::MAX_POSTPONE_TICKS;
 use super::{comps_of, release, send_release, Comp, Coordinator, HostLink, ReleaseAt};
@@ -65,7 +65,10 @@ pub enum BeginSwitchError {
     #[error("an assembly is being prepared already")]
     Busy,
     #[error("generation {generation} is not newer than the running {running}")]
-    NotNewer { generation: u16, running: u16 },
+    NotNewer {
+        generation: Generation,
+        running: Generation,
+    },
 }
 
 impl<W: Write> Coordinator<W> {
@@ -154,18 +157,18 @@ impl<W: Write> Coordinator<W> {
             .assembly
             .as_ref()
             .map(|a| a.generation)
-            .unwrap_or(0);
+            .unwrap_or(Generation::SYSTEM);
         let old_hosts: Vec<String> = self
             .hosts
             .iter()
-            .filter(|h| h.generation != 0)
+            .filter(|h| h.generation != Generation::SYSTEM)
             .map(|h| self.spec.host_module(&h.name))
             .collect();
         // Dropping a link unmaps shared memory (milliseconds): the old assembly's links are
         // handed out with [`Coordinator::take_retired_links`] to be dropped off this thread.
         let (keep, old_links): (Vec<HostLink>, Vec<HostLink>) = std::mem::take(&mut self.hosts)
             .into_iter()
-            .partition(|h| h.generation == 0);
+            .partition(|h| h.generation == Generation::SYSTEM);
         self.hosts = keep;
         self.retired_links.extend(old_links);
         let offset = self.hosts.len();
@@ -256,7 +259,7 @@ impl<W: Write> Coordinator<W> {
         for (h, link) in inc.hosts.iter_mut().enumerate() {
             if inc.answered.get(h) == Some(&false) {
                 if let Ok(ping) = Release::new(h as u64, 0, PING, &[]) {
-                    send_release(link, &ping.with(generation, 0));
+                    send_release(link, &ping.with(generation.0, 0));
                 }
             }
         }
@@ -326,7 +329,7 @@ impl<W: Write> Coordinator<W> {
     }
 
     /// The switches done: (generation, assembly, announced tick, tick it took over).
-    pub fn switches(&self) -> &[(u16, String, u64, u64)] {
+    pub fn switches(&self) -> &[(Generation, String, u64, u64)] {
         &self.switches
     }
 

@@ -14,7 +14,7 @@ use std::time::Duration;
 use modbot_ipc_schema::grid::MAX_SOURCES;
 
 use super::component::{
-    ComponentInfo, DeclaredType, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS,
+    ComponentInfo, DeclaredType, Generation, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS,
 };
 use modbot_core::transport::check_name;
 
@@ -144,7 +144,7 @@ pub struct Assembly {
     pub name: String,
     /// Counts the assemblies loaded in a run, from 1: it names the assembly's services and
     /// host processes, so an assembly being prepared never meets the one running.
-    pub generation: u16,
+    pub generation: Generation,
     /// Where the assembly files are.
     pub dir: std::path::PathBuf,
     /// The number of the system's own components: indices below it are the system's.
@@ -263,8 +263,8 @@ pub const COORDINATOR: &str = "coordinator";
 
 /// The module name of the process of `host` of assembly generation `generation` (0: a host of
 /// the system's own components, or of a grid without assemblies).
-pub fn host_module_of(host: &str, generation: u16) -> String {
-    match generation {
+pub fn host_module_of(host: &str, generation: Generation) -> String {
+    match generation.0 {
         0 => format!("host_{host}"),
         g => format!("host_{host}_g{g}"),
     }
@@ -279,7 +279,7 @@ pub enum GridRole<'a> {
     /// own components, or of a grid without assemblies).
     Host {
         host: &'a str,
-        generation: u16,
+        generation: Generation,
     },
 }
 
@@ -295,7 +295,10 @@ impl GridRole<'_> {
             None => (name, 0),
         };
         check_host(host).ok()?;
-        Some(GridRole::Host { host, generation })
+        Some(GridRole::Host {
+            host,
+            generation: Generation(generation),
+        })
     }
 }
 
@@ -571,30 +574,32 @@ impl GridSpec {
 
     /// The assembly generation component `c` belongs to: 0 for the system's own components
     /// and for every component of a grid without assemblies.
-    pub fn generation_of(&self, c: usize) -> u16 {
+    pub fn generation_of(&self, c: usize) -> Generation {
         match &self.assembly {
             Some(a) if c >= a.base => a.generation,
-            _ => 0,
+            _ => Generation::SYSTEM,
         }
     }
 
     /// The generation of this spec's assembly (0: none).
-    pub fn generation(&self) -> u16 {
-        self.assembly.as_ref().map_or(0, |a| a.generation)
+    pub fn generation(&self) -> Generation {
+        self.assembly
+            .as_ref()
+            .map_or(Generation::SYSTEM, |a| a.generation)
     }
 
     /// The generation of the components on `host` (0: the system's own host).
-    pub fn host_generation(&self, host: &str) -> u16 {
+    pub fn host_generation(&self, host: &str) -> Generation {
         (0..self.components.len())
             .find(|&c| self.components[c].host == host)
-            .map_or(0, |c| self.generation_of(c))
+            .map_or(Generation::SYSTEM, |c| self.generation_of(c))
     }
 
     /// The hosts of the system's own components (all hosts of a grid without assemblies).
     pub fn base_hosts(&self) -> Vec<String> {
         self.hosts()
             .into_iter()
-            .filter(|h| self.host_generation(h) == 0)
+            .filter(|h| self.host_generation(h) == Generation::SYSTEM)
             .collect()
     }
 
@@ -602,14 +607,14 @@ impl GridSpec {
     pub fn assembly_hosts(&self) -> Vec<String> {
         self.hosts()
             .into_iter()
-            .filter(|h| self.host_generation(h) != 0)
+            .filter(|h| self.host_generation(h) != Generation::SYSTEM)
             .collect()
     }
 
     /// The channel of component `c`'s outputs.
     pub fn out_service(&self, c: usize) -> String {
         let name = &self.components[c].name;
-        match self.generation_of(c) {
+        match self.generation_of(c).0 {
             0 => format!("grid.out.{name}"),
             g => format!("grid.out.g{g}.{name}"),
         }
@@ -617,7 +622,7 @@ impl GridSpec {
 
     /// The channel of `host`'s release notices.
     pub fn release_service(&self, host: &str) -> String {
-        match self.host_generation(host) {
+        match self.host_generation(host).0 {
             0 => format!("grid.release.{host}"),
             g => format!("grid.release.g{g}.{host}"),
         }
@@ -625,7 +630,7 @@ impl GridSpec {
 
     /// The wake-up of `host`.
     pub fn wake_service(&self, host: &str) -> String {
-        match self.host_generation(host) {
+        match self.host_generation(host).0 {
             0 => format!("grid.wake.{host}"),
             g => format!("grid.wake.g{g}.{host}"),
         }
@@ -639,7 +644,7 @@ impl GridSpec {
     /// The longest period of the assembly's components, in base ticks (1 without them).
     pub fn assembly_max_period(&self) -> u64 {
         (0..self.components.len())
-            .filter(|&c| self.generation_of(c) != 0)
+            .filter(|&c| self.generation_of(c) != Generation::SYSTEM)
             .map(|c| self.components[c].period)
             .max()
             .unwrap_or(1)
@@ -722,11 +727,12 @@ impl GridSpec {
 
 #[cfg(test)]
 mod tests {
-    use super::{host_module_of, GridError, GridErrorKind, GridRole, COORDINATOR};
+    use super::{host_module_of, Generation, GridError, GridErrorKind, GridRole, COORDINATOR};
 
     #[test]
     fn a_grid_process_is_told_by_its_module_name_and_nothing_else_is_one() {
-        for (host, generation) in [("ctrl", 0), ("ctrl", 7), ("bus", 0), ("a_g", 2), ("g2", 0)] {
+        for (host, g) in [("ctrl", 0), ("ctrl", 7), ("bus", 0), ("a_g", 2), ("g2", 0)] {
+            let generation = Generation(g);
             let name = host_module_of(host, generation);
             assert_eq!(
                 GridRole::of(&name),

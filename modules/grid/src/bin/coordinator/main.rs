@@ -163,7 +163,7 @@ fn run() -> anyhow::Result<()> {
         transport,
         Shared {
             assemblies,
-            next_generation: coord.spec().generation().saturating_add(1),
+            next_generation: coord.spec().generation().0.saturating_add(1),
             grid,
             ledger: Vec::new(),
             requested: None,

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use modbot_ipc_schema::grid::Prepare;
 use modbot_ipc_schema::Value;
-use modbot_runtime::grid::component::Registry;
+use modbot_runtime::grid::component::{Generation, Registry};
 use modbot_runtime::grid::coordinator::{link, SwitchState};
 use modbot_runtime::grid::switch::{Outcome, State, Status};
 use modbot_runtime::grid::wire::{self, Pub};
@@ -215,9 +215,13 @@ impl Switching {
             let system = module.state().grid.clone();
             let loading = name.clone();
             std::thread::spawn(move || {
-                let loaded =
-                    system::load_assembly(&system, &loading, generation, &Registry::builtin())
-                        .map_err(|e| e.to_string());
+                let loaded = system::load_assembly(
+                    &system,
+                    &loading,
+                    Generation(generation),
+                    &Registry::builtin(),
+                )
+                .map_err(|e| e.to_string());
                 let _ = tx.send(loaded);
             });
             tracing::info!("switch to assembly {name} (generation {generation}) asked for");

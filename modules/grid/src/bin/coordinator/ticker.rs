@@ -270,7 +270,7 @@ impl Reported {
         }
         if coord.switches().len() > self.switches {
             for (generation, _, announced, at) in &coord.switches()[self.switches..] {
-                tell(out, FromTick::Switched(*generation, *announced, *at));
+                tell(out, FromTick::Switched(generation.0, *announced, *at));
             }
             self.switches = coord.switches().len();
             tell(out, hosts_of(coord));
@@ -294,7 +294,7 @@ fn hosts_of(coord: &Coord) -> FromTick {
 
 fn current_of(coord: &Coord) -> FromTick {
     match &coord.spec().assembly {
-        Some(a) => FromTick::Current(a.name.clone(), a.generation),
+        Some(a) => FromTick::Current(a.name.clone(), a.generation.0),
         None => FromTick::Current("none".into(), 0),
     }
 }
