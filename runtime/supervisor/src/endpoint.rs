@@ -3,27 +3,15 @@
 
 use modbot_ipc_schema::{Addr, Args, Value};
 
-use super::hosts::{retire_method, spawn_host_method, HostRequest};
-use super::status::{self, Row};
+use super::hosts::{retire_method, spawn_host_method};
+use super::shared::Shared;
+use super::status;
 use super::{relay, SupervisorError};
 use modbot_core::ctx::Ctx;
 use modbot_core::error::MethodError;
 use modbot_core::module::{Module, ModuleBuilder, Reply};
 use modbot_core::transport::ipc::IpcTransport;
 use modbot_core::transport::{ReceiveMode, TransportError};
-
-/// The supervisor module's state, shared with its method handlers.
-#[derive(Debug, Default)]
-pub(super) struct Shared {
-    pub(super) rows: Vec<Row>,
-    pub(super) down_requested: bool,
-    /// Host processes of assemblies to start or stop, in the order asked.
-    pub(super) requests: Vec<HostRequest>,
-    /// Whether the system can start assembly hosts (it has a grid with assemblies).
-    pub(super) hosts_allowed: bool,
-    /// Relayed calls that ended: their handles and the tools' answers.
-    pub(super) relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
-}
 
 /// Opens the supervisor's own module endpoint at the highest address the description leaves
 /// free (a tool such as `modbot ls` may hold one for a moment: then the next one).

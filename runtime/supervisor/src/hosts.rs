@@ -9,7 +9,7 @@ use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 use thiserror::Error;
 
-use super::endpoint::Shared;
+use super::shared::{HostRequest, Shared};
 use super::status::RunState;
 use super::{Slot, Supervisor, SupervisorError};
 use modbot_core::ctx::Ctx;
@@ -29,18 +29,6 @@ pub(super) enum SpawnHostError {
     UnknownProgram(String),
     #[error(transparent)]
     Spawn(#[from] SupervisorError),
-}
-
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(super) enum HostRequest {
-    Spawn {
-        host: String,
-        assembly: String,
-        generation: Generation,
-        /// The host's own program (a declared component type's), else the built-in one.
-        program: Option<String>,
-    },
-    Retire(String),
 }
 
 impl Supervisor {

@@ -27,6 +27,7 @@
 //!   shut down — and its output;
 //! - `endpoint`: its own module and methods (`status`, `down`);
 //! - `hosts`: the hosts of assemblies, started and retired at the coordinator's request;
+//! - `shared`: what the supervisor and its method handlers share;
 //! - `sweep`: refusing a domain in use, clearing what dead processes left;
 //! - [`env`]: what a module process learns from its environment.
 //! - `child`: spawning one module process and forwarding its output.
@@ -39,6 +40,7 @@
 mod child;
 mod endpoint;
 mod hosts;
+mod shared;
 mod sweep;
 pub use modbot_transport::launch as env;
 pub mod policy;
@@ -62,7 +64,7 @@ use nix::unistd::Pid;
 use thiserror::Error;
 
 use child::LogLine;
-use endpoint::{open_endpoint, Shared};
+use endpoint::open_endpoint;
 use modbot_core::clock::{Clock, MonotonicClock};
 use modbot_core::domain::Domain;
 use modbot_core::module::Module;
@@ -73,6 +75,7 @@ use modbot_system::{GiveUp, SystemSpec};
 use policy::{Decision, ExitReason, RestartTracker};
 use relay::Relay;
 use roster::Roster;
+use shared::Shared;
 use status::{Row, RunState};
 use sweep::sweep;
 

@@ -7,7 +7,7 @@ use std::time::Duration;
 use modbot_ipc_schema::relay::{self, Request};
 use modbot_ipc_schema::Args;
 
-use super::endpoint::Shared;
+use super::shared::Shared;
 use modbot_core::calls::{CallHandle, CallOptions};
 use modbot_core::ctx::Ctx;
 use modbot_core::error::CallError;

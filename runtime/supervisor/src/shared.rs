@@ -1,0 +1,32 @@
+//! What the supervisor and its module's method handlers share: the rows `status` answers, the
+//! requests the handlers leave for the supervisor's loop (`down`, assembly hosts), relayed
+//! answers.
+
+use modbot_grid::component::Generation;
+
+use super::status::Row;
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) enum HostRequest {
+    Spawn {
+        host: String,
+        assembly: String,
+        generation: Generation,
+        /// The host's own program (a declared component type's), else the built-in one.
+        program: Option<String>,
+    },
+    Retire(String),
+}
+
+/// The supervisor module's state, shared with its method handlers.
+#[derive(Debug, Default)]
+pub(super) struct Shared {
+    pub(super) rows: Vec<Row>,
+    pub(super) down_requested: bool,
+    /// Host processes of assemblies to start or stop, in the order asked.
+    pub(super) requests: Vec<HostRequest>,
+    /// Whether the system can start assembly hosts (it has a grid with assemblies).
+    pub(super) hosts_allowed: bool,
+    /// Relayed calls that ended: their handles and the tools' answers.
+    pub(super) relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
+}
