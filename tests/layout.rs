@@ -104,3 +104,164 @@ fn only_the_system_descriptions_link_lua() {
         .collect();
     assert_eq!(lua, ["modbot-system"]);
 }
+
+/// The module path of the source file `file` of a crate whose sources are in `src`
+/// (`lib.rs` and `mod.rs` name their folder's module).
+fn module_of(src: &Path, file: &Path) -> Vec<String> {
+    let rel = file.strip_prefix(src).unwrap().with_extension("");
+    let mut parts: Vec<String> = rel
+        .components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    if matches!(
+        parts.last().map(String::as_str),
+        Some("lib" | "mod" | "main")
+    ) {
+        parts.pop();
+    }
+    parts
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// The modules of the crate in `src` that each module names through `crate::`, `super::` or
+/// `self::` paths outside comments and tests: module → the modules it uses.
+fn file_imports(src: &Path) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let modules: BTreeMap<Vec<String>, std::path::PathBuf> = files
+        .iter()
+        .map(|f| (module_of(src, f), f.clone()))
+        .collect();
+    let mut graph = BTreeMap::new();
+    for (module, file) in &modules {
+        let text = std::fs::read_to_string(file).unwrap();
+        let code = text.split("#[cfg(test)]").next().unwrap_or("");
+        let mut uses = BTreeSet::new();
+        for line in code.lines().filter(|l| !l.trim_start().starts_with("//")) {
+            for (i, _) in line.match_indices("::") {
+                let before = &line[..i];
+                let head = before
+                    .rsplit(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                    .next()
+                    .unwrap_or("");
+                let mut path: Vec<String> = match head {
+                    "crate" => Vec::new(),
+                    "super" => module[..module.len().saturating_sub(1)].to_vec(),
+                    "self" => module.clone(),
+                    _ => continue,
+                };
+                let rest = &line[i + 2..];
+                for segment in rest.split("::") {
+                    let name: String = segment
+                        .chars()
+                        .take_while(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || *c == '_')
+                        .collect();
+                    if name.is_empty() || name.len() != segment.len() && !segment.starts_with(&name)
+                    {
+                        break;
+                    }
+                    path.push(name.clone());
+                    if name.len() != segment.len() {
+                        break;
+                    }
+                }
+                // The longest prefix that is a module of the crate.
+                while !path.is_empty() && !modules.contains_key(&path) {
+                    path.pop();
+                }
+                if &path != module {
+                    uses.insert(path);
+                }
+            }
+        }
+        graph.insert(module.clone(), uses);
+    }
+    graph
+}
+
+/// A circle in `graph`, if there is one: the modules along it.
+fn circle(graph: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>) -> Option<Vec<String>> {
+    fn visit(
+        node: &Vec<String>,
+        graph: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>,
+        state: &mut BTreeMap<Vec<String>, u8>,
+        stack: &mut Vec<Vec<String>>,
+    ) -> Option<Vec<String>> {
+        state.insert(node.clone(), 1);
+        stack.push(node.clone());
+        for next in graph.get(node).into_iter().flatten() {
+            match state.get(next).copied().unwrap_or(0) {
+                0 => {
+                    if let Some(c) = visit(next, graph, state, stack) {
+                        return Some(c);
+                    }
+                }
+                1 => {
+                    let from = stack.iter().position(|m| m == next).unwrap_or(0);
+                    let name = |m: &Vec<String>| {
+                        if m.is_empty() {
+                            "lib".to_owned()
+                        } else {
+                            m.join("::")
+                        }
+                    };
+                    return Some(stack[from..].iter().chain([next]).map(name).collect());
+                }
+                _ => {}
+            }
+        }
+        stack.pop();
+        state.insert(node.clone(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for node in graph.keys() {
+        if state.get(node).copied().unwrap_or(0) == 0 {
+            if let Some(c) = visit(node, graph, &mut state, &mut Vec::new()) {
+                return Some(c);
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn no_file_of_a_library_crate_imports_in_a_circle() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut circles = Vec::new();
+    for (name, dir, _) in LAYERS {
+        let src = root.join(dir).join("src");
+        if !src.join("lib.rs").exists() {
+            continue;
+        }
+        if let Some(c) = circle(&file_imports(&src)) {
+            circles.push(format!("{name}: {}", c.join(" -> ")));
+        }
+    }
+    assert!(circles.is_empty(), "imports in a circle: {circles:#?}");
+}
+
+#[test]
+fn a_circle_of_imports_is_found() {
+    let graph: BTreeMap<Vec<String>, BTreeSet<Vec<String>>> = [
+        (vec!["a".to_owned()], BTreeSet::from([vec!["b".to_owned()]])),
+        (vec!["b".to_owned()], BTreeSet::from([vec!["a".to_owned()]])),
+        (vec!["c".to_owned()], BTreeSet::new()),
+    ]
+    .into_iter()
+    .collect();
+    assert_eq!(
+        circle(&graph),
+        Some(vec!["a".into(), "b".into(), "a".into()])
+    );
+}

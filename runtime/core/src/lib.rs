@@ -7,20 +7,24 @@
 //! blackboard as zero-copy snapshots. It stands on `modbot-transport` only.
 //!
 //! # Layout
-//! - [`module`]: declaring a module ([`ModuleBuilder`]) and the message manager that serves it.
+//! - [`module`]: declaring a module ([`ModuleBuilder`]), serving it, its main loop.
+//! - [`hooks`]: what a module is made of for its manager: method table, hooks, reply, report.
 //! - [`ctx`]: what a module's code can do: call, report, read snapshots, use its blackboard.
 //! - [`calls`]: the method queue, matching answers by (peer, sequence), with retransmission.
 //! - `manager`: the message manager, serving one incoming frame.
 //! - [`served`]: the requests served lately, so a retransmission is not executed twice.
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
-//! - [`run`]: the default application controller (main loop, signals, receive modes).
+//! - [`run`]: the default application controller, for a program that needs no other.
 //! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
 //! - [`sim`]: the simulated time all processes of a system share (`MODBOT_EPOCH_NS`).
 //! - [`cli`]: the command line every module program takes ([`ModuleArgs`]).
 //! - [`tool`]: how a tool (the CLI) reaches a running system, also when every address is taken.
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
 //! - [`transport`], [`domain`]: re-exported from `modbot-transport`.
+//!
+//! No file imports another in a circle (`tests/layout.rs` checks every library crate): the
+//! manager and the module both stand on `hooks`, the stats on neither.
 
 pub mod blackboard;
 pub mod calls;
@@ -28,6 +32,7 @@ pub mod cli;
 pub mod clock;
 pub mod ctx;
 pub mod error;
+pub mod hooks;
 mod manager;
 pub mod module;
 pub mod phonebook;

@@ -14,7 +14,7 @@ use modbot_ipc_schema::{sysmethod, Args, Frame, FrameKind, FrameSpec, NakCode, V
 use crate::calls::Purpose;
 use crate::ctx::Ctx;
 use crate::error::{CallError, MethodError};
-use crate::module::{Definition, Reply, Report, Waiter};
+use crate::hooks::{Definition, Reply, Report, Waiter};
 use crate::served::{Replay, KEPT_ANSWER};
 use crate::transport::Dest;
 
@@ -324,7 +324,7 @@ fn system_method<S>(
             Ok(())
         }
         sysmethod::STATS => {
-            ctx.stats.write_answer(reply);
+            ctx.stats.write_answer(&mut |v| reply.push(v));
             Ok(())
         }
         sysmethod::ACTIVATE | sysmethod::DEACTIVATE => {

@@ -17,71 +17,13 @@ use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
 use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
 use zerocopy::IntoBytes;
 
-use crate::calls::{CallHandle, CallOptions, Purpose};
+use crate::calls::{CallOptions, Purpose};
 use crate::ctx::Ctx;
-use crate::error::{CallError, MethodError, ModuleError};
+use crate::error::{CallError, ModuleError};
+pub use crate::hooks::{ActivationFn, DoneFn, MethodFn, Reply, Report, ReportFn, TaskFn};
+pub(crate) use crate::hooks::{Definition, Waiter};
 use crate::manager;
 use crate::transport::{PeerInfo, ReceiveMode, Rx, Transport, TransportError};
-
-/// A local method: reads its arguments, may use the context, writes its results into `reply`
-/// (no results: the caller gets an ACK).
-pub type MethodFn<S> = fn(&mut S, &mut Ctx, &Args<'_>, &mut Reply) -> Result<(), MethodError>;
-/// Receives a REPORT.
-pub type ReportFn<S> = fn(&mut S, &mut Ctx, &Report<'_>);
-/// Receives the answer to a call made with [`Ctx::call`].
-pub type DoneFn<S> = fn(&mut S, &mut Ctx, CallHandle, Result<&Args<'_>, &CallError>);
-/// Periodic work.
-pub type TaskFn<S> = fn(&mut S, &mut Ctx);
-/// Told that the operator activated (`true`) or deactivated (`false`) the module.
-pub type ActivationFn<S> = fn(&mut S, &mut Ctx, bool);
-
-/// A REPORT as the receiver sees it.
-#[derive(Debug)]
-pub struct Report<'a> {
-    pub from: Addr,
-    pub topic: u8,
-    pub values: Args<'a>,
-}
-
-/// A method's results, encoded as they are pushed.
-#[derive(Debug, Default)]
-pub struct Reply {
-    pub(crate) buf: Vec<u8>,
-    pub(crate) count: usize,
-}
-
-impl Reply {
-    pub fn push(&mut self, v: Value<'_>) {
-        if v.encode_to_vec(&mut self.buf).is_ok() {
-            self.count += 1;
-        }
-    }
-
-    pub fn f64(&mut self, v: f64) {
-        self.push(Value::F64(v));
-    }
-
-    pub fn len(&self) -> usize {
-        self.count
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.count == 0
-    }
-}
-
-/// The answer a blocking call gets.
-pub(crate) type Waiter<'w> = Option<(CallHandle, &'w mut dyn FnMut(Result<&Args<'_>, &CallError>))>;
-
-pub(crate) struct Definition<S> {
-    pub(crate) methods: Vec<(String, MethodFn<S>)>,
-    pub(crate) on_report: Option<ReportFn<S>>,
-    pub(crate) on_done: Option<DoneFn<S>>,
-    pub(crate) on_activation: Option<ActivationFn<S>>,
-    tasks: Vec<(Duration, TaskFn<S>)>,
-    peers: Vec<String>,
-    snapshot_period_ns: u64,
-}
 
 /// A running module: its state, its context and its endpoint.
 pub struct Module<S> {
@@ -445,12 +387,35 @@ impl<S> Module<S> {
         args: &[Value<'_>],
         opts: CallOptions,
     ) -> Result<Vec<OwnedValue>, CallError> {
-        crate::tool::Calls::call_owned(self, module, method, args, opts)
+        self.call_blocking(module, method, args, opts, |r| match r {
+            Ok(a) => Ok(a.as_slice().iter().map(Value::to_owned_value).collect()),
+            Err(e) => Err(e.clone()),
+        })
     }
 
     /// Runs the default application controller until SIGTERM/SIGINT or [`Ctx::stop`].
     pub fn run(mut self) -> Result<(), ModuleError> {
-        crate::run::run_loop(&mut self)?;
+        if let Err(e) = crate::signals::install_termination_handler() {
+            tracing::warn!("cannot handle SIGTERM/SIGINT: {e}");
+        }
+        crate::transport::launch::apply_mlockall();
+        while !self.should_stop() {
+            let mut served = 0;
+            while served < 64 && self.poll_once()? {
+                served += 1;
+            }
+            self.housekeeping();
+            if served == 0 {
+                match self.mode() {
+                    ReceiveMode::Blocking => {
+                        let budget = self.idle_budget();
+                        self.wait(budget)?;
+                    }
+                    ReceiveMode::BusyPoll => core::hint::spin_loop(),
+                }
+            }
+        }
+        tracing::info!("module {} stops", self.ctx().name());
         Ok(())
     }
 

@@ -27,8 +27,6 @@ use modbot_ipc_schema::latency::{self, HistogramError, View};
 use modbot_ipc_schema::{ArgError, Args, Value};
 use thiserror::Error;
 
-use crate::module::Reply;
-
 pub use modbot_ipc_schema::latency::{
     BUCKETS, FIRST_EXP, OVERFLOW_EXP, SUB_BUCKETS, SUB_BUCKET_BITS,
 };
@@ -215,8 +213,8 @@ impl Stats {
         })
     }
 
-    /// Writes the `stats` answer (see [`Stats::from_answer`]).
-    pub(crate) fn write_answer(&self, reply: &mut Reply) {
+    /// Writes the `stats` answer (see [`Stats::from_answer`]), value by value, into `push`.
+    pub(crate) fn write_answer(&self, push: &mut dyn FnMut(Value<'_>)) {
         for n in [
             self.frames_sent,
             self.frames_received,
@@ -224,9 +222,9 @@ impl Stats {
             self.answered,
             self.failed,
         ] {
-            reply.push(Value::I64(i64::try_from(n).unwrap_or(i64::MAX)));
+            push(Value::I64(i64::try_from(n).unwrap_or(i64::MAX)));
         }
-        reply.push(Value::Bytes(&self.latency.to_bytes()));
+        push(Value::Bytes(&self.latency.to_bytes()));
     }
 }
 
@@ -334,8 +332,8 @@ mod tests {
             failed: 1,
             latency: golden(),
         };
-        let mut reply = Reply::default();
-        sut.write_answer(&mut reply);
+        let mut reply = crate::hooks::Reply::default();
+        sut.write_answer(&mut |v| reply.push(v));
         let values = modbot_ipc_schema::value::Values::new(&reply.buf, 0);
         let args = Args::decode(values).unwrap();
         assert_eq!(Stats::from_answer(&args), Ok(sut));

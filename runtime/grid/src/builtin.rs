@@ -25,6 +25,16 @@ use super::component::{
     PortDecl, PortType, PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
+impl Registry {
+    /// The built-in components: these, the example controllers ([`crate::control`]) and the
+    /// bus ([`crate::bus::robot`]).
+    pub fn builtin() -> Registry {
+        let mut registry = Registry::new();
+        register_all(&mut registry);
+        registry
+    }
+}
+
 /// Adds every built-in type to `registry`.
 pub fn register_all(registry: &mut Registry) {
     registry.register(counter_info, |p| {

@@ -21,8 +21,6 @@ use std::fmt;
 
 use thiserror::Error;
 
-use super::builtin;
-
 pub use modbot_ipc_schema::grid::{Generation, PortType, PortValue, Tick};
 
 /// The automatic parameter holding the base tick, in seconds (f64).
@@ -453,13 +451,6 @@ impl Registry {
     /// An empty registry.
     pub fn new() -> Registry {
         Registry::default()
-    }
-
-    /// The built-in components ([`builtin`]).
-    pub fn builtin() -> Registry {
-        let mut registry = Registry::new();
-        builtin::register_all(&mut registry);
-        registry
     }
 
     /// Adds a component type (replacing one of the same name).

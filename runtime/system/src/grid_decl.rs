@@ -23,8 +23,8 @@ use std::time::Duration;
 use mlua::{Lua, MultiValue, Table, Value};
 
 use super::decl::{self, realtime};
-use super::lua::{caller_line, fail, given, one_arg, open_body, Shared};
 use super::read::{integer_in, list, lua_failed, show, string, string_list, text, Fields};
+use super::record::{caller_line, fail, given, one_arg, open_body, Shared};
 use super::DeclError;
 use modbot_grid::component::{
     intern, ComponentInfo, DeclaredType, ParamDecl, ParamValue, Params, PortDecl, PortType,

@@ -60,6 +60,7 @@ mod grid_decl;
 mod lua;
 pub mod program;
 mod read;
+mod record;
 mod validate;
 
 #[cfg(test)]

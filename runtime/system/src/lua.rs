@@ -24,14 +24,12 @@
 //! Each declaration records the line of the Lua code that called it. The first failure is kept
 //! with its line; a Lua syntax or runtime error is translated from Lua's `file:LINE: message`.
 
-use std::cell::RefCell;
-use std::rc::Rc;
-
 use mlua::chunk::ChunkMode;
 use mlua::{HookTriggers, Lua, LuaOptions, MultiValue, StdLib, Value, VmState};
 
 use super::decl::{self, Declarations};
 use super::grid_decl;
+use super::record::{caller_line, fail, given, one_arg, open_body, stop, Shared, PRELUDE_NAME};
 use super::{DeclError, GroupSpec, SystemError};
 
 /// The most memory a description may use.
@@ -47,8 +45,6 @@ const MAX_GROUPS: usize = 1024;
 /// The Lua globals that would reach outside the sandbox (or defeat its limits).
 const REMOVED_GLOBALS: &[&str] = &["load", "loadfile", "dofile", "require", "collectgarbage"];
 
-/// The chunk name of [`PRELUDE`].
-const PRELUDE_NAME: &str = "=modbot prelude";
 /// The chunk name of [`VARS`].
 const VARS_NAME: &str = "=modbot vars";
 /// Makes the global `vars`: a read-only view of the table of variables it is given. Writing to
@@ -110,33 +106,6 @@ for _, name in ipairs({ "match", "gmatch", "gsub" }) do
   end
 end
 "#;
-
-/// The evaluation's record, shared by the declaration functions and the hook.
-///
-/// Borrows of it are short and never span a call into Lua: Lua may run user code (finalizers)
-/// during any allocation, and that code may call a declaration function.
-#[derive(Default)]
-pub(super) struct Record {
-    pub(super) decls: Declarations,
-    /// `module "x"`, `group "x"` and `component "x"` calls, and whether their table was given.
-    bodies: Vec<Body>,
-    /// How many `bodies` there are of each kind (a declaration loop must not count them all
-    /// at every call).
-    counts: Vec<(&'static str, usize)>,
-    /// The first failure: its line (if any) and what it is.
-    failure: Option<(Option<u32>, DeclError)>,
-    /// Instructions executed so far, counted by the hook.
-    instructions: u64,
-}
-
-struct Body {
-    kind: &'static str,
-    name: String,
-    line: u32,
-    given: bool,
-}
-
-pub(super) type Shared = Rc<RefCell<Record>>;
 
 /// Evaluates `source` (called `file` in messages) with the variables `vars` (later entries
 /// win over earlier ones with the same key) and returns what it declared.
@@ -316,91 +285,6 @@ fn group_fn(lua: &Lua, record: &Shared) -> mlua::Result<mlua::Function> {
             Ok(())
         })
     })
-}
-
-/// Notes a `kind "name"` call whose table is still to come; returns its index.
-pub(super) fn open_body(
-    record: &Shared,
-    kind: &'static str,
-    name: &str,
-    line: u32,
-    max: usize,
-) -> mlua::Result<usize> {
-    let count = record
-        .borrow()
-        .counts
-        .iter()
-        .find(|(k, _)| *k == kind)
-        .map_or(0, |(_, n)| *n);
-    if count >= max {
-        return Err(fail(record, line, DeclError::TooMany { kind, max }));
-    }
-    let mut record = record.borrow_mut();
-    match record.counts.iter_mut().find(|(k, _)| *k == kind) {
-        Some((_, n)) => *n += 1,
-        None => record.counts.push((kind, 1)),
-    }
-    record.bodies.push(Body {
-        kind,
-        name: name.to_owned(),
-        line,
-        given: false,
-    });
-    Ok(record.bodies.len() - 1)
-}
-
-pub(super) fn given(record: &Shared, index: usize) {
-    if let Some(body) = record.borrow_mut().bodies.get_mut(index) {
-        body.given = true;
-    }
-}
-
-/// The single argument of a declaration; `usage` shows how it is written.
-pub(super) fn one_arg<'a>(
-    args: &'a MultiValue,
-    usage: &'static str,
-) -> Result<&'a Value, DeclError> {
-    let arguments = DeclError::Arguments {
-        got: args.len(),
-        usage,
-    };
-    match args.len() {
-        1 => args.front().ok_or(arguments),
-        _ => Err(arguments),
-    }
-}
-
-/// Records `error` as the failure (unless there is one already) and returns the Lua error
-/// that stops the script.
-pub(super) fn fail(record: &Shared, line: u32, error: DeclError) -> mlua::Error {
-    let mut record = record.borrow_mut();
-    if record.failure.is_none() {
-        record.failure = Some((Some(line), error));
-    }
-    stop()
-}
-
-/// The Lua error that unwinds a failed description (its message is never shown: the recorded
-/// failure is).
-fn stop() -> mlua::Error {
-    mlua::Error::runtime("the system description failed")
-}
-
-/// The current line of the nearest function of the description on the stack above the running
-/// callback (skipping C functions such as `pcall`, and the prelude's wrappers).
-pub(super) fn caller_line(lua: &Lua) -> u32 {
-    for level in 1..64 {
-        let frame = lua.inspect_stack(level, |d| {
-            let prelude = d.source().source.as_deref() == Some(PRELUDE_NAME);
-            (prelude, d.current_line())
-        });
-        match frame {
-            None => break,
-            Some((false, Some(line))) => return u32::try_from(line).unwrap_or(u32::MAX),
-            Some(_) => continue,
-        }
-    }
-    0
 }
 
 /// A Lua error as a [`SystemError`], with the line taken out of Lua's `file:LINE: message`.
