@@ -1,5 +1,5 @@
 //! What a module is made of, as its message manager sees it: the method table and hooks a
-//! [`crate::ModuleBuilder`] declares ([`Definition`]), the reply a method fills ([`Reply`]), a
+//! [`crate::ModuleBuilder`] declares (`Definition`), the reply a method fills ([`Reply`]), a
 //! report as its hook gets it ([`Report`]). A leaf of the module core: the manager and the
 //! module both use it.
 

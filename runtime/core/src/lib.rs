@@ -15,7 +15,7 @@
 //! - [`served`]: the requests served lately, so a retransmission is not executed twice.
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
-//! - [`run`]: the default application controller, for a program that needs no other.
+//! - [`mod@run`]: the default application controller, for a program that needs no other.
 //! - [`stats`]: traffic counters and the call latency histogram (the `stats` system method).
 //! - [`sim`]: the simulated time all processes of a system share (`MODBOT_EPOCH_NS`).
 //! - [`cli`]: the command line every module program takes ([`ModuleArgs`]).
