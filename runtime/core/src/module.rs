@@ -463,7 +463,7 @@ impl<S> Module<S> {
     }
 
     /// Sleeps until a frame or a wake-up arrives, or `timeout` passed (for a loop of its own,
-    /// as the supervisor's; [`crate::run`] does this for a module program).
+    /// as the supervisor's; [`crate::run()`] does this for a module program).
     pub fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
         self.rx.wait(timeout)
     }
