@@ -216,7 +216,9 @@ fn store(b: ModuleBuilder<Store>) -> ModuleBuilder<Store> {
             true,
             None,
             Some(Box::new(|v| match v {
-                OwnedValue::F64(x) if *x > 1.0 => Err(format!("{x} is above the maximum of 1")),
+                OwnedValue::F64(x) if *x > 1.0 => {
+                    Err(format!("{x} is above the maximum of 1").into())
+                }
                 _ => Ok(()),
             })),
         )

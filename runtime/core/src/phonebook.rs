@@ -168,12 +168,12 @@ impl PhoneBook {
     }
 
     /// Records a `describe` answer.
-    pub fn learn(&mut self, addr: Addr, answer: &Args<'_>) -> Result<(), String> {
+    pub fn learn(&mut self, addr: Addr, answer: &Args<'_>) -> Result<(), DescribeError> {
         let entry = self.entries[usize::from(addr.0)]
             .as_mut()
-            .ok_or("describe answer from an unknown module")?;
-        let methods = answer.text(3).map_err(|e| e.to_string())?;
-        let items = answer.text(4).map_err(|e| e.to_string())?;
+            .ok_or(DescribeError::UnknownModule(addr))?;
+        let methods = answer.text(3)?;
+        let items = answer.text(4)?;
         entry.methods = Some(
             methods
                 .split(',')
@@ -202,4 +202,13 @@ impl PhoneBook {
             }),
         })
     }
+}
+
+/// Why a `describe` answer is not learned.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DescribeError {
+    #[error("describe answer from module {0}, which the phone book does not know")]
+    UnknownModule(Addr),
+    #[error("describe answer: {0}")]
+    Answer(#[from] modbot_ipc_schema::ArgError),
 }

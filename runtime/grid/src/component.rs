@@ -405,12 +405,23 @@ pub struct DeclaredType {
 
 /// A declared component type differs from the one the process registered itself.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
-#[error("component type '{type_name}' of program '{program}': {why}")]
+#[error("component type '{type_name}' of program '{program}': {mismatch}")]
 pub struct DeclaredTypeError {
     pub type_name: String,
     pub program: String,
     pub line: u32,
-    pub why: String,
+    #[source]
+    pub mismatch: InterfaceMismatch,
+}
+
+/// What differs between a type's declared interface and its registered one: its `inputs`,
+/// `outputs` or `params`, each written `name:type, ...`.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("its {what} are declared as [{declared}], the program registers [{registered}]")]
+pub struct InterfaceMismatch {
+    pub what: &'static str,
+    pub declared: String,
+    pub registered: String,
 }
 
 /// Describes a component type for the given (complete) parameters.
@@ -523,12 +534,12 @@ impl Registry {
                 .entry(t.info.type_name)
                 .is_ok_and(|e| e.program.is_none());
             if native {
-                if let Err(why) = self.agrees_with(&t.info) {
+                if let Err(mismatch) = self.agrees_with(&t.info) {
                     return Err(DeclaredTypeError {
                         type_name: t.info.type_name.to_owned(),
                         program: t.program.clone(),
                         line: t.line,
-                        why,
+                        mismatch,
                     });
                 }
             } else {
@@ -547,7 +558,7 @@ impl Registry {
     /// Whether `declared`, the interface a description declares for a type this process
     /// registered itself, is the registered one: the same ports (names and types, in order)
     /// and parameters (names and types). `Err` says what differs.
-    pub fn agrees_with(&self, declared: &ComponentInfo) -> Result<(), String> {
+    pub fn agrees_with(&self, declared: &ComponentInfo) -> Result<(), InterfaceMismatch> {
         let Ok(own) = self.entry(declared.type_name) else {
             return Ok(());
         };
@@ -569,9 +580,11 @@ impl Registry {
             ("params", params(&own.params), params(&declared.params)),
         ] {
             if mine != theirs {
-                return Err(format!(
-                    "its {what} are declared as [{theirs}], the program registers [{mine}]"
-                ));
+                return Err(InterfaceMismatch {
+                    what,
+                    declared: theirs,
+                    registered: mine,
+                });
             }
         }
         Ok(())

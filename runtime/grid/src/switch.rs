@@ -127,25 +127,40 @@ pub fn switch(
     }
 }
 
+/// An assembly name that is not one.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("assembly name '{0}' is invalid: use 1 to 32 characters of a-z, 0-9 and _")]
+pub struct AssemblyNameError(pub String);
+
 /// An assembly name: 1 to 32 characters of `a-z`, `0-9` and `_` (it names a file).
-pub fn check_assembly_name(name: &str) -> Result<(), String> {
+pub fn check_assembly_name(name: &str) -> Result<(), AssemblyNameError> {
     if super::spec::is_plain_name(name) {
         Ok(())
     } else {
-        Err(format!(
-            "assembly name '{name}' is invalid: use 1 to 32 characters of a-z, 0-9 and _"
-        ))
+        Err(AssemblyNameError(name.to_owned()))
     }
 }
 
+/// A scripted switch that is not `TICK:NAME`.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum ScriptedSwitchError {
+    #[error("'{0}' is not TICK:NAME")]
+    NotTickName(String),
+    #[error("'{tick}' in '{text}' is not a tick number")]
+    Tick { tick: String, text: String },
+    #[error(transparent)]
+    Name(#[from] AssemblyNameError),
+}
+
 /// `TICK:NAME`, a switch to assembly NAME at tick TICK (`modbot up --switch`).
-pub fn parse_scripted(text: &str) -> Result<(u64, String), String> {
+pub fn parse_scripted(text: &str) -> Result<(u64, String), ScriptedSwitchError> {
     let (tick, name) = text
         .split_once(':')
-        .ok_or_else(|| format!("'{text}' is not TICK:NAME"))?;
-    let tick = tick
-        .parse()
-        .map_err(|_| format!("'{tick}' in '{text}' is not a tick number"))?;
+        .ok_or_else(|| ScriptedSwitchError::NotTickName(text.to_owned()))?;
+    let tick = tick.parse().map_err(|_| ScriptedSwitchError::Tick {
+        tick: tick.to_owned(),
+        text: text.to_owned(),
+    })?;
     check_assembly_name(name)?;
     Ok((tick, name.to_owned()))
 }

@@ -172,7 +172,8 @@ pub(super) fn spawn_host_method(
         .map(Generation)
         .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
     modbot_grid::spec::check_host(host).map_err(|e| MethodError::Failed(e.to_string()))?;
-    modbot_system::assembly::check_assembly_name(assembly).map_err(MethodError::Failed)?;
+    modbot_system::assembly::check_assembly_name(assembly)
+        .map_err(|e| MethodError::Failed(e.to_string()))?;
     shared.requests.push(HostRequest::Spawn {
         host: (*host).to_owned(),
         assembly: (*assembly).to_owned(),

@@ -56,7 +56,7 @@ pub fn load_assembly(
         ));
     };
     let system_file = current.system_file.as_str();
-    check_assembly_name(name).map_err(|m| SystemError::new(system_file, None, m))?;
+    check_assembly_name(name).map_err(|e| SystemError::new(system_file, None, e.to_string()))?;
     let path = current.dir.join(format!("{name}.lua"));
     let file = path.display().to_string();
     let source = match std::fs::read(&path) {

@@ -67,13 +67,24 @@ pub trait Backend: Send {
 
     /// Blocks the link of `axis` (a collision, a jammed gear), or frees it: for tests of the
     /// monitoring. Hardware cannot do this.
-    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), String> {
+    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), BlockError> {
         let _ = (axis, blocked);
-        Err(format!("the {} backend cannot block an axis", self.name()))
+        Err(BlockError::Unsupported {
+            backend: self.name(),
+        })
     }
 
     /// The backend's name for logs and `modbot top`.
     fn name(&self) -> &'static str;
+}
+
+/// Why an axis cannot be blocked (or freed).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BlockError {
+    #[error("axis {axis} does not exist: the bus has {axes} axes (0 to {})", .axes.saturating_sub(1))]
+    NoSuchAxis { axis: usize, axes: usize },
+    #[error("the {backend} backend cannot block an axis")]
+    Unsupported { backend: &'static str },
 }
 
 /// The command an axis gets when the caller supplied none.

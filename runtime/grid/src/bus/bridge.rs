@@ -12,7 +12,7 @@
 
 use std::sync::Mutex;
 
-use super::backend::{AxisActual, AxisCommand, Backend};
+use super::backend::{AxisActual, AxisCommand, Backend, BlockError};
 use super::cia402::DriveState;
 
 /// Base periods without a release after which the coordinator counts as lost.
@@ -274,13 +274,12 @@ impl Bridge {
     }
 
     /// Blocks (or frees) the link of `axis` in the simulation: a collision or a jammed gear.
-    pub fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), String> {
+    pub fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), BlockError> {
         if axis >= self.axes() {
-            return Err(format!(
-                "axis {axis} does not exist: the bus has {} axes (0 to {})",
-                self.axes(),
-                self.axes() - 1
-            ));
+            return Err(BlockError::NoSuchAxis {
+                axis,
+                axes: self.axes(),
+            });
         }
         self.backend.block_axis(axis, blocked)
     }

@@ -20,7 +20,7 @@
 //! and sets the warning bit. Everything is plain `f64` arithmetic in a fixed order: the same
 //! commands give the same actuals, bit for bit. Nothing allocates after [`SimBackend::new`].
 
-use super::backend::{AxisActual, AxisCommand, Backend, MISSING_COMMAND};
+use super::backend::{AxisActual, AxisCommand, Backend, BlockError, MISSING_COMMAND};
 use super::cia402::{
     sw, Command, DriveState, DriveStateMachine, FaultReason, IllegalCommand, ModeOfOperation,
     QuickStopOption, Transition,
@@ -413,9 +413,12 @@ impl Backend for SimBackend {
         }
     }
 
-    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), String> {
+    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), BlockError> {
         if axis >= self.drives.len() {
-            return Err(format!("axis {axis} does not exist"));
+            return Err(BlockError::NoSuchAxis {
+                axis,
+                axes: self.drives.len(),
+            });
         }
         SimBackend::block_axis(self, axis, blocked);
         Ok(())

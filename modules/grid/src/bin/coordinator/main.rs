@@ -90,7 +90,8 @@ fn request_switch(s: &mut Shared, name: &str) -> Result<u16, MethodError> {
             "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }".into(),
         ));
     }
-    modbot_runtime::system::assembly::check_assembly_name(name).map_err(MethodError::Failed)?;
+    modbot_runtime::system::assembly::check_assembly_name(name)
+        .map_err(|e| MethodError::Failed(e.to_string()))?;
     if s.busy {
         return Err(MethodError::Busy(
             "an assembly is being prepared; switch again when it is done".into(),
