@@ -10,9 +10,15 @@
 --   modbot up examples/moser.lua                  -- real time
 --   modbot up examples/moser.lua --var speed=10   -- ten times faster
 --   modbot up examples/moser.lua --var domain=x   -- in another domain (the tests use their own)
+--   modbot up examples/moser.lua --var endless=1  -- patrols until stopped: no end, no summary
 
 local speed = tonumber(vars.speed or "1")
 local sim = { MODBOT_SIM_SPEED = tostring(speed) }
+-- When the control station ends the scenario (simulated seconds): after the alert, at the latest.
+local end_after_alert, max_duration = "5", "900"
+if vars.endless then
+  end_after_alert, max_duration = "inf", "inf"
+end
 
 domain(vars.domain or "moser")
 
@@ -45,7 +51,7 @@ module "high_level" {
 }
 module "control_station" {
   addr = 20, program = "modbot-control-station", env = sim,
-  args = { "--patrol", "3", "--end-after-alert", "5" },
+  args = { "--patrol", "3", "--end-after-alert", end_after_alert, "--max-duration", max_duration },
   restart = { policy = "on-failure", give_up = "stop-system" },
 }
 

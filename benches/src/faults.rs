@@ -208,7 +208,7 @@ module "victim" {{ addr = 10, program = "modbot-faulty",
 }
 
 /// A line the supervisor itself printed (`modbot | ...`), not one of a module's.
-fn is_supervisor_line(line: &str) -> bool {
+pub(crate) fn is_supervisor_line(line: &str) -> bool {
     line.trim_start().starts_with("modbot |")
 }
 
@@ -253,13 +253,18 @@ pub(crate) fn start_arm(
     }
     let mut sys = Supervised::start(opts, &scratch.domain, &arm, &args, Duration::from_secs(20))?;
     let startup = sys.wait_up(Duration::from_secs(60))?;
-    sys.wait_with_tool("every drive enabled", Duration::from_secs(30), |t| {
+    wait_drives_enabled(&mut sys, Duration::from_secs(30))?;
+    Ok((sys, startup))
+}
+
+/// Waits until the bus ledger shows every one of the six drives in operation enabled.
+pub(crate) fn wait_drives_enabled(sys: &mut Supervised, timeout: Duration) -> anyhow::Result<()> {
+    sys.wait_with_tool("every drive enabled", timeout, |t| {
         let ledger = bus_ledger(t);
         Ok(ledger
             .filter(|l| all_axes(l, "operation enabled"))
             .map(|_| ()))
-    })?;
-    Ok((sys, startup))
+    })
 }
 
 /// The bus ledger (`modbot bus`), if the bridge answers.

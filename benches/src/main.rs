@@ -10,6 +10,8 @@
 //!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
 //! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm [options]`: one benchmark, with
 //!   the same report.
+//! - `modbot-benches soak [--minutes N] [--seed S] [options]`: MOSER and the arm under a fault a
+//!   second for N minutes (10; 1 with `--quick`). Not part of `all`, which it would outlast.
 //! - `modbot-benches child ROLE ARGS...` (hidden): one side of a benchmark, started by the
 //!   benchmark itself.
 //!
@@ -33,7 +35,8 @@
 //!   method-call round trip), [`snapshots`] (2, blackboard snapshots), [`grid`] (3, tick error
 //!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
 //!   restart), [`swaps`] (6, assembly swaps), [`arm`] (7, the arm holding; the grid's
-//!   [`lockstep`] runs belong to 3).
+//!   [`lockstep`] runs belong to 3), [`soak`] (8, a fault a second for minutes: calls exactly
+//!   once, memory, files).
 
 mod arm;
 mod calls;
@@ -50,6 +53,7 @@ mod report;
 mod sample;
 mod scale;
 mod snapshots;
+mod soak;
 mod supervised;
 mod swaps;
 mod targets;
@@ -91,6 +95,19 @@ struct RunArgs {
     out: Option<PathBuf>,
 }
 
+/// The soak's options.
+#[derive(Debug, Clone, Args)]
+struct SoakArgs {
+    #[command(flatten)]
+    run: RunArgs,
+    /// Minutes of faults [default: 10; 1 with --quick].
+    #[arg(long, value_name = "N")]
+    minutes: Option<f64>,
+    /// Seed of the random picks of module and fault [default: from the clock; printed].
+    #[arg(long, value_name = "S")]
+    seed: Option<u64>,
+}
+
 #[derive(Debug, Subcommand)]
 enum Cmd {
     /// Every benchmark, in order, into one report.
@@ -109,6 +126,8 @@ enum Cmd {
     Swaps(RunArgs),
     /// 7: the arm holding: bus cycles missed against a bare real-time loop.
     Arm(RunArgs),
+    /// 8: MOSER and the arm under a fault a second: calls lost or doubled, restarts, memory.
+    Soak(SoakArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -166,11 +185,18 @@ const BENCHES: [Bench; 7] = [
     },
 ];
 
+/// The soak: not in `all` (it runs for minutes).
+const SOAK: Bench = Bench {
+    name: "soak",
+    run: soak::run,
+    needs_binaries: true,
+};
+
 /// Runs `role` with `args` if it is one of a benchmark's child roles.
 type ChildFn = fn(&str, &[String]) -> Option<anyhow::Result<()>>;
 
 /// The child roles of every benchmark; `None` from one means "not mine".
-const CHILDREN: [ChildFn; 10] = [
+const CHILDREN: [ChildFn; 11] = [
     arm::child,
     hogs::child,
     calls::child,
@@ -181,9 +207,10 @@ const CHILDREN: [ChildFn; 10] = [
     scale::child,
     faults::child,
     swaps::child,
+    soak::child,
 ];
 
-fn opts_from(args: &RunArgs) -> anyhow::Result<Opts> {
+fn opts_from(args: &RunArgs, soak: soak::Plan) -> anyhow::Result<Opts> {
     let exe = std::env::current_exe().context("cannot find this executable")?;
     let out = match &args.out {
         Some(dir) => dir.clone(),
@@ -200,12 +227,17 @@ fn opts_from(args: &RunArgs) -> anyhow::Result<Opts> {
         fifo: args.fifo,
         out,
         exe,
+        soak,
     })
 }
 
 /// Runs `benches` into one report, writes it with its plots, and prints report.md.
 fn run_benches(args: &RunArgs, benches: &[&Bench]) -> anyhow::Result<()> {
-    let opts = opts_from(args)?;
+    run_with(opts_from(args, soak::Plan::default())?, benches)
+}
+
+/// [`run_benches`] with the options made already (the soak's carry its plan).
+fn run_with(opts: Opts, benches: &[&Bench]) -> anyhow::Result<()> {
     if let Err(e) = modbot_runtime::signals::install_termination_handler() {
         eprintln!("warning: Ctrl-C will not stop the run cleanly: {e}");
     }
@@ -329,6 +361,13 @@ fn main() -> anyhow::Result<()> {
         Cmd::Faults(args) => run_benches(&args, &[bench("faults")]),
         Cmd::Swaps(args) => run_benches(&args, &[bench("swaps")]),
         Cmd::Arm(args) => run_benches(&args, &[bench("arm")]),
+        Cmd::Soak(args) => {
+            let plan = soak::Plan {
+                minutes: args.minutes,
+                seed: args.seed,
+            };
+            run_with(opts_from(&args.run, plan)?, &[&SOAK])
+        }
         Cmd::Child { role, args } => {
             procs::child_setup();
             for child in CHILDREN {

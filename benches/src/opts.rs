@@ -16,6 +16,8 @@ pub struct Opts {
     pub out: PathBuf,
     /// This benchmark executable, to spawn its own child roles.
     pub exe: PathBuf,
+    /// The soak's duration and seed (`soak --minutes N --seed S`; the other benchmarks ignore it).
+    pub soak: crate::soak::Plan,
 }
 
 impl Opts {

@@ -88,6 +88,42 @@ pub fn since(t: Instant) -> u64 {
     u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX)
 }
 
+/// A small generator for picking victims and faults (xorshift64): the same seed gives the
+/// same picks, so a run can be repeated from the seed it printed.
+#[derive(Debug, Clone)]
+pub struct Pick(u64);
+
+impl Pick {
+    /// The generator for `seed` (any value; 0 included).
+    pub fn new(seed: u64) -> Pick {
+        // xorshift stays at 0 forever: every other state is fine.
+        Pick((seed ^ 0x9e37_79b9_7f4a_7c15).max(1))
+    }
+
+    /// The next number.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    /// A number below `n` (0 when `n` is 0).
+    pub fn below(&mut self, n: usize) -> usize {
+        if n == 0 {
+            return 0;
+        }
+        (self.next_u64() % n as u64) as usize
+    }
+}
+
+/// A seed from the clock, for a run that was given none.
+pub fn clock_seed() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| d.as_nanos() as u64)
+}
+
 /// A payload size for people: `8 B`, `4 KiB`, `1 MiB`.
 pub fn size_label(bytes: usize) -> String {
     match bytes {
@@ -108,6 +144,7 @@ mod tests {
             fifo: false,
             out: "/tmp".into(),
             exe: "/bin/true".into(),
+            soak: Default::default(),
         }
     }
 
@@ -135,6 +172,19 @@ mod tests {
         .unwrap();
         assert_eq!(h.len(), 10);
         assert!(h.max() < 1000);
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_picks_and_zero_is_a_seed_too() {
+        let picks = |seed| {
+            let mut sut = Pick::new(seed);
+            (0..20).map(|_| sut.below(7)).collect::<Vec<_>>()
+        };
+        assert_eq!(picks(42), picks(42));
+        assert_ne!(picks(42), picks(43));
+        assert!(picks(0).iter().any(|&p| p != picks(0)[0]));
+        assert!(picks(0).iter().all(|&p| p < 7));
+        assert_eq!(Pick::new(1).below(0), 0);
     }
 
     #[test]

@@ -413,7 +413,7 @@ fn kill_and_recover(
     let mut tool = Tool::open(domain, "bench").context("the benchmark cannot join the domain")?;
     let mut h = crate::sample::histogram();
     let deadline = Instant::now() + budget.min(Duration::from_secs(120));
-    let mut rng = fastrand_seed();
+    let mut rng = crate::sample::Pick::new(crate::sample::clock_seed());
     let mut names: Vec<(String, u32)> = tool
         .list_modules()?
         .into_iter()
@@ -422,7 +422,7 @@ fn kill_and_recover(
         .map(|p| (p.name, p.pid))
         .collect();
     for _ in 0..10.min(names.len()) {
-        let (name, pid) = &names.swap_remove(rng.next() % names.len());
+        let (name, pid) = &names.swap_remove(rng.below(names.len()));
         let killed = Instant::now();
         nix::sys::signal::kill(
             nix::unistd::Pid::from_raw(*pid as i32),
@@ -453,25 +453,6 @@ fn kill_and_recover(
         }
     }
     Ok(h)
-}
-
-/// A small generator for picking victims (xorshift, seeded by the clock).
-struct Pick(u64);
-
-impl Pick {
-    fn next(&mut self) -> usize {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0 as usize
-    }
-}
-
-fn fastrand_seed() -> Pick {
-    let t = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(1, |d| d.as_nanos() as u64);
-    Pick(t | 1)
 }
 
 /// User and system CPU time of processes `pids`, in clock ticks.
@@ -640,7 +621,7 @@ pub(crate) fn children_of(pid: u32) -> Vec<u32> {
 }
 
 /// Pss and Rss of process `pid`, in bytes.
-fn memory_of(pid: u32) -> Option<(u64, u64)> {
+pub(crate) fn memory_of(pid: u32) -> Option<(u64, u64)> {
     let text = std::fs::read_to_string(format!("/proc/{pid}/smaps_rollup")).ok()?;
     let field = |name: &str| {
         text.lines()

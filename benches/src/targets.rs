@@ -119,7 +119,8 @@ pub fn evaluate(report: &mut Report) {
             },
         ),
     ];
-    report.targets = targets;
+    let soak = crate::soak::targets(report);
+    report.targets = targets.into_iter().chain(soak).collect();
 }
 
 /// Whether `have` matches `want`: equal, or equal as text (`true` and `"true"`).
@@ -168,7 +169,7 @@ fn bytes_of(r: &Row) -> Option<u64> {
     r.params.get("bytes").and_then(Json::as_u64)
 }
 
-fn target(measure: &str, goal: &str, measured: String, met: Option<bool>) -> Target {
+pub(crate) fn target(measure: &str, goal: &str, measured: String, met: Option<bool>) -> Target {
     Target {
         measure: measure.to_owned(),
         target: goal.to_owned(),
@@ -275,7 +276,7 @@ fn snapshot_flatness(report: &Report) -> Target {
 }
 
 /// A target on one value of every matching row, against an absolute limit (in the rows' unit).
-fn absolute(
+pub(crate) fn absolute(
     report: &Report,
     measure: &str,
     goal: &str,
@@ -473,7 +474,7 @@ mod tests {
             t.measured,
             "no grid.tick_error row with fifo=true hogs=0 in this run"
         );
-        assert_eq!(sut.targets.len(), 10);
+        assert_eq!(sut.targets.len(), 14);
         assert!(sut.targets.iter().all(|t| t.met.is_none()));
     }
 

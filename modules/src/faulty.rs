@@ -6,9 +6,16 @@
 //! - `hang()`: acknowledges, then stops serving and stops its heartbeat, busy in a loop;
 //! - `flood(module, n)`: sends `n` malformed frames to `module`'s inbox → `[sent, refused]`;
 //! - `spam(module, n)`: sends `n` REPORTs to `module` as fast as it can, never waiting for
-//!   room → `[sent, refused]` (a refused frame is counted as dropped by the runtime).
+//!   room → `[sent, refused]` (a refused frame is counted as dropped by the runtime);
+//! - `record(seq)`: appends `seq` as a line to the journal (`--journal PATH`) → `seq`: a call
+//!   whose executions can be counted afterwards, even across SIGKILL (see [`record`]).
 //!
 //! With `--slow-ms N` the module takes N ms over every REPORT it receives: a slow consumer.
+//!
+//! [`send_garbage`] and [`send_spam`] are the bodies of `flood` and `spam`, for a benchmark
+//! that injects the same faults from its own endpoint.
+
+use std::io::Write;
 
 use modbot_core::module::Report;
 use modbot_core::{Ctx, Dest, MethodError, Reply};
@@ -33,6 +40,8 @@ pub struct Faulty {
     pub slow_ms: u64,
     /// REPORTs received.
     pub reports: u64,
+    /// Where `record` appends, opened for appending (`--journal PATH`); `None`: `record` fails.
+    pub journal: Option<std::fs::File>,
 }
 
 pub fn ping(
@@ -80,13 +89,21 @@ pub fn flood(
     args: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    blast(ctx, args, reply, |ctx, to, i| {
-        let mut frame = GARBAGE[i as usize % GARBAGE.len()].to_vec();
-        if let Some(first) = frame.first_mut() {
-            *first = to.0; // addressed right, so only its contents are wrong
-        }
-        ctx.send_bytes(Dest::Module(to), &frame).is_ok()
-    })
+    blast(ctx, args, reply, send_garbage)
+}
+
+/// Sends `n` malformed frames to `to`'s inbox, never waiting for room; returns how many were
+/// sent (the rest were refused: the inbox was full).
+pub fn send_garbage(ctx: &mut Ctx, to: Addr, n: u64) -> u64 {
+    (0..n)
+        .filter(|&i| {
+            let mut frame = GARBAGE[i as usize % GARBAGE.len()].to_vec();
+            if let Some(first) = frame.first_mut() {
+                *first = to.0; // addressed right, so only its contents are wrong
+            }
+            ctx.send_bytes(Dest::Module(to), &frame).is_ok()
+        })
+        .count() as u64
 }
 
 /// The topic of `spam` reports.
@@ -98,27 +115,68 @@ pub fn spam(
     args: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
-    blast(ctx, args, reply, |ctx, to, i| {
-        ctx.report(Dest::Module(to), SPAM_TOPIC, &[Value::I64(i)])
-            .is_ok()
-    })
+    blast(ctx, args, reply, send_spam)
 }
 
-/// Sends `n` frames with `send` to the module named by argument 0 (`n` is argument 1),
-/// never waiting for room; answers `[sent, refused]`.
+/// Sends `n` REPORTs to `to` as fast as it can, never waiting for room; returns how many were
+/// sent (a refused one is counted as dropped by the runtime).
+pub fn send_spam(ctx: &mut Ctx, to: Addr, n: u64) -> u64 {
+    (0..n)
+        .filter(|&i| {
+            let i = i64::try_from(i).unwrap_or(i64::MAX);
+            ctx.report(Dest::Module(to), SPAM_TOPIC, &[Value::I64(i)])
+                .is_ok()
+        })
+        .count() as u64
+}
+
+/// Sends `n` frames with `send` to the module named by argument 0 (`n` is argument 1);
+/// answers `[sent, refused]`.
 fn blast(
     ctx: &mut Ctx,
     args: &Args<'_>,
     reply: &mut Reply,
-    mut send: impl FnMut(&mut Ctx, Addr, i64) -> bool,
+    send: fn(&mut Ctx, Addr, u64) -> u64,
 ) -> Result<(), MethodError> {
     let (target, n) = (args.text(0)?, args.i64(1)?.max(0));
     let to = ctx
         .resolve(target)
         .map_err(|e| MethodError::Failed(e.to_string()))?;
-    let sent = (0..n).filter(|&i| send(ctx, to, i)).count() as i64;
+    let sent = i64::try_from(send(ctx, to, n.unsigned_abs())).unwrap_or(i64::MAX);
     reply.push(Value::I64(sent));
     reply.push(Value::I64(n - sent));
+    Ok(())
+}
+
+/// `record(seq)`: appends the line `seq` to the journal, then answers `seq`.
+///
+/// The line goes out in one write(2) on a file opened for appending, before the answer is
+/// sent: a process killed at any moment has either written the whole line or none of it, and
+/// an answered call is always in the journal. Every process of the module (restarts included)
+/// appends to the same file, so the journal lists every execution: a sequence number twice
+/// means the call was executed twice.
+pub fn record(
+    f: &mut Faulty,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let seq = args.i64(0)?;
+    let journal = f.journal.as_mut().ok_or_else(|| {
+        MethodError::Failed("no journal: start the module with --journal PATH".into())
+    })?;
+    let line = format!("{seq}\n");
+    match journal.write(line.as_bytes()) {
+        Ok(n) if n == line.len() => {}
+        Ok(n) => {
+            return Err(MethodError::Failed(format!(
+                "journal: {n} of {} bytes written",
+                line.len()
+            )))
+        }
+        Err(e) => return Err(MethodError::Failed(format!("journal: {e}"))),
+    }
+    reply.push(Value::I64(seq));
     Ok(())
 }
 

@@ -2,13 +2,15 @@
 
 use std::time::Duration;
 
+use anyhow::Context;
 use clap::Parser;
 use modbot_modules::common::ModuleArgs;
 use modbot_modules::faulty::{self, Faulty};
 
 /// A module that panics, exits, hangs, floods or spams when called to; see `modbot_modules::faulty`.
 ///
-/// Methods: `ping()`, `panic()`, `exit(code)`, `hang()`, `flood(module, n)`, `spam(module, n)`.
+/// Methods: `ping()`, `panic()`, `exit(code)`, `hang()`, `flood(module, n)`, `spam(module, n)`,
+/// `record(seq)`.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-faulty", version)]
 struct Cli {
@@ -17,6 +19,9 @@ struct Cli {
     /// Milliseconds spent on every REPORT received (a slow consumer).
     #[arg(long, default_value_t = 0)]
     slow_ms: u64,
+    /// The file `record(seq)` appends to (created if missing; every restart appends to it).
+    #[arg(long, value_name = "PATH")]
+    journal: Option<std::path::PathBuf>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -24,8 +29,19 @@ fn main() -> std::process::ExitCode {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    let journal = match &cli.journal {
+        Some(path) => Some(
+            std::fs::OpenOptions::new()
+                .append(true)
+                .create(true)
+                .open(path)
+                .with_context(|| format!("cannot open the journal {}", path.display()))?,
+        ),
+        None => None,
+    };
     let state = Faulty {
         slow_ms: cli.slow_ms,
+        journal,
         ..Default::default()
     };
     let module = cli
@@ -37,6 +53,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         .method("hang", faulty::hang)
         .method("flood", faulty::flood)
         .method("spam", faulty::spam)
+        .method("record", faulty::record)
         .on_report(faulty::on_report)
         .every(Duration::from_millis(10), faulty::tick);
     Ok(cli.module.serve(module, state)?)
