@@ -155,6 +155,12 @@ impl Slot {
     }
 }
 
+/// How long a sequence number stays unused after a call that may still be answered (it timed
+/// out, or it was sent more than once): the call's timeout, at least a second.
+fn quarantine_ns(timeout: Duration) -> u64 {
+    (timeout.as_nanos() as u64).max(1_000_000_000)
+}
+
 /// Why the runtime sent a request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Purpose {
@@ -320,17 +326,29 @@ impl MethodQueue {
     /// Matches an answer from `peer` with sequence `seq` to its call.
     ///
     /// `None` means no call waits for it: a late answer to a call that timed out, or a stray.
-    pub fn complete(&mut self, peer: Addr, seq: Seq) -> Option<(CallHandle, Purpose)> {
-        self.answer(peer, seq).map(|a| (a.handle, a.purpose))
+    pub fn complete(&mut self, peer: Addr, seq: Seq, now_ns: u64) -> Option<(CallHandle, Purpose)> {
+        self.answer(peer, seq, now_ns)
+            .map(|a| (a.handle, a.purpose))
     }
 
     /// Like [`MethodQueue::complete`], with when the request was first sent.
-    pub fn answer(&mut self, peer: Addr, seq: Seq) -> Option<Answered> {
+    ///
+    /// A request sent more than once may be answered more than once (a callee held up
+    /// answers its retransmissions too): its sequence number stays in quarantine as a timed-out
+    /// call's does, so that a late second answer is not taken for a newer call that reused it.
+    pub fn answer(&mut self, peer: Addr, seq: Seq, now_ns: u64) -> Option<Answered> {
         let i = self.slots.iter().position(|s| {
             s.is_some_and(|s| s.peer == peer && s.seq == seq && s.state == SlotState::Waiting)
         })?;
-        let slot = self.slots[i].take().expect("found above");
-        self.release(slot);
+        let mut slot = self.slots[i].take().expect("found above");
+        if slot.sends > 1 {
+            let until_ns = now_ns + quarantine_ns(slot.timeout);
+            slot.state = SlotState::Quarantined { until_ns };
+            self.slots[i] = Some(slot);
+            self.earliest_ns = self.earliest_ns.min(until_ns);
+        } else {
+            self.release(slot);
+        }
         Some(Answered {
             handle: slot.handle,
             purpose: slot.purpose,
@@ -371,7 +389,7 @@ impl MethodQueue {
             match slot.state {
                 SlotState::Waiting if now_ns >= slot.deadline_ns => {
                     on_expired(slot.expired());
-                    let quarantine = (slot.timeout.as_nanos() as u64).max(1_000_000_000);
+                    let quarantine = quarantine_ns(slot.timeout);
                     slot.state = SlotState::Quarantined {
                         until_ns: now_ns + quarantine,
                     };
@@ -500,13 +518,13 @@ mod tests {
         let (c, sc) = sut.begin(Addr(3), 0, one_second(), Purpose::User).unwrap();
         assert_ne!(sa, sb);
         assert_eq!(sa, sc, "sequence numbers count per peer");
-        assert_eq!(sut.complete(Addr(2), sb), Some((b, Purpose::User)));
+        assert_eq!(sut.complete(Addr(2), sb, 0), Some((b, Purpose::User)));
         assert_eq!(
-            sut.complete(Addr(2), sb),
+            sut.complete(Addr(2), sb, 0),
             None,
             "an answer completes a call once"
         );
-        assert_eq!(sut.complete(Addr(3), sc), Some((c, Purpose::User)));
+        assert_eq!(sut.complete(Addr(3), sc, 0), Some((c, Purpose::User)));
         assert!(sut.is_waiting(a));
     }
 
@@ -521,6 +539,56 @@ mod tests {
             Err(CallError::TooManyOutstanding(Addr(2)))
         );
         assert!(sut.begin(Addr(3), 0, one_second(), Purpose::User).is_ok());
+    }
+
+    #[test]
+    fn a_second_answer_to_a_retransmitted_call_is_not_taken_for_a_newer_call() {
+        let mut sut = MethodQueue::default();
+        let opts = one_second().with_retry(RetryPolicy { retries: 3 });
+        let (a, seq) = sut.begin(Addr(2), 0, opts, Purpose::User).unwrap();
+        sut.sent(a, 1, 0, true);
+        let mut resent = 0;
+        sut.expire(SEC / 2, |_| {}, |_| resent += 1);
+        assert_eq!(resent, 1, "the request went out twice");
+        assert_eq!(
+            sut.complete(Addr(2), seq, SEC / 2),
+            Some((a, Purpose::User))
+        );
+        assert!(!sut.is_waiting(a), "the call is answered");
+        // Every other number in use, then one freed: the next call takes that one, not the
+        // number of the call sent twice (which it would take next in turn).
+        let others: Vec<Seq> = (0..31)
+            .map(|_| {
+                sut.begin(Addr(2), SEC, one_second(), Purpose::User)
+                    .unwrap()
+                    .1
+            })
+            .collect();
+        assert!(!others.contains(&seq));
+        assert!(sut.complete(Addr(2), others[4], SEC).is_some());
+        let (_, next) = sut
+            .begin(Addr(2), SEC, one_second(), Purpose::User)
+            .unwrap();
+        assert_eq!(
+            next, others[4],
+            "the number of a call sent twice is not reused at once"
+        );
+        assert_eq!(
+            sut.complete(Addr(2), seq, SEC),
+            None,
+            "the answer to the retransmission matches nothing"
+        );
+        sut.expire(5 * SEC, |_| {}, |_| {});
+        assert_eq!(sut.waiting(), 0, "the quarantine ends");
+    }
+
+    #[test]
+    fn an_answer_to_a_call_sent_once_frees_its_number_at_once() {
+        let mut sut = MethodQueue::default();
+        let (a, seq) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
+        sut.sent(a, 1, 0, false);
+        assert_eq!(sut.complete(Addr(2), seq, 1), Some((a, Purpose::User)));
+        assert_eq!(sut.waiting(), 0);
     }
 
     #[test]
@@ -552,7 +620,7 @@ mod tests {
             assert_ne!(s, seq, "a quarantined sequence number is not reused");
         }
         assert_eq!(
-            sut.complete(Addr(2), seq),
+            sut.complete(Addr(2), seq, 0),
             None,
             "the late answer matches nothing"
         );
@@ -614,7 +682,10 @@ mod tests {
         let mut resent = vec![];
         sut.resend_to(Addr(4), |r| resent.push((r.seq, r.payload.to_vec())));
         assert_eq!(resent, vec![(seq, vec![7])]);
-        assert_eq!(sut.complete(Addr(4), seq), Some((patient, Purpose::User)));
+        assert_eq!(
+            sut.complete(Addr(4), seq, 0),
+            Some((patient, Purpose::User))
+        );
     }
 
     #[test]
@@ -627,7 +698,7 @@ mod tests {
         sut.expire(SEC + 7, |_| {}, |_| {});
         sut.sent(handle, 1, SEC + 8, true); // sent again from a pending queue, say
         assert_eq!(
-            sut.answer(Addr(4), seq),
+            sut.answer(Addr(4), seq, 2 * SEC),
             Some(Answered {
                 handle,
                 purpose: Purpose::User,
@@ -636,7 +707,7 @@ mod tests {
         );
         let (never_sent, seq) = sut.begin(Addr(4), 5, opts, Purpose::User).unwrap();
         assert_eq!(
-            sut.answer(Addr(4), seq)
+            sut.answer(Addr(4), seq, 2 * SEC)
                 .map(|a| (a.handle, a.first_sent_ns)),
             Some((never_sent, None))
         );

@@ -55,7 +55,8 @@ pub(crate) fn dispatch<S>(
             serve_request(def, state, ctx, reply, &frame, method);
         }
         FrameKind::Reply | FrameKind::Ack | FrameKind::Nak { .. } => {
-            let Some(answered) = ctx.out.calls.answer(src, frame.seq()) else {
+            let now = ctx.now_ns();
+            let Some(answered) = ctx.out.calls.answer(src, frame.seq(), now) else {
                 ctx.out.stale += 1;
                 return;
             };

@@ -155,6 +155,7 @@ pub struct Coordinator<W: Write> {
     grace_ns: u64,
     /// Every overrun (tick, component, the release still running) and stale release (its
     /// tick twice), for the trace.
+    /// Only with a trace (it is written at the trace's end).
     overrun_log: Vec<(u64, usize, u64, Miss)>,
     /// The assembly being prepared, if one is.
     incoming: Option<Incoming>,
@@ -426,7 +427,8 @@ impl<W: Write> Coordinator<W> {
         let status = done.status.get();
         if status == Done::STALE {
             comp.stale += 1;
-            if !incoming && c < recorder::recorded(spec) {
+            // Kept for the trace's end only: without a trace, nothing grows with the misses.
+            if !incoming && self.recorder.is_some() && c < recorder::recorded(spec) {
                 self.overrun_log.push((m, c, m, Miss::Stale));
             }
         } else if status != Done::OK && status != Done::UNSAFE {
@@ -547,7 +549,7 @@ impl<W: Write> Coordinator<W> {
                 let comp = &mut self.comps[c];
                 comp.overruns += 1;
                 comp.in_a_row += 1;
-                if c < recorder::recorded(&self.spec) {
+                if self.recorder.is_some() && c < recorder::recorded(&self.spec) {
                     self.overrun_log.push((n, c, m, Miss::Overrun));
                 }
                 if comp.fault_policy && comp.in_a_row >= FAULT_AFTER && self.fault.is_none() {
