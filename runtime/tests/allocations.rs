@@ -169,8 +169,9 @@ fn serve(domain: &TestDomain, mode: ReceiveMode) -> std::thread::JoinHandle<()> 
 
 /// Publishes the directory a supervisor would: both modules running in this process. Modules
 /// of a domain with a published directory read it when it changes, and never scan iceoryx2's
-/// node files (which allocates); an unsupervised domain is not what runs a robot.
-fn publish_directory(transport: &IpcTransport, mode: ReceiveMode) -> DirectoryWriter {
+/// node files (which allocates); an unsupervised domain is not what runs a robot. The writer
+/// and its node are returned: the directory lives as long as the test holds them.
+fn publish_directory(transport: &IpcTransport, mode: ReceiveMode) -> (DirectoryWriter, impl Sized) {
     let node = transport.node("directory").unwrap();
     let mut writer = DirectoryWriter::create(&node).unwrap();
     let listing = |addr: u8, name: &str| Listing {
@@ -184,8 +185,7 @@ fn publish_directory(transport: &IpcTransport, mode: ReceiveMode) -> DirectoryWr
     writer
         .publish(&[listing(1, "caller"), listing(2, "server")])
         .unwrap();
-    std::mem::forget(node);
-    writer
+    (writer, node)
 }
 
 fn calls_and_snapshots_allocate_nothing(test: &str, mode: ReceiveMode) {

@@ -179,7 +179,16 @@ pub fn add_processes(
             addr: next_addr().ok_or(GridProcessError::NoAddress {
                 what: "the grid's hosts",
             })?,
-            program: program(grid.host_program(&host).unwrap_or(host_program(&host)))?,
+            program: match grid.host_program(&host) {
+                // A declared type's program, found when the description was loaded.
+                Some(own) => spec
+                    .host_programs
+                    .iter()
+                    .find(|(n, _)| n == own)
+                    .map(|(_, path)| Ok(path.clone()))
+                    .unwrap_or_else(|| program(own))?,
+                None => program(host_program(&host))?,
+            },
             program_name: grid
                 .host_program(&host)
                 .unwrap_or(host_program(&host))
@@ -187,13 +196,6 @@ pub fn add_processes(
             args,
             ..template.clone()
         });
-    }
-    // The programs of declared component types, for hosts of assemblies swapped in later.
-    for t in &grid.declared {
-        if !spec.host_programs.iter().any(|(n, _)| *n == t.program) {
-            spec.host_programs
-                .push((t.program.clone(), program(&t.program)?));
-        }
     }
     let mut args = common;
     if let Some(n) = run.ticks {

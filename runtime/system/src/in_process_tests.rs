@@ -33,9 +33,7 @@ impl Write for Shared {
 
 /// The grid of a description whose body is `body`, in lockstep.
 fn grid(body: &str) -> GridSpec {
-    let source = format!("domain \"t\"\n{body}");
-    let spec = crate::load_str("grid.lua", &source, &|_: &str| None).unwrap();
-    let mut grid = spec.grid.unwrap();
+    let mut grid = crate::let_tests::grid(body);
     grid.timing.clock = GridClock::Lockstep;
     grid
 }

@@ -6,7 +6,7 @@ use modbot_grid::reference::{reference_run, reference_trace, run, Order, Overrun
 use modbot_grid::spec::GridSpec;
 
 /// The grid of a description whose body is `grid` (a domain is added).
-fn grid(body: &str) -> GridSpec {
+pub(crate) fn grid(body: &str) -> GridSpec {
     let source = format!("domain \"t\"\n{body}");
     let spec = crate::load_str("grid.lua", &source, &|_: &str| None).unwrap();
     spec.grid.unwrap()

@@ -107,7 +107,7 @@ pub struct SystemSpec {
     /// module with the arguments every host gets; the supervisor adds the rest.
     pub host_template: Option<ModuleSpec>,
     /// The host programs of the component types the description declares
-    /// (`component_type`), found where they are: (name, path).
+    /// (`component_type`), found when the description is loaded: (name, path).
     pub host_programs: Vec<(String, PathBuf)>,
 }
 

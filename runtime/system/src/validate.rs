@@ -116,10 +116,14 @@ pub(super) fn build(
     }
 
     // The component types the description declares, next to the registered ones; their
-    // programs are found as modules' are.
+    // programs are found as modules' are, once, here.
     let declared = decls.component_types;
+    let mut host_programs: Vec<(String, PathBuf)> = Vec::new();
     for t in &declared {
-        if resolver.resolve(&t.program).is_none() {
+        if host_programs.iter().any(|(n, _)| *n == t.program) {
+            continue;
+        }
+        let Some(path) = resolver.resolve(&t.program) else {
             return Err(error(
                 t.line,
                 format!(
@@ -129,7 +133,8 @@ pub(super) fn build(
                     resolver.searched(&t.program)
                 ),
             ));
-        }
+        };
+        host_programs.push((t.program.clone(), path));
     }
     if decls.grid.is_none() {
         if let Some(t) = declared.first() {
@@ -183,7 +188,7 @@ pub(super) fn build(
         groups,
         grid,
         host_template: None,
-        host_programs: Vec::new(),
+        host_programs,
     })
 }
 
