@@ -21,4 +21,7 @@ grid { base_period = 0.001, priority = 60, assemblies = "arm", assembly = vars.a
 -- stays when the assembly changes; the assemblies connect to its ports.
 -- With `handover`, the running trajectory generator tells it the command it will give two ticks
 -- on, which it forwards to the generator of an assembly taking over (bumpless in velocity).
-component "robot" { type = "bus", host = "bus", period = 1, params = { axes = 6, handover = true } }
+-- `--var watchdog=N`: base periods without a tick before the bus judges the coordinator lost and
+-- quick-stops the drives (default 3); more on a host that steals milliseconds at a time.
+component "robot" { type = "bus", host = "bus", period = 1,
+                    params = { axes = 6, handover = true, watchdog = tonumber(vars.watchdog) } }

@@ -2,6 +2,7 @@
 //! drive lines in it.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
 use super::TestDomain;
 
@@ -37,4 +38,36 @@ pub fn all_axes(ledger: &str, state: &str) -> bool {
 pub fn one_arm_at_a_time() -> std::sync::MutexGuard<'static, ()> {
     static ARM: std::sync::Mutex<()> = std::sync::Mutex::new(());
     ARM.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Waits until every drive of the arm that `modbot up` (pid `up`) runs is in operation
+/// enabled. A machine that starves the coordinator for the watchdog's few base periods stops
+/// the drives first (that is the watchdog doing its job, and the stop stays latched): such a
+/// safe stop is recovered with a switch to `hold`, which resets the drives, at most 5 times.
+/// On a timeout, fails with the ledger and the end of `modbot up`'s log.
+pub fn wait_enabled(sut: &TestDomain, up: u32) {
+    let mut recovered = 0;
+    sut.wait_until("every drive enabled", Duration::from_secs(60), || {
+        let ledger = bus_ledger(sut);
+        if !ledger.contains("SAFE STOP") && all_axes(&ledger, "operation enabled") {
+            return Ok(());
+        }
+        if ledger.contains("SAFE STOP") && recovered < 5 {
+            recovered += 1;
+            println!(
+                "safe stop before the test began (the machine starved the coordinator): recovering"
+            );
+            sut.modbot(&["assembly", "switch", "hold", "--timeout", "60"]);
+        }
+        Err(format!(
+            "{ledger}\n--- modbot up:\n{}",
+            tail(&sut.output_of(up), 40)
+        ))
+    });
+}
+
+/// The last `n` lines of `text`.
+fn tail(text: &str, n: usize) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    lines[lines.len().saturating_sub(n)..].join("\n")
 }
