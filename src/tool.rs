@@ -351,10 +351,19 @@ pub fn bb(
                 view.seq()
             );
             for it in view.iter() {
+                let value = match it.value {
+                    // Images, scans, point clouds: their size and first bytes.
+                    Value::Bytes(b) if it.bulk => format!(
+                        "bulk, {} bytes: 0x{}{}",
+                        b.len(),
+                        modbot_ipc_schema::hex::encode(&b[..b.len().min(16)]),
+                        if b.len() > 16 { "…" } else { "" }
+                    ),
+                    v => v.to_string(),
+                };
                 println!(
-                    "{}: {}{}",
+                    "{}: {value}{}",
                     it.name,
-                    it.value,
                     if it.writable { "  (writable)" } else { "" }
                 );
             }

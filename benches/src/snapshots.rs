@@ -12,10 +12,18 @@
 //!
 //! Rows (param `bytes`, the size of the blackboard item; a snapshot adds about 60 bytes of
 //! header, item table and name):
-//! - `snapshots.modbot`: stamp to the reader seeing it; baseline `snapshots.uds`;
-//! - `snapshots.modbot_publish`: the writer's own cost, `publish_snapshot` alone (encoding the
-//!   blackboard into shared memory and sending); baseline `snapshots.modbot`, so its ratio is
+//! - `snapshots.modbot`: stamp to the reader seeing it; baseline `snapshots.uds`. The item is
+//!   written once per size and the blackboard published again for every sample: a sample that
+//!   comes back to the writer still holds its earlier snapshot, so only the header is written;
+//! - `snapshots.modbot_publish`: the writer's own cost, `publish_snapshot` alone (writing the
+//!   snapshot into shared memory and sending); baseline `snapshots.modbot`, so its ratio is
 //!   the share of the delivery latency spent writing the snapshot;
+//! - `snapshots.modbot_one_changed` / `snapshots.modbot_publish_one_changed` (1 MiB): a
+//!   blackboard of a 1 MiB bulk item and an f64 that changes before every sample (only the f64
+//!   is written into the sample); baselines the 8 B `snapshots.modbot` / `modbot_publish`;
+//! - `snapshots.modbot_rewritten` / `snapshots.modbot_publish_rewritten` (1 MiB): the bulk item
+//!   rewritten whole before every sample (`Blackboard::write_bulk`, then the copy into the
+//!   sample): what a camera that publishes every frame pays; same baselines;
 //! - `snapshots.uds`: the baseline.
 //!
 //! Child role `snapshots-reader DOMAIN CORE`: the reader module.
@@ -24,6 +32,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use modbot_ipc_schema::{OwnedValue, Value};
+use modbot_runtime::blackboard::ItemId;
 use modbot_runtime::{Blackboard, Domain, IpcTransport, Module, ModuleBuilder, ReceiveMode};
 
 use crate::opts::Opts;
@@ -76,21 +85,27 @@ fn publish_share(report: &Report) -> Option<String> {
             .first()
             .map(|r| r.p50_ns)
     };
-    let (small, big) = (
-        p50("snapshots.modbot", 8)?,
-        p50("snapshots.modbot", 1 << 20)?,
-    );
-    let publish = p50("snapshots.modbot_publish", 1 << 20)?;
+    let mib = 1 << 20;
+    let (small, big) = (p50("snapshots.modbot", 8)?, p50("snapshots.modbot", mib)?);
+    let publish = p50("snapshots.modbot_publish", mib)?;
     let f = |ns: u64| crate::report::format_value(ns, None);
-    Some(format!(
-        "snapshots: 1 MiB over 8 B p50 is {:.1}× ({} against {}); publish_snapshot alone takes \
-         {} p50 at 1 MiB in the writer: Blackboard::write_snapshot copies every item into the \
-         shared-memory sample, so a snapshot costs a copy of the whole blackboard",
+    let mut text = format!(
+        "snapshots: 1 MiB over 8 B p50 is {:.1}× ({} against {}); publish_snapshot takes {} p50 \
+         at 1 MiB: a sample that comes back to the writer still holds the snapshot written \
+         into it, so only the header and the items changed since are written",
         big as f64 / small.max(1) as f64,
         f(big),
         f(small),
         f(publish),
-    ))
+    );
+    if let Some(rewritten) = p50("snapshots.modbot_publish_rewritten", mib) {
+        text += &format!(
+            "; rewriting the whole 1 MiB item before each publish costs {} p50 (the item written \
+             into the blackboard, then copied into the sample)",
+            f(rewritten)
+        );
+    }
+    Some(text)
 }
 
 fn modbot(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
@@ -119,7 +134,13 @@ fn modbot(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     handshake(&mut writer, &ports, &mut child)?;
     let mut handovers = Vec::new();
     for size in SIZES {
-        match modbot_size(opts, &mut writer, &ports, &mut child, size) {
+        let payload = vec![0x5a_u8; size];
+        writer
+            .ctx()
+            .bb
+            .write("data", Value::Bytes(&payload))
+            .context("writing the blackboard")?;
+        match modbot_size(opts, &mut writer, &ports, &mut child, size, &mut |_, _| {}) {
             Ok(m) => {
                 report.push(
                     Row::from_histogram("snapshots.modbot", &m.delivery)
@@ -146,6 +167,13 @@ fn modbot(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
                 child.check_running()?;
             }
         }
+    }
+    if let Err(e) = big_blackboard(opts, report, &mut writer, &ports, &mut child) {
+        procs::check_interrupted()?;
+        report.note(format!(
+            "snapshots: the 1 MiB blackboard rows failed: {e:#}"
+        ));
+        child.check_running()?;
     }
     if !handovers.is_empty() {
         report.note(format!(
@@ -200,26 +228,70 @@ struct Measured {
     handover: Hist,
 }
 
-/// Delivery latencies (from the reader), publish costs and hand-overs for one size.
+/// A 1 MiB bulk item and an f64 `t`: the rows `*_one_changed` (only `t` changes before each
+/// sample) and `*_rewritten` (the whole item is rewritten before each sample).
+fn big_blackboard(
+    opts: &Opts,
+    report: &mut Report,
+    writer: &mut Module<()>,
+    ports: &RawPorts,
+    child: &mut Proc,
+) -> anyhow::Result<()> {
+    const MIB: usize = 1 << 20;
+    writer.ctx().bb = Blackboard::builder()
+        .bulk_item::<u64>("data", MIB / 8)
+        .item("t", OwnedValue::F64(0.0))
+        .build()?;
+    let (data, t) = (writer.ctx().bb.id("data")?, writer.ctx().bb.id("t")?);
+    let baseline = |row: Row, of: &str| row.param("bytes", MIB).against(of, &[("bytes", 8.into())]);
+    let mut frame = vec![0u64; MIB / 8];
+    let mut one_changed = |bb: &mut Blackboard, i: u64| bb.set_f64(t, i as f64);
+    let mut rewrite = |bb: &mut Blackboard, i: u64| rewrite_bulk(bb, data, &mut frame, i);
+    let steps: [(&str, &mut Step<'_>); 2] = [
+        ("one_changed", &mut one_changed),
+        ("rewritten", &mut rewrite),
+    ];
+    for (what, step) in steps {
+        let m = modbot_size(opts, writer, ports, child, MIB, step)?;
+        report.push(baseline(
+            Row::from_histogram(&format!("snapshots.modbot_{what}"), &m.delivery),
+            "snapshots.modbot",
+        ));
+        report.push(baseline(
+            Row::from_histogram(&format!("snapshots.modbot_publish_{what}"), &m.publish),
+            "snapshots.modbot_publish",
+        ));
+    }
+    Ok(())
+}
+
+/// Changes the blackboard before a sample (the argument counts the samples).
+type Step<'a> = dyn FnMut(&mut Blackboard, u64) + 'a;
+
+/// A new frame `i` in `frame`, written whole into the bulk item `data`.
+fn rewrite_bulk(bb: &mut Blackboard, data: ItemId, frame: &mut [u64], i: u64) {
+    frame.fill(i);
+    bb.write_bulk(data, frame)
+        .expect("the frame has as many elements as the item");
+}
+
+/// Delivery latencies (from the reader), publish costs and hand-overs for one size; `step`
+/// changes the blackboard before each sample (its argument counts the samples).
 fn modbot_size(
     opts: &Opts,
     writer: &mut Module<()>,
     ports: &RawPorts,
     child: &mut Proc,
     size: usize,
+    step: &mut Step<'_>,
 ) -> anyhow::Result<Measured> {
-    let payload = vec![0x5a_u8; size];
-    writer
-        .ctx()
-        .bb
-        .write("data", Value::Bytes(&payload))
-        .context("writing the blackboard")?;
     let plan = Plan::for_bytes(opts, size);
     let mut publish = sample::histogram();
     let mut handover = sample::histogram();
     let mut taken = 0u64;
     let mut ack = vec![0u8; 8];
     let delivery = sample::record(&plan, || {
+        step(&mut writer.ctx().bb, taken);
         let t0 = now_ns();
         writer.publish_snapshot(t0);
         let t1 = now_ns();

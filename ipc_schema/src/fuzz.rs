@@ -39,7 +39,10 @@ pub fn snapshot(data: &[u8]) {
     if let Ok(view) = SnapshotView::parse(data) {
         let _ = (view.addr(), view.seq());
         for item in view.iter() {
-            let _ = item;
+            // Viewed as typed slices of every alignment, as a reader of bulk items does.
+            let _ = view.bulk::<u8>(item.name);
+            let _ = view.bulk::<u32>(item.name);
+            let _ = view.bulk::<[f64; 3]>(item.name);
         }
     }
 }

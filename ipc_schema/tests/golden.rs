@@ -35,6 +35,21 @@ fn field<'a>(desc: &'a str, key: &str) -> &'a str {
         .unwrap_or_else(|| panic!("{key} in {desc}"))
 }
 
+/// The snapshot of `vals` with the address, sequence number and stamp `desc` gives.
+fn snapshot_of(layout: &SnapshotLayout, desc: &str, vals: &[Value<'_>]) -> Vec<u8> {
+    let mut out = vec![0; layout.encoded_len(vals)];
+    layout
+        .write(
+            &mut out,
+            Addr(field(desc, "addr").parse().unwrap()),
+            field(desc, "seq").parse().unwrap(),
+            field(desc, "stamp").parse().unwrap(),
+            vals,
+        )
+        .unwrap();
+    out
+}
+
 fn values(desc: &str) -> Vec<OwnedValue> {
     desc.split_whitespace()
         .filter_map(|w| w.split_once('='))
@@ -319,21 +334,9 @@ fn the_readme_golden_vectors_match_the_encoders() {
             }
             "snapshot" => {
                 let layout = SnapshotLayout::new(vec![
-                    ItemSpec {
-                        name: "moving".into(),
-                        kind: ValueKind::Bool,
-                        writable: false,
-                    },
-                    ItemSpec {
-                        name: "x".into(),
-                        kind: ValueKind::F64,
-                        writable: true,
-                    },
-                    ItemSpec {
-                        name: "y".into(),
-                        kind: ValueKind::F64,
-                        writable: false,
-                    },
+                    ItemSpec::new("moving", ValueKind::Bool, false),
+                    ItemSpec::new("x", ValueKind::F64, true),
+                    ItemSpec::new("y", ValueKind::F64, false),
                 ])
                 .unwrap();
                 let vals = [
@@ -341,18 +344,28 @@ fn the_readme_golden_vectors_match_the_encoders() {
                     Value::F64(field(&desc, "x").parse().unwrap()),
                     Value::F64(field(&desc, "y").parse().unwrap()),
                 ];
-                let mut out = vec![0; layout.encoded_len(&vals)];
-                layout
-                    .write(
-                        &mut out,
-                        Addr(field(&desc, "addr").parse().unwrap()),
-                        field(&desc, "seq").parse().unwrap(),
-                        field(&desc, "stamp").parse().unwrap(),
-                        &vals,
-                    )
-                    .unwrap();
+                let out = snapshot_of(&layout, &desc, &vals);
                 let view = SnapshotView::parse_expecting(&out, layout.hash()).unwrap();
                 assert_eq!(view.f64("x").unwrap(), 1.5);
+                out
+            }
+            "bulk_snapshot" => {
+                let layout = SnapshotLayout::new(vec![
+                    ItemSpec::bulk("img", false),
+                    ItemSpec::new("a", ValueKind::F64, false),
+                ])
+                .unwrap();
+                let img: Vec<u16> = field(&desc, "img")
+                    .split(',')
+                    .map(|v| v.parse().unwrap())
+                    .collect();
+                let vals = [
+                    Value::F64(field(&desc, "a").parse().unwrap()),
+                    Value::Bytes(bytemuck::cast_slice(&img)),
+                ];
+                let out = snapshot_of(&layout, &desc, &vals);
+                let view = SnapshotView::parse_expecting(&out, layout.hash()).unwrap();
+                assert!(view.get("img").unwrap().bulk);
                 out
             }
             _ => {

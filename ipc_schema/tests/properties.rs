@@ -198,7 +198,7 @@ proptest! {
         let vals: Vec<Value<'_>> = values.iter().map(OwnedValue::as_value).collect();
         let spec = FrameSpec { dst: Addr(2), src: Addr(1), seq: Seq::new(3).unwrap(), kind: FrameKind::Reply };
         let mut frame = spec.to_vec(&vals).unwrap();
-        let items: Vec<ItemSpec> = values.iter().enumerate().map(|(i, v)| ItemSpec { name: format!("item{i}"), kind: v.kind(), writable: false }).collect();
+        let items: Vec<ItemSpec> = values.iter().enumerate().map(|(i, v)| ItemSpec::new(&format!("item{i}"), v.kind(), false)).collect();
         let layout = SnapshotLayout::new(items).unwrap();
         let mut snap = vec![0; layout.encoded_len(&vals)];
         layout.write(&mut snap, Addr(1), 1, 2, &vals).unwrap();
@@ -218,7 +218,7 @@ proptest! {
     #[test]
     fn snapshots_round_trip_through_write_and_parse(values in proptest::collection::vec(owned_value(), 0..8), seq in any::<u64>()) {
         let vals: Vec<Value<'_>> = values.iter().map(OwnedValue::as_value).collect();
-        let items: Vec<ItemSpec> = values.iter().enumerate().map(|(i, v)| ItemSpec { name: format!("n{i:02}"), kind: v.kind(), writable: i % 2 == 0 }).collect();
+        let items: Vec<ItemSpec> = values.iter().enumerate().map(|(i, v)| ItemSpec::new(&format!("n{i:02}"), v.kind(), i % 2 == 0)).collect();
         let layout = SnapshotLayout::new(items).unwrap();
         let mut out = vec![0; layout.encoded_len(&vals)];
         layout.write(&mut out, Addr(9), seq, 5, &vals).unwrap();
@@ -227,6 +227,50 @@ proptest! {
         for (i, v) in vals.iter().enumerate() {
             prop_assert_eq!(view.value(&format!("n{i:02}")).unwrap(), *v);
         }
+    }
+
+    /// Writing only what changed since the snapshot in the buffer gives the same bytes as
+    /// writing the whole snapshot, whatever the buffer held, whichever items changed (bulk
+    /// items among them), and whether or not the caller named the right earlier snapshot.
+    #[test]
+    fn a_snapshot_updated_in_place_equals_the_snapshot_written_whole(
+        before in proptest::collection::vec(owned_value(), 1..6),
+        changes in proptest::collection::vec(proptest::option::of(owned_value()), 1..6),
+        bulk in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..100), 0..3),
+        garbage in any::<bool>(),
+        wrong_stamp in any::<bool>(),
+    ) {
+        let mut items: Vec<ItemSpec> = before.iter().enumerate().map(|(i, v)| ItemSpec::new(&format!("v{i}"), v.kind(), false)).collect();
+        items.extend((0..bulk.len()).map(|i| ItemSpec::bulk(&format!("b{i}"), false)));
+        let layout = SnapshotLayout::new(items).unwrap();
+        // Values in table order (names sort as b*, v*).
+        let mut old: Vec<OwnedValue> = bulk.iter().map(|b| OwnedValue::Bytes(b.clone())).collect();
+        old.extend(before.iter().cloned());
+        let mut new = old.clone();
+        let mut written_at = vec![1u64; new.len()];
+        for (i, change) in changes.iter().enumerate() {
+            let i = i % new.len();
+            // A change keeps the item's kind (a bulk item's bytes are rewritten in place).
+            let replacement = match (&new[i], change) {
+                (OwnedValue::Bytes(b), _) if layout.items()[i].bulk => OwnedValue::Bytes(b.iter().map(|x| x.wrapping_add(1)).collect()),
+                (_, Some(v)) if v.kind() == new[i].kind() => v.clone(),
+                _ => continue,
+            };
+            new[i] = replacement;
+            written_at[i] = 2;
+        }
+        let whole_new = {
+            let mut out = vec![0; layout.encoded_len(&new)];
+            layout.write(&mut out, Addr(4), 2, 20, &new).unwrap();
+            out
+        };
+        let mut buf = vec![0x5a; layout.encoded_len(&old).max(whole_new.len())];
+        if !garbage {
+            layout.write(&mut buf, Addr(4), 1, 10, &old).unwrap();
+        }
+        let stamp = if wrong_stamp { 11 } else { 10 };
+        layout.update(&mut buf, Addr(4), 2, 20, &new, &written_at, Some((1, stamp))).unwrap();
+        prop_assert_eq!(&buf[..whole_new.len()], &whole_new[..]);
     }
 
     #[test]

@@ -5,8 +5,19 @@
 //! *virtual device* is the same with hooks that simulate the hardware. Other modules read and
 //! write items by message (the `bb_get`/`bb_set` system methods) and see the whole blackboard
 //! through snapshots: one consistent instant in one shared-memory sample.
+//!
+//! A snapshot is written into the sample it goes out in, and only what changed is written:
+//! a publisher's samples come back to it once every reader let go of them, still holding the
+//! snapshot written into them then, so the blackboard remembers which of its snapshots went
+//! into which sample and, when one comes back, writes the header and the items changed since
+//! ([`SnapshotLayout::update`]). Publishing a 1 MiB blackboard whose one scalar changed costs
+//! that scalar, not the megabyte.
+//!
+//! Bulk items ([`BlackboardBuilder::bulk_item`]) hold arrays of a `bytemuck::Pod` type
+//! (images, scans, point clouds): readers view them as `&[T]` in the sample, in place
+//! ([`modbot_ipc_schema::SnapshotView::bulk`]).
 
-use modbot_ipc_schema::snapshot::ItemSpec;
+use modbot_ipc_schema::snapshot::{ItemSpec, Written};
 use modbot_ipc_schema::{Addr, OwnedValue, SnapshotLayout, Value, ValueKind};
 use thiserror::Error;
 
@@ -39,6 +50,14 @@ pub enum BlackboardError {
     },
     #[error("invalid blackboard: {0}")]
     Layout(String),
+    #[error(
+        "bulk item '{name}' holds {expected} bytes; {got} were given (a bulk item keeps its size)"
+    )]
+    BulkLength {
+        name: String,
+        expected: usize,
+        got: usize,
+    },
 }
 
 /// A handle to an item, for writing it on a hot path without a name lookup.
@@ -76,12 +95,21 @@ impl BlackboardBuilder {
         read: Option<ReadHook>,
         write: Option<WriteHook>,
     ) -> Self {
-        let spec = ItemSpec {
-            name: name.to_owned(),
-            kind: initial.kind(),
-            writable,
-        };
+        let spec = ItemSpec::new(name, initial.kind(), writable);
         self.items.push((spec, initial, Device { read, write }));
+        self
+    }
+
+    /// A bulk item: `len` elements of `T` (zeroed), which readers view as `&[T]` in place.
+    /// Written with [`Blackboard::write_bulk`]; its size stays `len` elements.
+    pub fn bulk_item<T: bytemuck::Pod>(mut self, name: &str, len: usize) -> Self {
+        let bytes = vec![0u8; len * core::mem::size_of::<T>()];
+        let device = Device {
+            read: None,
+            write: None,
+        };
+        let spec = ItemSpec::bulk(name, false);
+        self.items.push((spec, OwnedValue::Bytes(bytes), device));
         self
     }
 
@@ -101,12 +129,16 @@ impl BlackboardBuilder {
             .into_iter()
             .map(|s| s.expect("every slot filled"))
             .unzip();
+        let written_at = vec![1; layout.items().len()];
         Ok(Blackboard {
             layout,
             values,
             devices,
             changed: true,
             seq: 0,
+            written_at,
+            samples: [SampleRecord::default(); SAMPLES_REMEMBERED],
+            last_written: None,
         })
     }
 }
@@ -121,6 +153,25 @@ pub struct Blackboard {
     changed: bool,
     /// Sequence number of the last snapshot written.
     seq: u64,
+    /// Per item: the first snapshot that carries its current value.
+    written_at: Vec<u64>,
+    /// The buffers the last snapshots went into, and which snapshot each got.
+    samples: [SampleRecord; SAMPLES_REMEMBERED],
+    /// How the last snapshot was written.
+    last_written: Option<Written>,
+}
+
+/// How many sample buffers a blackboard remembers: a publisher with history 1 and a few
+/// readers keeping 2 samples each cycles through fewer; with more, a buffer that comes back
+/// unremembered is written whole (correct, only slower).
+const SAMPLES_REMEMBERED: usize = 16;
+
+/// A buffer a snapshot went into: its address, and the snapshot's sequence number and stamp.
+#[derive(Debug, Clone, Copy, Default)]
+struct SampleRecord {
+    at: usize,
+    seq: u64,
+    stamp_ns: u64,
 }
 
 impl Blackboard {
@@ -194,8 +245,20 @@ impl Blackboard {
                 reason: reason.into(),
             })?;
             self.values[i] = proposed;
-            self.changed |= changed;
+            self.mark(i, changed);
             return Ok(());
+        }
+        if spec.bulk {
+            let (expected, got) = (self.values[i].as_value(), value);
+            if let (Value::Bytes(have), Value::Bytes(new)) = (expected, got) {
+                if have.len() != new.len() {
+                    return Err(BlackboardError::BulkLength {
+                        name: spec.name.clone(),
+                        expected: have.len(),
+                        got: new.len(),
+                    });
+                }
+            }
         }
         let slot = &mut self.values[i];
         match (&mut *slot, value) {
@@ -210,8 +273,43 @@ impl Blackboard {
             }
             (slot, v) => *slot = v.to_owned_value(),
         }
-        self.changed |= changed;
+        self.mark(i, changed);
         Ok(())
+    }
+
+    /// Writes the bulk item `id` from `elements` (as many as it holds), without allocating.
+    pub fn write_bulk<T: bytemuck::Pod>(
+        &mut self,
+        id: ItemId,
+        elements: &[T],
+    ) -> Result<(), BlackboardError> {
+        let spec = &self.layout.items()[id.0];
+        let (OwnedValue::Bytes(have), true) = (&mut self.values[id.0], spec.bulk) else {
+            return Err(BlackboardError::WrongKind {
+                name: spec.name.clone(),
+                expected: ValueKind::Bytes,
+                got: self.values[id.0].kind(),
+            });
+        };
+        let new: &[u8] = bytemuck::cast_slice(elements);
+        if have.len() != new.len() {
+            return Err(BlackboardError::BulkLength {
+                name: spec.name.clone(),
+                expected: have.len(),
+                got: new.len(),
+            });
+        }
+        have.copy_from_slice(new);
+        self.mark(id.0, true);
+        Ok(())
+    }
+
+    /// Item `i` was written: when its value `changed`, the next snapshot carries it.
+    fn mark(&mut self, i: usize, changed: bool) {
+        if changed {
+            self.changed = true;
+            self.written_at[i] = self.seq + 1;
+        }
     }
 
     /// Writes an f64 item by handle.
@@ -265,11 +363,14 @@ impl Blackboard {
 
     /// Samples every device (before a snapshot at a set rate).
     pub fn sample_devices(&mut self) {
-        for (value, device) in self.values.iter_mut().zip(&mut self.devices) {
+        for (i, (value, device)) in self.values.iter_mut().zip(&mut self.devices).enumerate() {
             if let Some(hook) = device.read.as_mut() {
                 let before = value.clone();
                 hook(value);
-                self.changed |= *value != before;
+                if *value != before {
+                    self.changed = true;
+                    self.written_at[i] = self.seq + 1;
+                }
             }
         }
     }
@@ -279,16 +380,54 @@ impl Blackboard {
         self.layout.encoded_len(&self.values)
     }
 
-    /// Writes a snapshot into `out` (shared memory), and clears the changed flag.
+    /// Writes a snapshot into `out` (shared memory), and clears the changed flag. When `out`
+    /// is a buffer an earlier snapshot of this blackboard went into, only what changed since
+    /// is written.
     pub fn write_snapshot(&mut self, out: &mut [u8], addr: Addr, stamp_ns: u64) {
         self.seq += 1;
-        if let Err(e) = self
-            .layout
-            .write(out, addr, self.seq, stamp_ns, &self.values)
-        {
-            tracing::error!("snapshot not written: {e}");
+        let at = out.as_ptr() as usize;
+        let slot = self
+            .samples
+            .iter()
+            .position(|r| r.at == at && r.seq != 0)
+            .unwrap_or_else(|| {
+                // The buffer given the oldest snapshot is the one forgotten.
+                (0..SAMPLES_REMEMBERED)
+                    .min_by_key(|&i| self.samples[i].seq)
+                    .expect("SAMPLES_REMEMBERED > 0")
+            });
+        let record = self.samples[slot];
+        let earlier = (record.at == at && record.seq != 0).then_some((record.seq, record.stamp_ns));
+        let written = self.layout.update(
+            out,
+            addr,
+            self.seq,
+            stamp_ns,
+            &self.values,
+            &self.written_at,
+            earlier,
+        );
+        match written {
+            Ok(w) => {
+                self.last_written = Some(w);
+                self.samples[slot] = SampleRecord {
+                    at,
+                    seq: self.seq,
+                    stamp_ns,
+                };
+            }
+            Err(e) => {
+                tracing::error!("snapshot not written: {e}");
+                self.samples[slot] = SampleRecord::default();
+            }
         }
         self.changed = false;
+    }
+
+    /// How the last snapshot was written: whole, or only the items changed since the one in
+    /// its buffer.
+    pub fn last_written(&self) -> Option<Written> {
+        self.last_written
     }
 }
 
@@ -349,5 +488,93 @@ mod tests {
         let view = SnapshotView::parse_expecting(&buf, sut.layout().hash()).unwrap();
         assert_eq!(view.f64("x").unwrap(), 2.5);
         assert_eq!((view.seq(), view.stamp_ns()), (1, 9));
+    }
+
+    /// A buffer that starts 64-byte aligned, as a shared-memory sample does.
+    #[repr(C, align(64))]
+    struct Sample([u8; 4096]);
+
+    fn with_image() -> Blackboard {
+        Blackboard::builder()
+            .bulk_item::<u16>("image", 1000)
+            .item("x", OwnedValue::F64(0.0))
+            .item("label", OwnedValue::Text("a".into()))
+            .build()
+            .unwrap()
+    }
+
+    #[test]
+    fn a_sample_that_comes_back_gets_only_the_items_changed_since_its_snapshot() {
+        let mut sut = with_image();
+        let (mut a, mut b) = (Sample([0; 4096]), Sample([0; 4096]));
+        let len = sut.snapshot_len();
+        sut.write_snapshot(&mut a.0[..len], Addr(2), 10);
+        assert_eq!(sut.last_written(), Some(Written::Whole { len }));
+        let x = sut.id("x").unwrap();
+        sut.set_f64(x, 1.0);
+        sut.write_snapshot(&mut b.0[..len], Addr(2), 20);
+        assert_eq!(sut.last_written(), Some(Written::Whole { len }), "b is new");
+        sut.set_f64(x, 2.0);
+        sut.write_snapshot(&mut a.0[..len], Addr(2), 30);
+        assert_eq!(
+            sut.last_written(),
+            Some(Written::Changed { items: 1 }),
+            "only x changed since a's snapshot"
+        );
+        let view = SnapshotView::parse(&a.0[..len]).unwrap();
+        assert_eq!((view.seq(), view.f64("x").unwrap()), (3, 2.0));
+        let image = sut.id("image").unwrap();
+        sut.write_bulk(image, &[7u16; 1000]).unwrap();
+        sut.write_snapshot(&mut b.0[..len], Addr(2), 40);
+        assert_eq!(sut.last_written(), Some(Written::Changed { items: 2 }));
+        let view = SnapshotView::parse(&b.0[..len]).unwrap();
+        assert_eq!(view.bulk::<u16>("image").unwrap(), &[7u16; 1000][..]);
+        assert_eq!(view.f64("x").unwrap(), 2.0);
+    }
+
+    #[test]
+    fn a_text_item_that_changes_length_makes_the_next_snapshot_whole() {
+        let mut sut = with_image();
+        let mut a = Sample([0; 4096]);
+        let len = sut.snapshot_len();
+        sut.write_snapshot(&mut a.0[..len], Addr(2), 10);
+        sut.write("label", Value::Text("longer")).unwrap();
+        let len = sut.snapshot_len();
+        sut.write_snapshot(&mut a.0[..len], Addr(2), 20);
+        assert_eq!(sut.last_written(), Some(Written::Whole { len }));
+        let view = SnapshotView::parse(&a.0[..len]).unwrap();
+        assert_eq!(view.value("label").unwrap(), Value::Text("longer"));
+    }
+
+    #[test]
+    fn a_bulk_item_keeps_its_size_and_kind() {
+        let mut sut = with_image();
+        let image = sut.id("image").unwrap();
+        let err = sut.write_bulk(image, &[1u16; 999]).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                BlackboardError::BulkLength {
+                    expected: 2000,
+                    got: 1998,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert!(matches!(
+            sut.write("image", Value::Bytes(&[0; 3])),
+            Err(BlackboardError::BulkLength { .. })
+        ));
+        let x = sut.id("x").unwrap();
+        assert!(matches!(
+            sut.write_bulk(x, &[1u16; 4]),
+            Err(BlackboardError::WrongKind { .. })
+        ));
+        sut.write_bulk(image, &[3u32; 500]).unwrap();
+        assert_eq!(
+            sut.peek(image),
+            Value::Bytes(bytemuck::cast_slice(&[3u32; 500]))
+        );
     }
 }

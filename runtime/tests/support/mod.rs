@@ -452,4 +452,5 @@ pub fn pump<S>(
     }
 }
 
+#[allow(unused_imports)]
 pub use modbot_testkit::eventually;

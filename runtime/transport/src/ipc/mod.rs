@@ -863,6 +863,10 @@ fn bb_service(
         "open snapshot service",
         node.service_builder(&service_name(&format!("bb.{}", addr.0))?)
             .publish_subscribe::<[u8]>()
+            // A snapshot starts 64-byte aligned, so readers view its bulk items as `&[T]`.
+            .payload_alignment(
+                Alignment::new(modbot_ipc_schema::snapshot::BULK_ALIGN).expect("a power of two"),
+            )
             .max_publishers(2)
             .max_subscribers(64)
             .max_nodes(MAX_NODES)

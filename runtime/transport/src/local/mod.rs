@@ -37,7 +37,7 @@ struct Slot {
 #[derive(Default)]
 struct LocalDomain {
     slots: HashMap<u8, Slot>,
-    snapshots: HashMap<u8, Arc<Vec<u8>>>,
+    snapshots: HashMap<u8, Arc<AlignedBytes>>,
     channels: Arc<channels::LocalChannelSet>,
 }
 
@@ -300,7 +300,35 @@ impl Tx for LocalTx {
 struct LocalSnapshots {
     domain: Shared,
     me: Addr,
-    held: HashMap<Addr, Arc<Vec<u8>>>,
+    held: HashMap<Addr, Arc<AlignedBytes>>,
+}
+
+/// A snapshot's bytes, starting 64-byte aligned as in a shared-memory sample (readers view
+/// bulk items in place).
+struct AlignedBytes {
+    lines: Vec<Line>,
+    len: usize,
+}
+
+#[derive(Clone, Copy, bytemuck::Zeroable, bytemuck::Pod)]
+#[repr(C, align(64))]
+struct Line([u8; modbot_ipc_schema::snapshot::BULK_ALIGN]);
+
+const _: () = assert!(core::mem::align_of::<Line>() == modbot_ipc_schema::snapshot::BULK_ALIGN);
+
+impl AlignedBytes {
+    fn zeroed(len: usize) -> AlignedBytes {
+        let lines = vec![Line([0; modbot_ipc_schema::snapshot::BULK_ALIGN]); len.div_ceil(64)];
+        AlignedBytes { lines, len }
+    }
+
+    fn bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice(&self.lines)[..self.len]
+    }
+
+    fn bytes_mut(&mut self) -> &mut [u8] {
+        &mut bytemuck::cast_slice_mut(&mut self.lines)[..self.len]
+    }
 }
 
 impl Snapshots for LocalSnapshots {
@@ -309,8 +337,8 @@ impl Snapshots for LocalSnapshots {
         len: usize,
         fill: &mut dyn FnMut(&mut [u8]),
     ) -> Result<(), TransportError> {
-        let mut snap = vec![0u8; len];
-        fill(&mut snap);
+        let mut snap = AlignedBytes::zeroed(len);
+        fill(snap.bytes_mut());
         lock(&self.domain)
             .snapshots
             .insert(self.me.0, Arc::new(snap));
@@ -325,6 +353,6 @@ impl Snapshots for LocalSnapshots {
         if let Some(s) = lock(&self.domain).snapshots.get(&of.0) {
             self.held.insert(of, s.clone());
         }
-        Ok(self.held.get(&of).map(|s| read(s)).is_some())
+        Ok(self.held.get(&of).map(|s| read(s.bytes())).is_some())
     }
 }
