@@ -2,9 +2,11 @@
 //! against raw iceoryx2 and a Unix socket, for payloads from 8 B to 1 MiB.
 //!
 //! Rows (param `bytes`, the payload):
-//! - `calls.modbot_busy`: both modules in busy-poll mode; baseline `calls.raw_iceoryx2_busy`;
+//! - `calls.modbot_busy`: both modules in busy-poll mode; baseline `calls.raw_iceoryx2_busy`,
+//!   measured interleaved with it ([`crate::interleave`]: alternating blocks, the ratio the
+//!   median of the blocks' ratios);
 //! - `calls.modbot_blocking`: both in blocking mode (Event wake-ups); baseline
-//!   `calls.uds_blocking`;
+//!   `calls.uds_blocking`, interleaved the same way;
 //! - `calls.raw_iceoryx2_busy`, `calls.raw_iceoryx2_event`, `calls.uds_blocking`: the
 //!   baselines, each its own.
 //!
@@ -24,6 +26,7 @@ use modbot_runtime::{
     CallOptions, Ctx, Domain, IpcTransport, MethodError, Module, ModuleBuilder, ReceiveMode, Reply,
 };
 
+use crate::interleave::{interleave, Side, BLOCKS};
 use crate::opts::Opts;
 use crate::procs::{self, Proc, Scratch};
 use crate::raw::{RawPorts, Wait};
@@ -55,9 +58,6 @@ fn size_classes(sizes: &[usize]) -> Vec<(usize, Vec<usize>)> {
     classes
 }
 
-/// Measures the rows of one path into the report.
-type PathFn<'a> = Box<dyn Fn(&mut Report) -> anyhow::Result<()> + 'a>;
-
 /// Runs benchmark 1.
 pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     if procs::cores() < 2 {
@@ -70,28 +70,23 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let fifo = opts.fifo.then_some(FIFO_PRIO);
     for (max_frame, sizes) in size_classes(&SIZES) {
         let class = size_label(*sizes.last().unwrap_or(&0));
-        let paths: [(&str, PathFn<'_>); 5] = [
+        let pairs: [(&str, PairFn<'_>); 3] = [
             (
-                "modbot busy",
-                Box::new(|r| modbot(opts, r, ReceiveMode::BusyPoll, max_frame, &sizes, None)),
+                "modbot busy against raw iceoryx2 busy",
+                Box::new(|r| busy_pair(opts, r, max_frame, &sizes)),
             ),
             (
-                "modbot blocking",
-                Box::new(|r| modbot(opts, r, ReceiveMode::Blocking, max_frame, &sizes, fifo)),
-            ),
-            (
-                "raw iceoryx2 busy",
-                Box::new(|r| raw(opts, r, Wait::Busy, max_frame, &sizes, None)),
+                "modbot blocking against the Unix socket",
+                Box::new(|r| blocking_pair(opts, r, max_frame, &sizes, fifo)),
             ),
             (
                 "raw iceoryx2 event",
-                Box::new(|r| raw(opts, r, Wait::Event, max_frame, &sizes, fifo)),
+                Box::new(|r| raw_event(opts, r, max_frame, &sizes, fifo)),
             ),
-            ("uds", Box::new(|r| unix(opts, r, &sizes, fifo))),
         ];
-        for (what, path) in paths {
+        for (what, pair) in pairs {
             procs::check_interrupted()?;
-            if let Err(e) = path(report) {
+            if let Err(e) = pair(report) {
                 procs::check_interrupted()?;
                 report.note(format!(
                     "calls: {what} (payloads up to {class}) failed: {e:#}"
@@ -100,11 +95,14 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         }
     }
     report.note(format!(
-        "calls: the modbot rows use CallOptions::default() (2 s timeout, 2 retransmissions, so \
-         the request payload is also kept for retransmission); every path copies the payload in \
-         and out on both sides; {}",
+        "calls: each modbot row and its baseline were measured interleaved, in {BLOCKS} \
+         alternating blocks with both sides' processes kept up (the idle side's server stopped \
+         with SIGSTOP), so the machine's changes hit both alike; a row's ratio is the median of \
+         the blocks' ratios of medians, with their range. The modbot rows use \
+         CallOptions::default() (2 s timeout, 2 retransmissions, so the request payload is also \
+         kept for retransmission); every path copies the payload in and out on both sides; {}",
         if opts.pin {
-            "client pinned to core 0, server to core 1"
+            "client pinned to core 0, servers to core 1"
         } else {
             "processes not pinned (--pin pins them to cores 0 and 1)"
         }
@@ -118,6 +116,9 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Measures one pair of paths (or one path) into the report.
+type PairFn<'a> = Box<dyn Fn(&mut Report) -> anyhow::Result<()> + 'a>;
+
 fn mode_arg(mode: ReceiveMode) -> &'static str {
     match mode {
         ReceiveMode::BusyPoll => "busy",
@@ -125,75 +126,210 @@ fn mode_arg(mode: ReceiveMode) -> &'static str {
     }
 }
 
-/// The modbot rows of one mode, for `sizes` in a domain of `max_frame`.
-fn modbot(
+/// `calls.modbot_busy` interleaved with `calls.raw_iceoryx2_busy`.
+fn busy_pair(
     opts: &Opts,
     report: &mut Report,
-    mode: ReceiveMode,
+    max_frame: usize,
+    sizes: &[usize],
+) -> anyhow::Result<()> {
+    let mut modbot = ModbotPath::open(opts, ReceiveMode::BusyPoll, max_frame, None)?;
+    let mut raw = RawPath::open(opts, Wait::Busy, max_frame, sizes, None)?;
+    let rows = ("calls.modbot_busy", "calls.raw_iceoryx2_busy");
+    let result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut raw);
+    modbot.close(report, sizes)?;
+    raw.close()?;
+    result
+}
+
+/// `calls.modbot_blocking` interleaved with `calls.uds_blocking`.
+fn blocking_pair(
+    opts: &Opts,
+    report: &mut Report,
     max_frame: usize,
     sizes: &[usize],
     fifo: Option<u8>,
 ) -> anyhow::Result<()> {
-    let row = match mode {
-        ReceiveMode::BusyPoll => "calls.modbot_busy",
-        ReceiveMode::Blocking => "calls.modbot_blocking",
-    };
-    let what = format!("calls_{}_{}", mode_arg(mode), max_frame >> 10);
-    // Declared first, dropped last: after the processes, nothing of the run stays behind.
-    let scratch = Scratch::new(&what, Some(max_frame))?;
-    let domain = scratch.domain.clone();
-    let mut child = procs::spawn_role(
-        opts,
-        "calls-echo",
-        &[
-            domain.name().to_owned(),
-            max_frame.to_string(),
-            mode_arg(mode).to_owned(),
-            procs::core_arg(procs::core_for(opts, 1)),
-            uds::prio_arg(fifo),
-        ],
-    )?;
-    let mut tool = ModuleBuilder::new("bench", 0)
-        .mode(mode)
-        .open_tool(IpcTransport::new(&domain)?, ())
-        .context("opening the benchmark's module")?;
-    wait_for_echo(&mut tool, &mut child)?;
+    let mut modbot = ModbotPath::open(opts, ReceiveMode::Blocking, max_frame, fifo)?;
+    let mut uds = UdsPath::open(opts, sizes, fifo)?;
     let _fifo = procs::set_fifo(fifo)?;
+    let rows = ("calls.modbot_blocking", "calls.uds_blocking");
+    let result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut uds);
+    modbot.close(report, sizes)?;
+    uds.close()?;
+    result
+}
+
+/// One way to make a round trip with a payload, and the server process that answers.
+trait Path {
+    /// One round trip of `payload`, in ns.
+    fn one(&mut self, payload: &[u8]) -> anyhow::Result<u64>;
+    fn server(&mut self) -> &mut Proc;
+}
+
+/// Every size of `sizes` with `subject` interleaved with `baseline`: rows `names.0` (ratio over
+/// the blocks) and `names.1` (the baseline, its own).
+fn pair_sizes(
+    opts: &Opts,
+    report: &mut Report,
+    sizes: &[usize],
+    names: (&str, &str),
+    subject: &mut dyn Path,
+    baseline: &mut dyn Path,
+) -> anyhow::Result<()> {
     for &size in sizes {
-        match modbot_size(opts, &mut tool, size) {
-            Ok(h) => {
-                let r = Row::from_histogram(row, &h).param("bytes", size);
-                let r = match mode {
-                    ReceiveMode::BusyPoll => r.against("calls.raw_iceoryx2_busy", &[]),
-                    ReceiveMode::Blocking => r.against("calls.uds_blocking", &[]),
-                };
-                report.push(r);
+        let payload = vec![0x5a_u8; size];
+        let plan = Plan::for_bytes(opts, size);
+        let servers = (subject.server().pid(), baseline.server().pid());
+        let mut a = || subject.one(&payload);
+        let mut b = || baseline.one(&payload);
+        let measured = interleave(
+            &plan,
+            Side {
+                one: &mut a,
+                server: Some(servers.0),
+            },
+            Side {
+                one: &mut b,
+                server: Some(servers.1),
+            },
+        );
+        match measured {
+            Ok(pair) => {
+                report.push(
+                    Row::from_histogram(names.0, &pair.subject)
+                        .param("bytes", size)
+                        .against(names.1, &[])
+                        .blocks(pair.blocks),
+                );
+                report.push(
+                    Row::from_histogram(names.1, &pair.baseline)
+                        .param("bytes", size)
+                        .is_baseline(),
+                );
             }
             Err(e) => {
                 procs::check_interrupted()?;
                 report.note(format!(
-                    "calls: {row} with {} failed: {e:#}",
+                    "calls: {} against {} with {} failed: {e:#}",
+                    names.0,
+                    names.1,
                     size_label(size)
                 ));
-                child.check_running()?;
+                subject.server().check_running()?;
+                baseline.server().check_running()?;
             }
         }
     }
-    if max_frame > modbot_runtime::domain::DEFAULT_MAX_FRAME {
-        let (reserved, used) = procs::shm_usage(&domain);
-        report.note(format!(
-            "calls: the {} domain with a max frame of {} (two modules, {} mode) reserved {} of \
-             /dev/shm, {} of it touched",
-            size_label(*sizes.last().unwrap_or(&0)),
-            crate::report::format_value(max_frame as u64, Some("bytes")),
-            mode.name(),
-            crate::report::format_value(reserved, Some("bytes")),
-            crate::report::format_value(used, Some("bytes")),
-        ));
-    }
-    drop(tool);
-    child.stop()?;
     Ok(())
+}
+
+/// A modbot call to the echo module, in a domain of its own.
+struct ModbotPath {
+    tool: Module<()>,
+    child: Proc,
+    mode: ReceiveMode,
+    /// The answer, copied out of shared memory.
+    sink: Vec<u8>,
+    // Declared last, dropped last: after the processes, nothing of the run stays behind.
+    scratch: Scratch,
+}
+
+impl ModbotPath {
+    fn open(
+        opts: &Opts,
+        mode: ReceiveMode,
+        max_frame: usize,
+        fifo: Option<u8>,
+    ) -> anyhow::Result<ModbotPath> {
+        let what = format!("calls_{}_{}", mode_arg(mode), max_frame >> 10);
+        let scratch = Scratch::new(&what, Some(max_frame))?;
+        let domain = scratch.domain.clone();
+        let mut child = procs::spawn_role(
+            opts,
+            "calls-echo",
+            &[
+                domain.name().to_owned(),
+                max_frame.to_string(),
+                mode_arg(mode).to_owned(),
+                procs::core_arg(procs::core_for(opts, 1)),
+                uds::prio_arg(fifo),
+            ],
+        )?;
+        let mut tool = ModuleBuilder::new("bench", 0)
+            .mode(mode)
+            .open_tool(IpcTransport::new(&domain)?, ())
+            .context("opening the benchmark's module")?;
+        wait_for_echo(&mut tool, &mut child)?;
+        Ok(ModbotPath {
+            tool,
+            child,
+            mode,
+            sink: Vec::new(),
+            scratch,
+        })
+    }
+
+    /// Notes the shared memory a big domain took, and stops the echo module.
+    fn close(self, report: &mut Report, sizes: &[usize]) -> anyhow::Result<()> {
+        let max_frame = self.scratch.domain.max_frame();
+        if max_frame > modbot_runtime::domain::DEFAULT_MAX_FRAME {
+            let (reserved, used) = procs::shm_usage(&self.scratch.domain);
+            report.note(format!(
+                "calls: the {} domain with a max frame of {} (two modules, {} mode) reserved {} \
+                 of /dev/shm, {} of it touched",
+                size_label(*sizes.last().unwrap_or(&0)),
+                crate::report::format_value(max_frame as u64, Some("bytes")),
+                self.mode.name(),
+                crate::report::format_value(reserved, Some("bytes")),
+                crate::report::format_value(used, Some("bytes")),
+            ));
+        }
+        let ModbotPath {
+            tool,
+            child,
+            scratch,
+            ..
+        } = self;
+        drop(tool);
+        child.stop()?;
+        drop(scratch);
+        Ok(())
+    }
+}
+
+impl Path for ModbotPath {
+    fn one(&mut self, payload: &[u8]) -> anyhow::Result<u64> {
+        let sink = &mut self.sink;
+        let t = Instant::now();
+        let got = self.tool.call_blocking(
+            "echo",
+            "echo",
+            &[Value::Bytes(payload)],
+            CallOptions::default(),
+            |r| match r {
+                Ok(args) => match args.as_slice().first() {
+                    Some(Value::Bytes(b)) => {
+                        sink.clear();
+                        sink.extend_from_slice(b);
+                        Ok(b.len())
+                    }
+                    other => Err(format!("unexpected answer {other:?}")),
+                },
+                Err(e) => Err(e.to_string()),
+            },
+        );
+        let ns = sample::since(t);
+        match got {
+            Ok(len) if len == payload.len() => Ok(ns),
+            Ok(len) => bail!("echo answered {len} bytes for {}", payload.len()),
+            Err(e) => bail!("echo call: {e}"),
+        }
+    }
+
+    fn server(&mut self) -> &mut Proc {
+        &mut self.child
+    }
 }
 
 /// Calls until the echo module answers (it is starting, and the tool must learn its methods).
@@ -222,134 +358,153 @@ fn wait_for_echo(tool: &mut Module<()>, child: &mut Proc) -> anyhow::Result<()> 
     }
 }
 
-fn modbot_size(
-    opts: &Opts,
-    tool: &mut Module<()>,
-    size: usize,
-) -> anyhow::Result<hdrhistogram::Histogram<u64>> {
-    let payload = vec![0x5a_u8; size];
-    let mut sink: Vec<u8> = Vec::with_capacity(size);
-    let plan = Plan::for_bytes(opts, size);
-    sample::record(&plan, || {
-        let t = Instant::now();
-        let got = tool.call_blocking(
-            "echo",
-            "echo",
-            &[Value::Bytes(&payload)],
-            CallOptions::default(),
-            |r| match r {
-                Ok(args) => match args.as_slice().first() {
-                    Some(Value::Bytes(b)) => {
-                        sink.clear();
-                        sink.extend_from_slice(b);
-                        Ok(b.len())
-                    }
-                    other => Err(format!("unexpected answer {other:?}")),
-                },
-                Err(e) => Err(e.to_string()),
-            },
-        );
-        let ns = sample::since(t);
-        match got {
-            Ok(len) if len == size => Ok(ns),
-            Ok(len) => bail!("echo answered {len} bytes for {size}"),
-            Err(e) => bail!("echo call: {e}"),
-        }
-    })
+/// A raw iceoryx2 round trip (publish-subscribe both ways, the payload written into the loaned
+/// sample), in a scratch domain of its own.
+struct RawPath {
+    ports: RawPorts,
+    child: Proc,
+    sink: Vec<u8>,
+    _scratch: Scratch,
 }
 
-/// The raw iceoryx2 rows of one wait mode.
-fn raw(
+impl RawPath {
+    fn open(
+        opts: &Opts,
+        wait: Wait,
+        max_frame: usize,
+        sizes: &[usize],
+        fifo: Option<u8>,
+    ) -> anyhow::Result<RawPath> {
+        let max = sizes.iter().copied().max().unwrap_or(8);
+        let scratch = Scratch::new(&format!("raw_{}_{}", wait.arg(), max_frame >> 10), None)?;
+        let domain = scratch.domain.clone();
+        let mut child = procs::spawn_role(
+            opts,
+            "raw-echo",
+            &[
+                domain.name().to_owned(),
+                max.to_string(),
+                wait.arg().to_owned(),
+                procs::core_arg(procs::core_for(opts, 1)),
+                uds::prio_arg(fifo),
+            ],
+        )?;
+        let ports = RawPorts::open(&domain, "ping", "pong", max, wait)?;
+        ports.handshake(&mut child)?;
+        Ok(RawPath {
+            ports,
+            child,
+            sink: vec![0u8; max],
+            _scratch: scratch,
+        })
+    }
+
+    fn close(self) -> anyhow::Result<()> {
+        let RawPath {
+            ports,
+            child,
+            _scratch,
+            ..
+        } = self;
+        drop(ports);
+        child.stop()?;
+        Ok(())
+    }
+}
+
+impl Path for RawPath {
+    fn one(&mut self, payload: &[u8]) -> anyhow::Result<u64> {
+        let t = Instant::now();
+        let len = self.ports.round_trip(payload, &mut self.sink)?;
+        let ns = sample::since(t);
+        if len != payload.len() {
+            bail!("raw echo answered {len} bytes for {}", payload.len());
+        }
+        Ok(ns)
+    }
+
+    fn server(&mut self) -> &mut Proc {
+        &mut self.child
+    }
+}
+
+/// The raw iceoryx2 rows with Event wake-ups (a baseline of its own, not interleaved).
+fn raw_event(
     opts: &Opts,
     report: &mut Report,
-    wait: Wait,
     max_frame: usize,
     sizes: &[usize],
     fifo: Option<u8>,
 ) -> anyhow::Result<()> {
-    let row = match wait {
-        Wait::Busy => "calls.raw_iceoryx2_busy",
-        Wait::Event => "calls.raw_iceoryx2_event",
-    };
-    let max = sizes.iter().copied().max().unwrap_or(8);
-    let scratch = Scratch::new(&format!("raw_{}_{}", wait.arg(), max_frame >> 10), None)?;
-    let domain = scratch.domain.clone();
-    let mut child = procs::spawn_role(
-        opts,
-        "raw-echo",
-        &[
-            domain.name().to_owned(),
-            max.to_string(),
-            wait.arg().to_owned(),
-            procs::core_arg(procs::core_for(opts, 1)),
-            uds::prio_arg(fifo),
-        ],
-    )?;
-    let ports = RawPorts::open(&domain, "ping", "pong", max, wait)?;
-    ports.handshake(&mut child)?;
+    let mut raw = RawPath::open(opts, Wait::Event, max_frame, sizes, fifo)?;
     let _fifo = procs::set_fifo(fifo)?;
-    let mut sink = vec![0u8; max];
     for &size in sizes {
         let payload = vec![0x5a_u8; size];
-        let plan = Plan::for_bytes(opts, size);
-        let h = sample::record(&plan, || {
-            let t = Instant::now();
-            let len = ports.round_trip(&payload, &mut sink)?;
-            let ns = sample::since(t);
-            if len != size {
-                bail!("raw echo answered {len} bytes for {size}");
-            }
-            Ok(ns)
-        })?;
+        let h = sample::record(&Plan::for_bytes(opts, size), || raw.one(&payload))?;
         report.push(
-            Row::from_histogram(row, &h)
+            Row::from_histogram("calls.raw_iceoryx2_event", &h)
                 .param("bytes", size)
                 .is_baseline(),
         );
     }
-    drop(ports);
-    child.stop()?;
-    Ok(())
+    raw.close()
 }
 
-/// The Unix-socket rows.
-fn unix(opts: &Opts, report: &mut Report, sizes: &[usize], fifo: Option<u8>) -> anyhow::Result<()> {
-    let max = sizes.iter().copied().max().unwrap_or(8);
-    let mut scratch = Scratch::new(&format!("uds_{}", max >> 10), None)?;
-    let path = scratch.path("echo.sock");
-    let mut child = procs::spawn_role(
-        opts,
-        "uds-echo",
-        &[
-            path.display().to_string(),
-            procs::core_arg(procs::core_for(opts, 1)),
-            uds::prio_arg(fifo),
-        ],
-    )?;
-    let mut client = uds::Client::connect(&path, &mut child)?;
-    let _fifo = procs::set_fifo(fifo)?;
-    for &size in sizes {
-        let payload = vec![0x5a_u8; size];
-        let plan = Plan::for_bytes(opts, size);
-        let h = sample::record(&plan, || {
-            let t = Instant::now();
-            let len = client.echo(&payload)?;
-            let ns = sample::since(t);
-            if len != size {
-                bail!("uds echo answered {len} bytes for {size}");
-            }
-            Ok(ns)
-        })?;
-        report.push(
-            Row::from_histogram("calls.uds_blocking", &h)
-                .param("bytes", size)
-                .is_baseline(),
-        );
+/// A Unix stream socket round trip to an echo process that sleeps in a blocking read.
+struct UdsPath {
+    client: uds::Client,
+    child: Proc,
+    _scratch: Scratch,
+}
+
+impl UdsPath {
+    fn open(opts: &Opts, sizes: &[usize], fifo: Option<u8>) -> anyhow::Result<UdsPath> {
+        let max = sizes.iter().copied().max().unwrap_or(8);
+        let mut scratch = Scratch::new(&format!("uds_{}", max >> 10), None)?;
+        let path = scratch.path("echo.sock");
+        let mut child = procs::spawn_role(
+            opts,
+            "uds-echo",
+            &[
+                path.display().to_string(),
+                procs::core_arg(procs::core_for(opts, 1)),
+                uds::prio_arg(fifo),
+            ],
+        )?;
+        let client = uds::Client::connect(&path, &mut child)?;
+        Ok(UdsPath {
+            client,
+            child,
+            _scratch: scratch,
+        })
     }
-    drop(client);
-    child.stop()?;
-    drop(scratch);
-    Ok(())
+
+    fn close(self) -> anyhow::Result<()> {
+        let UdsPath {
+            client,
+            child,
+            _scratch,
+        } = self;
+        drop(client);
+        child.stop()?;
+        Ok(())
+    }
+}
+
+impl Path for UdsPath {
+    fn one(&mut self, payload: &[u8]) -> anyhow::Result<u64> {
+        let t = Instant::now();
+        let len = self.client.echo(payload)?;
+        let ns = sample::since(t);
+        if len != payload.len() {
+            bail!("uds echo answered {len} bytes for {}", payload.len());
+        }
+        Ok(ns)
+    }
+
+    fn server(&mut self) -> &mut Proc {
+        &mut self.child
+    }
 }
 
 /// The child roles of this benchmark.

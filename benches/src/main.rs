@@ -43,6 +43,7 @@ mod calls;
 mod faults;
 mod grid;
 mod hogs;
+mod interleave;
 mod lockstep;
 mod machine;
 mod opts;

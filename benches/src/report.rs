@@ -27,8 +27,12 @@ pub struct Row {
     pub max_ns: u64,
     /// The name and params of the row this one is compared with (a row of the same run).
     pub baseline: Option<BaselineRef>,
-    /// This row's p50 over the baseline's p50 (filled in by [`Report::resolve`]).
+    /// This row's p50 over the baseline's p50 (filled in by [`Report::resolve`]); for a row
+    /// measured interleaved with its baseline, the median of the blocks' ratios.
     pub ratio: Option<f64>,
+    /// Measured interleaved with its baseline: the ratios of the blocks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub blocks: Option<crate::interleave::Blocks>,
     /// The unit of the four values when they are not nanoseconds ("bytes", "count").
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unit: Option<&'static str>,
@@ -54,6 +58,7 @@ impl Row {
             max_ns: h.max(),
             baseline: None,
             ratio: None,
+            blocks: None,
             unit: None,
         }
     }
@@ -70,6 +75,7 @@ impl Row {
             max_ns: value,
             baseline: None,
             ratio: None,
+            blocks: None,
             unit: None,
         }
     }
@@ -90,6 +96,12 @@ impl Row {
             name: name.to_owned(),
             params: p,
         });
+        self
+    }
+
+    /// The row was measured interleaved with its baseline: its ratio is the blocks' median.
+    pub fn blocks(mut self, blocks: Option<crate::interleave::Blocks>) -> Row {
+        self.blocks = blocks;
         self
     }
 
@@ -200,7 +212,9 @@ impl Report {
                     b.params
                 );
             };
-            row.ratio = if *b == row.key() || row.p50_ns == *base {
+            row.ratio = if let Some(blocks) = row.blocks {
+                Some(blocks.median)
+            } else if *b == row.key() || row.p50_ns == *base {
                 Some(1.0)
             } else if *base == 0 {
                 // Undefined against a zero baseline: left empty rather than made up.
@@ -301,8 +315,7 @@ impl Report {
                     fmt(r.p999_ns),
                     fmt(r.max_ns),
                     base,
-                    r.ratio
-                        .map_or_else(|| "–".to_owned(), |x| format!("{x:.2}"))
+                    ratio_text(r)
                 );
             }
             let _ = writeln!(s);
@@ -314,6 +327,15 @@ impl Report {
             }
         }
         s
+    }
+}
+
+/// The ratio cell: the ratio, and for an interleaved row the range over its blocks.
+fn ratio_text(r: &Row) -> String {
+    match (r.ratio, r.blocks) {
+        (None, _) => "–".to_owned(),
+        (Some(x), None) => format!("{x:.2}"),
+        (Some(x), Some(b)) => format!("{x:.2} ({:.2}–{:.2}, {} blocks)", b.min, b.max, b.count),
     }
 }
 
