@@ -161,7 +161,7 @@ fn blocking_pair(
 }
 
 /// One way to make a round trip with a payload, and the server process that answers.
-trait Path {
+pub(crate) trait Path {
     /// One round trip of `payload`, in ns.
     fn one(&mut self, payload: &[u8]) -> anyhow::Result<u64>;
     fn server(&mut self) -> &mut Proc;
@@ -360,7 +360,7 @@ fn wait_for_echo(tool: &mut Module<()>, child: &mut Proc) -> anyhow::Result<()> 
 
 /// A raw iceoryx2 round trip (publish-subscribe both ways, the payload written into the loaned
 /// sample), in a scratch domain of its own.
-struct RawPath {
+pub(crate) struct RawPath {
     ports: RawPorts,
     child: Proc,
     sink: Vec<u8>,
@@ -368,7 +368,7 @@ struct RawPath {
 }
 
 impl RawPath {
-    fn open(
+    pub(crate) fn open(
         opts: &Opts,
         wait: Wait,
         max_frame: usize,
@@ -399,7 +399,7 @@ impl RawPath {
         })
     }
 
-    fn close(self) -> anyhow::Result<()> {
+    pub(crate) fn close(self) -> anyhow::Result<()> {
         let RawPath {
             ports,
             child,

@@ -4,9 +4,14 @@
 //! is measured is how fast it goes.
 //!
 //! `grid.lockstep_rate` (ticks per second) is the N ticks over the wall time of a run of N
-//! ticks minus that of a run of 100 (start-up and shutdown cancel out); its baseline,
-//! `grid.realtime_rate`, is the real-time clock's 1000 ticks per second, so the ratio is the
-//! speed-up over real time.
+//! ticks minus that of a run of 100 (start-up and shutdown cancel out). Its baseline,
+//! `grid.event_round_trip_rate`, is measured in the same run, right before and right after the
+//! lockstep runs: raw iceoryx2 round trips between two processes that sleep on an Event between
+//! messages (what one lockstep tick is made of: the coordinator wakes the hosts, they answer),
+//! per second at their median. The ratio is how many such round trips a lockstep tick costs,
+//! inverted: it moves with the grid's overhead, not with the machine's speed. Also reported:
+//! `grid.realtime_rate`, the real-time clock's 1000 ticks per second, as the speed-up over
+//! real time.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -15,10 +20,13 @@ use anyhow::{bail, Context};
 use modbot_runtime::grid::{reference_trace, Registry};
 use modbot_runtime::system::{self, DefaultResolver};
 
+use crate::calls::{Path as _, RawPath};
 use crate::hogs::Hogs;
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};
+use crate::raw::Wait;
 use crate::report::{Report, Row};
+use crate::sample::{self, Plan};
 
 /// The demo grid of the examples.
 fn demo() -> PathBuf {
@@ -80,9 +88,28 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         );
         let _hogs = Hogs::start(opts, hogs)?;
         let mut scratch = Scratch::new(&format!("lockstep{hogs}"), None)?;
+        let mut raw = RawPath::open(opts, Wait::Event, 4096, &[8], None)?;
+        let mut round_trips = sample::histogram();
+        let mut measure_raw = |raw: &mut RawPath| -> anyhow::Result<()> {
+            let plan = Plan::new(opts, opts.samples(2_000, 10_000));
+            let h = sample::record(&plan, || raw.one(&[0x5a; 8]))?;
+            round_trips.add(&h).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            Ok(())
+        };
+        measure_raw(&mut raw)?;
         let (_, short) = run_once(opts, &mut scratch, 100)?;
         let (first, long) = run_once(opts, &mut scratch, ticks)?;
         let (second, _) = run_once(opts, &mut scratch, ticks)?;
+        measure_raw(&mut raw)?;
+        raw.close()?;
+        let p50 = round_trips.value_at_quantile(0.5).max(1);
+        let raw_rate = (1e9 / p50 as f64).round() as u64;
+        report.push(
+            Row::single("grid.event_round_trip_rate", raw_rate)
+                .param("hogs", hogs)
+                .unit("round trips/s")
+                .is_baseline(),
+        );
         let want = reference(&demo(), scratch.domain.name(), ticks)?;
         let identical = first == second;
         let equal = first == want;
@@ -92,13 +119,17 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
             Row::single("grid.lockstep_rate", rate)
                 .param("hogs", hogs)
                 .unit("ticks/s")
-                .against("grid.realtime_rate", &[]),
+                .against("grid.event_round_trip_rate", &[]),
         );
         report.note(format!(
             "grid lockstep ({hogs} CPU hogs): examples/grid_demo.lua, {ticks} ticks twice: traces \
              byte-identical: {identical}; equal to the in-process reference: {equal}; \
-             {rate} ticks/s ({:.1}× real time at 1 kHz)",
-            rate as f64 / 1000.0
+             {rate} ticks/s ({:.1}× real time at 1 kHz); raw iceoryx2 Event round trips in the \
+             same run, before and after: {raw_rate}/s (p50 {:.1} µs), so a lockstep tick costs \
+             {:.1} of them",
+            rate as f64 / 1000.0,
+            p50 as f64 / 1000.0,
+            raw_rate as f64 / rate.max(1) as f64,
         ));
         if !identical || !equal {
             bail!("the lockstep traces ({hogs} hogs) are not identical or differ from LET");
