@@ -19,14 +19,29 @@ fn a_lost_coordinator_brings_every_drive_to_quick_stop() {
     let mut sut = TestDomain::new("lostcoord");
     let file = arm();
     let domain = format!("domain={}", sut.name());
-    let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap(), "--var", &domain]);
+    // The watchdog's budget is 500 base periods here, not its 3 by default: on a machine that
+    // runs the grid without SCHED_FIFO, under load, 3 ms without a tick come often enough to
+    // stop the drives again and again before the kill. What is under test is that a lost
+    // coordinator stops every drive; that the default budget is kept is unit-tested with an
+    // injected clock (bus::bridge) and measured by the bench.
+    let up = sut.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            file.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--var",
+            "watchdog=500",
+        ],
+    );
     wait_enabled(&sut, up);
     let coordinator: u32 = sut
         .ls_field("coordinator", "PID")
         .and_then(|p| p.parse().ok())
         .expect("the coordinator runs");
     sut.signal(coordinator, Signal::SIGKILL);
-    sut.wait_for("every drive in quick stop", Duration::from_secs(10), || {
+    sut.wait_for("every drive in quick stop", Duration::from_secs(60), || {
         all_axes(&bus_ledger(&sut), "quick stop active")
     });
     let ledger = bus_ledger(&sut);

@@ -111,17 +111,25 @@ fn a_real_time_trace_with_its_overruns_replayed_equals_the_reference_on_every_li
     println!("overruns and stale releases in the run: {misses}");
 }
 
-fn sleeper_grid(policy: &str, sleep_at: i64) -> String {
-    sleeper_grid_ms(policy, sleep_at, 15)
+/// A ramp on host `h1` feeding a sleeper `S` of period 10 on host `hs` that never sleeps,
+/// feeding a gain on `h1`.
+fn sleeper_grid(policy: &str) -> String {
+    sleeper_grid_ms(policy, 10, -1, 15)
 }
 
-fn sleeper_grid_ms(policy: &str, sleep_at: i64, sleep_ms: i64) -> String {
+/// The same grid with `S` of `period` ticks sleeping `sleep_ms` at its release at `sleep_at`.
+///
+/// On the real-time clock a release is late when the machine holds its host up for a period,
+/// so the tests that make `S` overrun give it a period of 100 ticks (100 ms: far longer than a
+/// loaded machine holds a process up) and a sleep of three periods or more (which a late
+/// coordinator does not miss): the overruns they look at are the sleep's.
+fn sleeper_grid_ms(policy: &str, period: u64, sleep_at: i64, sleep_ms: i64) -> String {
     format!(
         r#"
 supervision {{ heartbeat_timeout = 10 }}
 grid {{ base_period = 0.001 }}
 component "A" {{ type = "ramp", host = "h1", period = 1 }}
-component "S" {{ type = "sleeper", host = "hs", period = 10, policy = "{policy}",
+component "S" {{ type = "sleeper", host = "hs", period = {period}, policy = "{policy}",
                 params = {{ sleep_ms = {sleep_ms}, sleep_at = {sleep_at} }} }}
 component "T" {{ type = "gain", host = "h1", period = 1, params = {{ k = 1 }} }}
 connect "A.y -> S.u"
@@ -142,40 +150,43 @@ fn value_at(trace: &str, tick: u64, port: &str) -> String {
         .to_owned()
 }
 
-/// A component that sleeps far past its deadline once (50 ms at period 10) overruns, and
-/// downstream sees its last valid outputs until its next on-time release: the trace equals
-/// LET with the recorded overruns replayed, and differs from the run without them.
+/// A component that sleeps far past its deadline once (300 ms at its release at 100, at
+/// period 100) overruns, and downstream sees its last valid outputs until its next on-time
+/// release: the trace equals LET with the recorded overruns replayed, and differs from the
+/// run without them.
 #[test]
 fn a_sleep_past_the_deadline_is_an_overrun_and_downstream_sees_the_held_value() {
     let _one = one_grid();
     let mut sut = TestDomain::new("overrun");
-    let file = sut.write_system(&sleeper_grid_ms("hold", 100, 50));
-    let trace = traced_run(&mut sut, &file, 300, Clock::RealTime, "hold");
+    let file = sut.write_system(&sleeper_grid_ms("hold", 100, 100, 300));
+    let trace = traced_run(&mut sut, &file, 600, Clock::RealTime, "hold");
     assert!(
-        assert_trace_is_let(&file, sut.name(), 300, &trace) >= 1,
+        assert_trace_is_let(&file, sut.name(), 600, &trace) >= 1,
         "the overrun is recorded"
     );
-    // The first overrun of S is of its release at 100 (it sleeps 50 ms); at that deadline
+    // S's release at 100 overruns its deadline at 200 (it sleeps 300 ms); at that deadline
     // S.y is held, and the reference without the overrun would have changed it.
-    let first = trace
+    let overrun = trace
         .lines()
-        .find(|l| l.starts_with("# overrun") && l.contains("component=S "))
-        .unwrap_or_else(|| panic!("no overrun of S in\n{trace}"));
-    assert!(first.ends_with("release=100"), "{first}");
-    let tick: u64 = first
+        .find(|l| {
+            l.starts_with("# overrun") && l.contains("component=S ") && l.ends_with("release=100")
+        })
+        .unwrap_or_else(|| panic!("no overrun of S's release at 100 in\n{trace}"));
+    let tick: u64 = overrun
         .split_whitespace()
         .find_map(|w| w.strip_prefix("tick="))
         .and_then(|t| t.parse().ok())
         .unwrap();
+    assert_eq!(tick, 200, "{overrun}");
     assert_eq!(
         value_at(&trace, tick, "S.y"),
         value_at(&trace, tick - 1, "S.y"),
         "held at the missed deadline"
     );
-    let reference = expected(&file, sut.name(), 300);
+    let reference = expected(&file, sut.name(), 600);
     assert_ne!(
-        value_at(&reference, 110, "S.y"),
-        value_at(&trace, 110, "S.y"),
+        value_at(&reference, tick, "S.y"),
+        value_at(&trace, tick, "S.y"),
         "without the overrun the value would have changed"
     );
 }
@@ -219,7 +230,7 @@ fn start(sut: &mut TestDomain, body: &str) -> u32 {
             break;
         }
         assert!(
-            start.elapsed() < Duration::from_secs(30),
+            start.elapsed() < Duration::from_secs(60),
             "the grid did not tick; top:\n{t}\nmodbot up:\n{}",
             sut.output_of(up)
         );
@@ -234,25 +245,34 @@ fn start(sut: &mut TestDomain, body: &str) -> u32 {
 fn a_stopped_host_does_not_stop_the_tick_and_its_overruns_count_up() {
     let _one = one_grid();
     let mut sut = TestDomain::new("stophost");
-    let up = start(&mut sut, &sleeper_grid("hold", -1));
+    let up = start(&mut sut, &sleeper_grid("hold"));
     let hs: u32 = sut
         .ls_field("host_hs", "PID")
         .and_then(|p| p.parse().ok())
         .expect("host_hs runs");
     sut.signal(hs, Signal::SIGSTOP);
     let before = top(&sut);
-    sut.wait_for("the tick to go on", Duration::from_secs(30), || {
-        ticks_of(&top(&sut)) > ticks_of(&before) + 300
-    });
-    let after = top(&sut);
+    // How many of T's releases in 300 ticks its host serves in time depends on the machine's
+    // load; that they go on does not: waited for, as the tick.
+    let mut after = before.clone();
+    sut.wait_until(
+        "the tick and T's releases to go on",
+        Duration::from_secs(60),
+        || {
+            after = top(&sut);
+            if ticks_of(&after) > ticks_of(&before) + 300
+                && releases_of(&after, "T") > releases_of(&before, "T") + 200
+            {
+                Ok(())
+            } else {
+                Err(format!("{before}\n{after}"))
+            }
+        },
+    );
     sut.signal(hs, Signal::SIGCONT);
     assert!(
         overruns_of(&after, "S") > overruns_of(&before, "S"),
         "{after}"
-    );
-    assert!(
-        releases_of(&after, "T") > releases_of(&before, "T") + 200,
-        "the components of the other host keep being released:\n{before}\n{after}"
     );
     assert!(
         after.contains("COMPONENT") && after.contains("EXEC p99"),
@@ -265,18 +285,19 @@ fn a_stopped_host_does_not_stop_the_tick_and_its_overruns_count_up() {
 }
 
 /// With the `fault` policy, three deadlines missed in a row fault the grid: it stops
-/// releasing and says why.
+/// releasing and says why (S, of period 100, sleeps 600 ms at its release at 300: its
+/// deadlines at 400, 500 and 600 pass).
 #[test]
 fn three_overruns_in_a_row_under_the_fault_policy_fault_the_grid() {
     let _one = one_grid();
     let mut sut = TestDomain::new("gridfault");
-    let up = start(&mut sut, &sleeper_grid_ms("fault", 300, 60));
-    sut.wait_for("the grid to fault", Duration::from_secs(20), || {
+    let up = start(&mut sut, &sleeper_grid_ms("fault", 100, 300, 600));
+    sut.wait_for("the grid to fault", Duration::from_secs(60), || {
         top(&sut).contains("faulted")
     });
     let t = top(&sut);
     assert!(
-        t.contains("component S overran its deadline at tick 3") && t.contains("(released at 300)"),
+        t.contains("component S overran its deadline at tick 600 (released at 300)"),
         "{t}"
     );
     sut.signal(up, Signal::SIGTERM);
@@ -308,7 +329,7 @@ connect "A.y -> B.u"
 fn a_restarted_host_is_released_again() {
     let _one = one_grid();
     let mut sut = TestDomain::new("hostrestart");
-    let up = start(&mut sut, &sleeper_grid("hold", -1));
+    let up = start(&mut sut, &sleeper_grid("hold"));
     let hs: u32 = sut
         .ls_field("host_hs", "PID")
         .and_then(|p| p.parse().ok())
@@ -330,7 +351,7 @@ fn a_restarted_host_is_released_again() {
         }
     });
     let before = releases_of(&top(&sut), "S");
-    sut.wait_until("S to be released again", Duration::from_secs(10), || {
+    sut.wait_until("S to be released again", Duration::from_secs(60), || {
         let top = top(&sut);
         if releases_of(&top, "S") > before + 20 {
             Ok(())

@@ -27,13 +27,16 @@ fn sonar_counters(sut: &TestDomain) -> (u64, u64, u64) {
 fn a_request_to_a_stopped_module_is_retransmitted_and_served_once_when_it_resumes() {
     let mut sut = TestDomain::new("retransmit");
     let sonar = sut.spawn("modbot-sonar", &["--obstacle", "3,0"]);
-    sut.spawn("modbot-mobility", &["--speed", "1.0"]);
-    sut.wait_for("the sonar to answer", Duration::from_secs(10), || {
+    // Slow, as in mra_scenario.rs: where the base stops must not depend on scheduling delays.
+    sut.spawn("modbot-mobility", &["--speed", "0.25"]);
+    sut.wait_for("the sonar to answer", Duration::from_secs(30), || {
         sut.modbot(&["call", "sonar.ranges"]).status.success()
     });
-    sut.wait_for("mobility to know the sonar", Duration::from_secs(5), || {
-        sut.modbot(&["call", "mobility.stop"]).status.success()
-    });
+    sut.wait_for(
+        "mobility to know the sonar",
+        Duration::from_secs(30),
+        || sut.modbot(&["call", "mobility.stop"]).status.success(),
+    );
     assert_eq!(sonar_counters(&sut).2, 0, "nothing replayed yet");
 
     sut.signal(sonar, Signal::SIGSTOP);
@@ -42,11 +45,15 @@ fn a_request_to_a_stopped_module_is_retransmitted_and_served_once_when_it_resume
         "1",
         "the first motion command"
     );
-    // mobility's monitor call has a 2 s timeout and 2 retransmissions, at 0.67 s and 1.33 s.
-    std::thread::sleep(Duration::from_millis(1500));
+    // mobility's monitor call has a 2 s timeout and 2 retransmissions, at 0.67 s and 1.33 s
+    // after `forward` was served. Resumed 1 s after the answer to `forward` came back, the
+    // sonar finds the first retransmission beside the request, and the call still has about
+    // 1 s before its deadline for the answer to `forward` to come back, this thread to wake
+    // and the sonar to answer (waiting 1.5 s left that 0.5 s).
+    std::thread::sleep(Duration::from_millis(1000));
     sut.signal(sonar, Signal::SIGCONT);
 
-    sut.wait_for("the base to stop", Duration::from_secs(20), || {
+    sut.wait_for("the base to stop", Duration::from_secs(60), || {
         sut.modbot_ok(&["bb", "mobility", "moving"]).trim() == "false"
     });
     let x: f64 = sut

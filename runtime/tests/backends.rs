@@ -27,7 +27,7 @@ use modbot_runtime::{
     CallError, CallOptions, Ctx, MethodError, Module, ModuleBuilder, ModuleError, Reply, Report,
     Stats,
 };
-use support::{crash, eventually, pump, stopping, Backend, Heard, TestDomain};
+use support::{crash, eventually, pump, stopping, Backend, Heard, TestDomain, PATIENCE};
 
 /// Instantiates every listed scenario for both backends. A scenario can carry attributes for
 /// one backend only: `#[local(ignore = "...")]`, `#[ipc(ignore = "...")]` (in that order).
@@ -96,10 +96,39 @@ on_both_backends! {
 // ---------------------------------------------------------------------------------------------
 // Modules the scenarios use.
 
-/// A calculator. `tag` is added to every square, to tell two calculators apart.
+/// A calculator. `tag` is added to every square, to tell two calculators apart; with `held`,
+/// the test sees each `stall` begin and ends it.
 #[derive(Debug, Default)]
 struct Calc {
     tag: i64,
+    held: Option<Held>,
+}
+
+impl Calc {
+    fn tagged(tag: i64) -> Calc {
+        Calc { tag, held: None }
+    }
+
+    /// A calculator whose stalls the test holds: returns it, where each stall says it began,
+    /// and what ends a stall.
+    fn held() -> (Calc, mpsc::Receiver<()>, mpsc::Sender<()>) {
+        let (began, began_rx) = mpsc::channel();
+        let (release_tx, release) = mpsc::channel();
+        let held = Held { began, release };
+        let calc = Calc {
+            tag: 0,
+            held: Some(held),
+        };
+        (calc, began_rx, release_tx)
+    }
+}
+
+/// The test's hold on a calculator's `stall`: told when one begins, and ends it when told, so
+/// a test neither guesses when the module is stalled nor how long the stall must last.
+#[derive(Debug)]
+struct Held {
+    began: mpsc::Sender<()>,
+    release: mpsc::Receiver<()>,
 }
 
 /// The calculator's method table.
@@ -151,14 +180,26 @@ fn square(s: &mut Calc, _: &mut Ctx, a: &Args<'_>, r: &mut Reply) -> Result<(), 
     Ok(())
 }
 
-/// `stall(ms)`: holds the module's thread (it serves nothing meanwhile), then answers.
-fn stall(_: &mut Calc, _: &mut Ctx, a: &Args<'_>, _: &mut Reply) -> Result<(), MethodError> {
+/// `stall(ms)`: holds the module's thread (it serves nothing meanwhile) for `ms`, or, for a
+/// held calculator, until the test ends the stall; then answers.
+fn stall(s: &mut Calc, _: &mut Ctx, a: &Args<'_>, _: &mut Reply) -> Result<(), MethodError> {
     let until = Instant::now() + Duration::from_millis(a.i64(0)? as u64);
+    if let Some(held) = &s.held {
+        let _ = held.began.send(());
+    }
     while Instant::now() < until && !stopping() {
+        if let Some(held) = &s.held {
+            if held.release.try_recv().is_ok() {
+                break;
+            }
+        }
         std::thread::sleep(Duration::from_millis(1));
     }
     Ok(())
 }
+
+/// A stall that lasts until the test ends it (a minute at most, should the test fail first).
+const HELD: i64 = 60_000;
 
 /// `crash()`: the module dies without answering.
 fn crash_now(_: &mut Calc, _: &mut Ctx, _: &Args<'_>, _: &mut Reply) -> Result<(), MethodError> {
@@ -236,8 +277,20 @@ fn step(s: &mut Store, ctx: &mut Ctx) {
     ctx.bb.write("b", Value::I64(s.n)).expect("b is an i64");
 }
 
+/// The timeout of the tests' calls: generous, since a call ends as soon as it is answered.
+const CALL_TIMEOUT: Duration = Duration::from_secs(30);
+
 fn opts() -> CallOptions {
-    CallOptions::timeout(Duration::from_secs(5))
+    CallOptions::timeout(CALL_TIMEOUT)
+}
+
+/// Asserts that a call that failed after `waited` failed at once: well before its timeout
+/// ([`CALL_TIMEOUT`]), which it would have reached had it waited for an answer.
+fn assert_failed_at_once(waited: Duration) {
+    assert!(
+        waited < CALL_TIMEOUT / 2,
+        "failed only after {waited:?}, near its {CALL_TIMEOUT:?} timeout"
+    );
 }
 
 fn i64s(v: &[i64]) -> Vec<OwnedValue> {
@@ -380,8 +433,8 @@ fn an_unknown_module_name_fails_with_unknown_module<B: Backend>(fx: &mut TestDom
 fn twenty_calls_outstanding_at_once_are_each_matched_to_their_answer<B: Backend>(
     fx: &mut TestDomain<B>,
 ) {
-    fx.start("calc", 3, Calc { tag: 0 }, calc);
-    fx.start("calc2", 4, Calc { tag: 1000 }, calc);
+    fx.start("calc", 3, Calc::tagged(0), calc);
+    fx.start("calc2", 4, Calc::tagged(1000), calc);
     let mut caller = fx.caller();
     let mut expected = HashMap::new();
     for i in 0..20i64 {
@@ -401,9 +454,7 @@ fn twenty_calls_outstanding_at_once_are_each_matched_to_their_answer<B: Backend>
         caller.state().answers.is_empty(),
         "no answer was read before all calls were out"
     );
-    let all = pump(&mut caller, Duration::from_secs(5), |m| {
-        m.state().answers.len() >= 20
-    });
+    let all = pump(&mut caller, PATIENCE, |m| m.state().answers.len() >= 20);
     let answers = &caller.state().answers;
     assert!(
         all,
@@ -418,10 +469,12 @@ fn twenty_calls_outstanding_at_once_are_each_matched_to_their_answer<B: Backend>
     }
 }
 
-/// A module that holds its thread does not answer: the call times out, naming the module and
+/// A module that holds its thread does not answer: the call times out after its timeout (not
+/// before, and not long after: the stall lasts until the test ends it), naming the module and
 /// the caller's timeout; the late answer is not taken for the next call.
 fn a_call_to_a_module_that_does_not_answer_times_out<B: Backend>(fx: &mut TestDomain<B>) {
-    fx.start("calc", 3, Calc::default(), calc);
+    let (held, began, release) = Calc::held();
+    fx.start("calc", 3, held, calc);
     let mut caller = fx.caller();
     assert_eq!(
         caller.call_owned("calc", "nothing", &[], opts()),
@@ -431,7 +484,7 @@ fn a_call_to_a_module_that_does_not_answer_times_out<B: Backend>(fx: &mut TestDo
     let sut = caller.call_owned(
         "calc",
         "stall",
-        &[Value::I64(1200)],
+        &[Value::I64(HELD)],
         CallOptions::timeout(Duration::from_millis(250)),
     );
     let waited = t.elapsed();
@@ -442,9 +495,14 @@ fn a_call_to_a_module_that_does_not_answer_times_out<B: Backend>(fx: &mut TestDo
         other => panic!("expected a timeout, got {other:?}"),
     }
     assert!(
-        waited >= Duration::from_millis(250) && waited < Duration::from_millis(1000),
-        "gave up after {waited:?}"
+        began.recv_timeout(PATIENCE).is_ok(),
+        "the module never began the stall"
     );
+    assert!(
+        waited >= Duration::from_millis(250) && waited < Duration::from_secs(10),
+        "gave up after {waited:?}, with a timeout of 250 ms"
+    );
+    release.send(()).expect("the module holds the stall");
     assert_eq!(
         caller.call_owned("calc", "square", &[Value::I64(7)], opts()),
         Ok(i64s(&[49])),
@@ -456,7 +514,8 @@ fn a_call_to_a_module_that_does_not_answer_times_out<B: Backend>(fx: &mut TestDo
 /// sender learns it (nothing is dropped silently). A call made with `wait_for_peer` goes
 /// through once the module serves again.
 fn a_full_inbox_refuses_frames_and_the_sender_learns_it<B: Backend>(fx: &mut TestDomain<B>) {
-    fx.start("calc", 3, Calc::default(), calc);
+    let (held, began, release) = Calc::held();
+    fx.start("calc", 3, held, calc);
     let mut caller = fx.caller();
     assert_eq!(
         caller.call_owned("calc", "nothing", &[], opts()),
@@ -467,11 +526,14 @@ fn a_full_inbox_refuses_frames_and_the_sender_learns_it<B: Backend>(fx: &mut Tes
         .call_with(
             "calc",
             "stall",
-            &[Value::I64(600)],
-            CallOptions::timeout(Duration::from_secs(5)).with_retry(RetryPolicy::NONE),
+            &[Value::I64(HELD)],
+            opts().with_retry(RetryPolicy::NONE),
         )
         .expect("the stall call goes out");
-    std::thread::sleep(Duration::from_millis(100));
+    assert!(
+        began.recv_timeout(PATIENCE).is_ok(),
+        "the module never began the stall"
+    );
     let mut delivered = 0;
     let refused = loop {
         match caller.ctx().report_to("calc", 5, &[Value::I64(delivered)]) {
@@ -495,6 +557,7 @@ fn a_full_inbox_refuses_frames_and_the_sender_learns_it<B: Backend>(fx: &mut Tes
         caller.ctx().dropped() >= 1,
         "the refused frame is counted as dropped"
     );
+    release.send(()).expect("the module holds the stall");
     let waiting = CallOptions {
         wait_for_peer: true,
         ..opts()
@@ -576,12 +639,8 @@ fn a_killed_module_is_not_available<B: Backend>(fx: &mut TestDomain<B>) {
         caller.call_owned("victim", "square", &[Value::I64(3)], opts()),
         "victim",
     );
-    assert!(
-        t.elapsed() < Duration::from_secs(1),
-        "failed only after {:?}",
-        t.elapsed()
-    );
-    let noticed = pump(&mut caller, Duration::from_secs(2), |m| {
+    assert_failed_at_once(t.elapsed());
+    let noticed = pump(&mut caller, PATIENCE, |m| {
         m.ctx().phone_book().lookup("victim").is_err()
     });
     assert!(noticed, "the phone book still lists victim as alive");
@@ -601,16 +660,16 @@ fn a_killed_module_is_not_available<B: Backend>(fx: &mut TestDomain<B>) {
 fn a_module_restarted_at_the_address_of_a_killed_one_keeps_serving<B: Backend>(
     fx: &mut TestDomain<B>,
 ) {
-    fx.start("victim", 4, Calc { tag: 1 }, calc);
+    fx.start("victim", 4, Calc::tagged(1), calc);
     let mut caller = fx.caller();
     assert_eq!(
         caller.call_owned("victim", "square", &[Value::I64(2)], opts()),
         Ok(i64s(&[5]))
     );
     fx.kill("victim");
-    fx.start("victim", 4, Calc { tag: 2 }, calc);
+    fx.start("victim", 4, Calc::tagged(2), calc);
     fx.end_killed();
-    let sut = pump(&mut caller, Duration::from_secs(2), |m| {
+    let sut = pump(&mut caller, PATIENCE, |m| {
         m.call_owned("victim", "square", &[Value::I64(2)], opts()) == Ok(i64s(&[6]))
     });
     assert!(
@@ -633,18 +692,9 @@ fn a_call_waiting_on_a_module_that_crashes_fails_without_waiting_for_its_timeout
         Ok(vec![])
     );
     let t = Instant::now();
-    let sut = caller.call_owned(
-        "calc",
-        "crash",
-        &[],
-        CallOptions::timeout(Duration::from_secs(10)),
-    );
+    let sut = caller.call_owned("calc", "crash", &[], opts());
     assert_not_available(sut, "calc");
-    assert!(
-        t.elapsed() < Duration::from_secs(3),
-        "failed only after {:?}",
-        t.elapsed()
-    );
+    assert_failed_at_once(t.elapsed());
     fx.wait_for_end("calc");
 }
 
@@ -662,11 +712,7 @@ fn a_call_to_a_module_that_is_down_fails_at_once<B: Backend>(fx: &mut TestDomain
         caller.call_owned("arm", "square", &[Value::I64(4)], opts()),
         "arm",
     );
-    assert!(
-        t.elapsed() < Duration::from_millis(200),
-        "failed only after {:?}",
-        t.elapsed()
-    );
+    assert_failed_at_once(t.elapsed());
 }
 
 /// With `wait_for_peer`, a call to a module that is down (and known to be down) waits, and is
@@ -694,13 +740,14 @@ fn call_waiting_for_a_peer_that_comes_back<B: Backend>(fx: &mut TestDomain<B>, n
     );
     fx.kill("arm");
     if noticed {
-        let seen = pump(&mut caller, Duration::from_secs(2), |m| {
+        let seen = pump(&mut caller, PATIENCE, |m| {
             m.ctx().phone_book().lookup("arm").is_err()
         });
         assert!(seen, "the caller never saw arm go down");
     }
-    fx.start_later(Duration::from_millis(400), "arm", 3, Calc::default(), calc);
+    // Taken before arm's thread starts: it opens the module 400 ms later at the earliest.
     let t = Instant::now();
+    fx.start_later(Duration::from_millis(400), "arm", 3, Calc::default(), calc);
     let sut = caller.call_owned(
         "arm",
         "square",
@@ -712,7 +759,7 @@ fn call_waiting_for_a_peer_that_comes_back<B: Backend>(fx: &mut TestDomain<B>, n
     );
     assert_eq!(sut, Ok(i64s(&[25])), "after {:?}", t.elapsed());
     assert!(
-        t.elapsed() >= Duration::from_millis(300),
+        t.elapsed() >= Duration::from_millis(400),
         "answered after {:?}, before arm was back",
         t.elapsed()
     );
@@ -721,8 +768,8 @@ fn call_waiting_for_a_peer_that_comes_back<B: Backend>(fx: &mut TestDomain<B>, n
 // ---------------------------------------------------------------------------------------------
 // Reports: broadcast and multicast.
 
-/// Collects what `rx` hears on `topic` until `until` holds (or 3 s pass), then for `quiet`
-/// longer, to catch what should not come.
+/// Collects what `rx` hears on `topic` until `until` holds (or [`PATIENCE`] passes), then for
+/// `quiet` longer, to catch what should not come.
 fn collect(
     rx: &mpsc::Receiver<Heard>,
     topic: u8,
@@ -730,7 +777,7 @@ fn collect(
     mut until: impl FnMut(&[Heard]) -> bool,
 ) -> Vec<Heard> {
     let mut got = Vec::new();
-    let deadline = Instant::now() + Duration::from_secs(3);
+    let deadline = Instant::now() + PATIENCE;
     while !until(&got) && Instant::now() < deadline {
         if let Ok(h) = rx.recv_timeout(Duration::from_millis(10)) {
             got.extend(Some(h).filter(|h| h.topic == topic));
@@ -807,7 +854,7 @@ fn a_module_does_not_hear_its_own_broadcast<B: Backend>(fx: &mut TestDomain<B>) 
         h.iter().any(|h| h.by == "b")
     });
     assert_eq!(names(&got), ["b"], "{got:#?}");
-    let heard_by_caller = pump(&mut caller, Duration::from_millis(200), |m| {
+    let heard_by_caller = pump(&mut caller, PATIENCE, |m| {
         m.state().heard.iter().any(|h| h.topic == SHOUT_TOPIC)
     });
     assert!(heard_by_caller, "the caller did not hear a's broadcast");
@@ -853,10 +900,11 @@ fn snapshots_read_in_place_are_never_torn<B: Backend>(fx: &mut TestDomain<B>) {
     let (mut last_seq, mut last_a) = (0, 0);
     let mut reads = 0;
     let t = Instant::now();
-    while t.elapsed() < Duration::from_millis(400) || seqs.len() < 5 {
+    // Reads for 400 ms at least, until 5 snapshots came and one was read more than once.
+    while t.elapsed() < Duration::from_millis(400) || seqs.len() < 5 || reads <= seqs.len() {
         assert!(
-            t.elapsed() < Duration::from_secs(5),
-            "only {} snapshots seen",
+            t.elapsed() < PATIENCE,
+            "only {} snapshots seen in {reads} reads",
             seqs.len()
         );
         let read = caller
@@ -923,7 +971,7 @@ fn blackboard_items_are_read_and_written_by_message<B: Backend>(fx: &mut TestDom
     assert_eq!(bb_set(&mut caller, "gain", Value::F64(2.5)), Ok(vec![]));
     assert_eq!(bb_get(&mut caller, "gain"), Ok(vec![OwnedValue::F64(2.5)]));
     assert!(
-        eventually(Duration::from_secs(2), || {
+        eventually(PATIENCE, || {
             caller
                 .ctx()
                 .snapshot_of("store", |v| v.f64("gain"))
@@ -1080,7 +1128,7 @@ fn malformed_frames_are_counted_as_rejected_and_the_module_keeps_serving<B: Back
     }
 
     let mut naks = HashMap::new();
-    let deadline = Instant::now() + Duration::from_secs(5);
+    let deadline = Instant::now() + PATIENCE;
     while naks.len() < 2 && Instant::now() < deadline {
         let got = noise
             .rx
@@ -1180,7 +1228,8 @@ fn stats_count_frames_and_calls_and_record_the_latency_of_each_answered_call<B: 
     fx: &mut TestDomain<B>,
 ) {
     const N: u64 = 20;
-    fx.start("calc", 3, Calc::default(), calc);
+    let (held, _, release) = Calc::held();
+    fx.start("calc", 3, held, calc);
     let mut caller = fx.caller();
     for i in 0..N as i64 {
         assert_eq!(
@@ -1194,7 +1243,7 @@ fn stats_count_frames_and_calls_and_record_the_latency_of_each_answered_call<B: 
     let (p50, p99) = (sut.latency.percentile(50.0), sut.latency.percentile(99.0));
     assert!(0 < p50 && p50 <= p99 && p99 <= sut.latency.max(), "{sut:?}");
     assert!(
-        sut.latency.max() < 5_000_000_000,
+        u128::from(sut.latency.max()) < CALL_TIMEOUT.as_nanos(),
         "no answer took longer than the timeout: {sut:?}"
     );
     // N requests and a `describe` out, their answers back.
@@ -1214,12 +1263,13 @@ fn stats_count_frames_and_calls_and_record_the_latency_of_each_answered_call<B: 
 
     // Refused: answered by a NAK, so failed, but its latency counts.
     assert!(caller.call_owned("calc", "busy", &[], opts()).is_err());
-    // Timed out: failed, no latency.
+    // Timed out (the stall lasts until the test ends it): failed, no latency.
     let hasty = CallOptions::timeout(Duration::from_millis(100)).with_retry(RetryPolicy::NONE);
     assert!(matches!(
-        caller.call_owned("calc", "stall", &[Value::I64(300)], hasty),
+        caller.call_owned("calc", "stall", &[Value::I64(HELD)], hasty),
         Err(CallError::Timeout { .. })
     ));
+    release.send(()).expect("the module holds the stall");
     let sut = caller.ctx().stats().clone();
     assert_eq!(
         (sut.calls, sut.answered, sut.failed),
@@ -1252,10 +1302,7 @@ fn an_operator_can_deactivate_a_module_and_activate_it_again<B: Backend>(fx: &mu
         OwnedValue::I64(n) => n,
         other => panic!("n is {other:?}"),
     };
-    assert!(eventually(Duration::from_secs(2), || n(item(
-        &mut caller,
-        "n"
-    )) > 2));
+    assert!(eventually(PATIENCE, || n(item(&mut caller, "n")) > 2));
     assert!(caller.call_owned("ticker", "count", &[], opts()).is_ok());
 
     assert_eq!(
@@ -1281,7 +1328,7 @@ fn an_operator_can_deactivate_a_module_and_activate_it_again<B: Backend>(fx: &mu
     assert_eq!(described.get(8), Some(&OwnedValue::Bool(false)));
     assert!(stats_of(&mut caller, "ticker").frames_received > 0);
     assert!(
-        eventually(Duration::from_secs(2), || {
+        eventually(PATIENCE, || {
             caller
                 .ctx()
                 .snapshot_of("ticker", |v| v.bool("active"))
@@ -1307,8 +1354,7 @@ fn an_operator_can_deactivate_a_module_and_activate_it_again<B: Backend>(fx: &mu
     );
     assert!(caller.call_owned("ticker", "count", &[], opts()).is_ok());
     assert!(
-        eventually(Duration::from_secs(2), || n(item(&mut caller, "n"))
-            > paused),
+        eventually(PATIENCE, || n(item(&mut caller, "n")) > paused),
         "the task runs again"
     );
     assert_eq!(item(&mut caller, "active"), OwnedValue::Bool(true));
@@ -1333,10 +1379,10 @@ fn a_method_named_like_a_system_method_is_refused_at_open<B: Backend>(fx: &mut T
 /// A busy-poll module answers like a blocking one, and the directory lists each module with
 /// its address, name, mode and liveness.
 fn a_busy_poll_module_answers_and_is_listed_with_its_mode<B: Backend>(fx: &mut TestDomain<B>) {
-    fx.start("spinner", 3, Calc { tag: 1 }, |b| {
+    fx.start("spinner", 3, Calc::tagged(1), |b| {
         calc(b).mode(ReceiveMode::BusyPoll)
     });
-    fx.start("sleeper", 4, Calc { tag: 2 }, calc);
+    fx.start("sleeper", 4, Calc::tagged(2), calc);
     let mut caller = fx.caller();
     assert_eq!(
         caller.call_owned("spinner", "square", &[Value::I64(3)], opts()),

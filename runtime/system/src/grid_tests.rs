@@ -532,9 +532,12 @@ end
     assert_eq!(sut.components.len(), 65535);
     assert_eq!(sut.connections.len(), 65534);
     assert_eq!(sut.hosts().len(), 8);
+    // About a second in a debug build on a quiet machine. The bound is no figure (a slow or
+    // loaded machine takes several times as long): it only catches a load that blows up,
+    // quadratic in the components, say.
     assert!(
-        started.elapsed() < Duration::from_secs(20),
-        "{:?}",
+        started.elapsed() < Duration::from_secs(120),
+        "loaded 65535 components in {:?}",
         started.elapsed()
     );
 }

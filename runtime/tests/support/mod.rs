@@ -28,12 +28,17 @@ use modbot_runtime::{
     ModuleError, Report,
 };
 
-/// How long one test may take before the watchdog fails it.
-pub const TEST_LIMIT: Duration = Duration::from_secs(20);
+/// How long one test may take before the watchdog fails it: a hang detector, longer than any
+/// wait of a test ([`PATIENCE`]), so a wait that times out fails with its own message.
+pub const TEST_LIMIT: Duration = Duration::from_secs(120);
+/// How long a test waits for what only needs the machine to run its threads (an answer, a
+/// thread's end, a count to be reached): generous, since a wait ends as soon as its condition
+/// holds, and a slow or loaded machine may take far longer than a quiet one.
+pub const PATIENCE: Duration = Duration::from_secs(60);
 /// How often a module thread looks at its stop flag.
 const STOP_CHECK: Duration = Duration::from_millis(10);
 /// How long a module thread may take to open its module.
-const OPEN_LIMIT: Duration = Duration::from_secs(10);
+const OPEN_LIMIT: Duration = PATIENCE;
 
 /// A transport backend under test.
 pub trait Backend: 'static {
@@ -328,7 +333,7 @@ impl<B: Backend> TestDomain<B> {
     pub fn wait_for_end(&mut self, name: &str) {
         let server = self.server(name);
         let thread = server.thread.take().expect("running");
-        let deadline = Instant::now() + Duration::from_secs(5);
+        let deadline = Instant::now() + PATIENCE;
         while !thread.is_finished() {
             assert!(Instant::now() < deadline, "module {name} did not end");
             std::thread::sleep(Duration::from_millis(2));
