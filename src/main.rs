@@ -91,6 +91,9 @@ enum Command {
         /// it, its velocity step).
         #[arg(long)]
         switches: bool,
+        /// How long to wait for the bus bridge's answer, in milliseconds.
+        #[arg(long, default_value_t = 1000)]
+        timeout_ms: u64,
     },
     /// The grid's assemblies: `modbot assembly` shows where they stand, `modbot assembly
     /// switch NAME` swaps the control structure while the robot runs.
@@ -186,7 +189,10 @@ fn main() -> ExitCode {
             },
         ),
         Command::Top { once } => tool::top(&cli.domain, once),
-        Command::Bus { switches } => tool::bus(&cli.domain, switches),
+        Command::Bus {
+            switches,
+            timeout_ms,
+        } => tool::bus(&cli.domain, switches, timeout_ms),
         Command::Assembly { command } => assembly_cmd::run(&cli.domain, command),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),

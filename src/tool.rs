@@ -440,7 +440,7 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
 }
 
 /// `modbot bus`: the bus bridge's ledger, or with `--switches` its record of switches.
-pub fn bus(domain: &str, switches: bool) -> anyhow::Result<ExitCode> {
+pub fn bus(domain: &str, switches: bool, timeout_ms: u64) -> anyhow::Result<ExitCode> {
     use modbot_runtime::bus::bridge::render_switches;
     let mut tool = open(domain)?;
     let module = modbot_runtime::supervisor::processes::host_module(
@@ -450,7 +450,7 @@ pub fn bus(domain: &str, switches: bool) -> anyhow::Result<ExitCode> {
         &module,
         if switches { "switches" } else { "bus" },
         &[],
-        CallOptions::timeout(Duration::from_secs(1)),
+        CallOptions::timeout(Duration::from_millis(timeout_ms)),
         |r| -> Result<String, String> {
             let args = r.map_err(|e| format!("no bus bridge answers in '{domain}': {e}"))?;
             let answer = |e: &dyn std::fmt::Display| format!("the bus bridge's answer: {e}");

@@ -146,7 +146,7 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("swaps");
     let up = up(&mut sut, &["dwell=0"]);
-    sut.modbot_ok(&["assembly", "switch", "ptp"]);
+    sut.modbot_ok(&["assembly", "switch", "ptp", "--timeout", "60"]);
     std::thread::sleep(Duration::from_millis(300));
     let mut announced = Vec::new();
     for i in 0..100 {
@@ -163,14 +163,15 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
     }
     // The bus's own record (`modbot_ipc_schema::bus`): the tick of each generation's first
     // cycle and the step. `modbot call` prints a bytes answer as 0x and hex.
-    let answer = sut.modbot_ok(&["call", "host_bus.switches"]);
+    // Generous timeouts: in lockstep on a loaded machine the bus's host answers between ticks.
+    let answer = sut.modbot_ok(&["call", "host_bus.switches", "--timeout-ms", "60000"]);
     let bytes = hex::decode(answer.trim().trim_start_matches("0x"))
         .unwrap_or_else(|e| panic!("host_bus.switches answers bytes: {e}: {answer}"));
     let record = bus::decode(&bytes).expect("the bus's record of switches");
     let switches = render_switches(&record);
     // `modbot bus --switches` prints the same record: a line of the largest steps within an
     // assembly, then one per switch.
-    let printed = sut.modbot_ok(&["bus", "--switches"]);
+    let printed = sut.modbot_ok(&["bus", "--switches", "--timeout-ms", "60000"]);
     assert!(
         printed.starts_with("max_step ") && printed.lines().count() == record.switches.len() + 1,
         "{printed}"

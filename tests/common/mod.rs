@@ -177,10 +177,14 @@ impl TestDomain {
         pid
     }
 
-    /// Runs `modbot ARGS` in this domain.
+    /// Runs `modbot ARGS` in this domain. A tool's short default wait (`call` 2 s, `bus` 1 s,
+    /// `assembly switch` 30 s) is what an operator wants, not what a loaded machine gives a
+    /// test: unless the test chooses one, these wait up to 60 s (an answer still returns at
+    /// once).
     pub fn modbot(&self, args: &[&str]) -> Output {
         Command::new(bin("modbot"))
             .args(args)
+            .args(generous_wait(args))
             .env("MODBOT_DOMAIN", self.name())
             .output()
             .unwrap()
@@ -251,6 +255,16 @@ impl TestDomain {
     /// The domain's files still in /dev/shm or /tmp/iceoryx2.
     pub fn leftover_files(&self) -> Vec<PathBuf> {
         self.domain.files()
+    }
+}
+
+/// The wait option to add to `modbot ARGS` when the test gives none (see [`TestDomain::modbot`]).
+fn generous_wait(args: &[&str]) -> Vec<&'static str> {
+    let has = |opt: &str| args.contains(&opt);
+    match args {
+        ["call" | "bus", ..] if !has("--timeout-ms") => vec!["--timeout-ms", "60000"],
+        ["assembly", "switch", ..] if !has("--timeout") => vec!["--timeout", "60"],
+        _ => Vec::new(),
     }
 }
 
