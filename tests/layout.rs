@@ -14,6 +14,7 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-grid", "runtime/grid", 3),
     ("modbot-modules", "modules", 3),
     ("modbot-system", "runtime/system", 4),
+    ("modbot-record", "runtime/record", 4),
     ("modbot-supervisor", "runtime/supervisor", 5),
     ("modbot-runtime", "runtime", 6),
     ("modbot-grid-processes", "modules/grid", 7),

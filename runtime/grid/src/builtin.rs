@@ -26,11 +26,14 @@ use super::component::{
 };
 
 impl Registry {
-    /// The built-in components: these, the example controllers ([`crate::control`]) and the
-    /// bus ([`crate::bus::robot`]).
+    /// The built-in components: these, the example controllers ([`crate::control`]), the
+    /// bus ([`crate::bus::robot`]), and the data recorder ([`crate::record_type`], which the
+    /// program `modbot-recorder` makes).
     pub fn builtin() -> Registry {
         let mut registry = Registry::new();
         register_all(&mut registry);
+        // Made by a program of its own, which writes the file off the real-time path.
+        crate::record_type::declare(&mut registry);
         registry
     }
 }

@@ -485,10 +485,7 @@ impl Registry {
         make: impl Fn(&Params) -> Result<Box<dyn Component>, ComponentError> + Send + Sync + 'static,
     ) {
         let make: Maker = std::sync::Arc::new(make);
-        let probe = match info_fn(&Params::new()) {
-            Ok(probe) => probe,
-            Err(e) => panic!("a component type must describe itself without parameters: {e}"),
-        };
+        let probe = probe(info_fn);
         let entry = Entry {
             probe,
             info: std::sync::Arc::new(info_fn),
@@ -515,6 +512,35 @@ impl Registry {
         self.insert(Entry {
             probe: info,
             info: std::sync::Arc::new(move |_| Ok(declared.clone())),
+            make: std::sync::Arc::new(move |_| {
+                Err(ComponentError::MadeElsewhere {
+                    type_name: type_name.to_owned(),
+                    program: made_by.clone(),
+                })
+            }),
+            program: Some(program.to_owned()),
+        });
+    }
+
+    /// Adds a type that the host program `program` makes, described by `info_fn` (whose ports
+    /// may depend on the parameters, as a registered type's): the types the runtime knows and
+    /// a program of its own makes (the data recorder, FMUs). A type this process registered
+    /// itself is kept.
+    ///
+    /// # Panics
+    /// If `info_fn` fails with empty parameters (see [`Registry::register`]).
+    pub fn declare_with(&mut self, info_fn: InfoFn, program: &str) {
+        let probe = probe(info_fn);
+        if self
+            .entry(probe.type_name)
+            .is_ok_and(|e| e.program.is_none())
+        {
+            return;
+        }
+        let (type_name, made_by) = (probe.type_name, program.to_owned());
+        self.insert(Entry {
+            probe,
+            info: std::sync::Arc::new(info_fn),
             make: std::sync::Arc::new(move |_| {
                 Err(ComponentError::MadeElsewhere {
                     type_name: type_name.to_owned(),
@@ -789,6 +815,17 @@ impl ComponentError {
     /// Any other refusal: an error of the component type's own, or a message.
     pub fn other(source: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> ComponentError {
         ComponentError::Other(source.into())
+    }
+}
+
+/// What `info_fn` says without parameters: the type's name and parameter list.
+///
+/// # Panics
+/// If it fails: that is a bug in the component type.
+fn probe(info_fn: InfoFn) -> ComponentInfo {
+    match info_fn(&Params::new()) {
+        Ok(probe) => probe,
+        Err(e) => panic!("a component type must describe itself without parameters: {e}"),
     }
 }
 

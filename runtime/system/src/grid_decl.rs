@@ -226,20 +226,7 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclErro
         Some(v) => string(what, "host", &v)?,
         None => return Err(DeclError::missing(what, "host", " (the host process)")),
     };
-    let period =
-        match (fields.take("period"), fields.take("period_s")) {
-            (Some(_), Some(_)) => {
-                let why = "give 'period' (base ticks) or 'period_s' (seconds), not both";
-                return Err(DeclError::invalid(what, why));
-            }
-            (Some(v), None) => Period::Ticks(number(&v).ok_or_else(|| {
-                DeclError::field(what, "period", "a number of base ticks", show(&v))
-            })?),
-            (None, Some(v)) => Period::Seconds(number(&v).ok_or_else(|| {
-                DeclError::field(what, "period_s", "a number of seconds", show(&v))
-            })?),
-            (None, None) => Period::Ticks(1.0),
-        };
+    let period = period(what, &mut fields)?;
     let params = match fields.take("params") {
         Some(v) => params(what, &v)?,
         None => Params::new(),
@@ -260,6 +247,23 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclErro
         policy,
         line,
     })
+}
+
+/// `period = k` (base ticks) or `period_s = x` (seconds) of `what`; every base tick if neither.
+pub(super) fn period(what: &str, fields: &mut Fields) -> Result<Period, DeclError> {
+    match (fields.take("period"), fields.take("period_s")) {
+        (Some(_), Some(_)) => {
+            let why = "give 'period' (base ticks) or 'period_s' (seconds), not both";
+            Err(DeclError::invalid(what, why))
+        }
+        (Some(v), None) => Ok(Period::Ticks(number(&v).ok_or_else(|| {
+            DeclError::field(what, "period", "a number of base ticks", show(&v))
+        })?)),
+        (None, Some(v)) => Ok(Period::Seconds(number(&v).ok_or_else(|| {
+            DeclError::field(what, "period_s", "a number of seconds", show(&v))
+        })?)),
+        (None, None) => Ok(Period::Ticks(1.0)),
+    }
 }
 
 /// The table of `component_type "name" { ... }`, declared at `line`.
@@ -327,23 +331,15 @@ fn port(what: &str, field: &str, text: &str) -> Result<PortDecl, DeclError> {
     if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
         return Err(bad("has no valid name (letters, digits, _)".into()));
     }
-    let ty = match ty {
-        "f64" => PortType::F64,
-        "i64" => PortType::I64,
-        "bool" => PortType::Bool,
-        array => match array
-            .strip_prefix("f64[")
-            .and_then(|n| n.strip_suffix(']'))
-            .and_then(|n| n.parse::<usize>().ok())
-        {
-            Some(n) if (1..=MAX_ARRAY).contains(&n) => PortType::F64s(n),
-            _ => {
-                return Err(bad(format!(
-                    "has type '{array}': use f64, i64, bool or f64[N] (N from 1 to {MAX_ARRAY})"
-                )))
-            }
-        },
-    };
+    let ty = match PortType::parse(ty) {
+        Some(PortType::F64s(n)) if n > MAX_ARRAY => None,
+        parsed => parsed,
+    }
+    .ok_or_else(|| {
+        bad(format!(
+            "has type '{ty}': use f64, i64, bool or f64[N] (N from 1 to {MAX_ARRAY})"
+        ))
+    })?;
     Ok(PortDecl::new(intern(name), ty))
 }
 
