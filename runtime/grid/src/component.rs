@@ -444,6 +444,9 @@ struct Entry {
     /// For a type a description declares ([`Registry::declare`]): the host program that
     /// makes it. `None`: this process makes it.
     program: Option<String>,
+    /// Whether it takes parameters it does not list without parameters (an FMU's are its
+    /// model's): [`Registry::complete`] passes them on, and its `info` checks them.
+    open: bool,
 }
 
 /// The component types a system can use, by name.
@@ -491,6 +494,7 @@ impl Registry {
             info: std::sync::Arc::new(info_fn),
             make,
             program: None,
+            open: false,
         };
         self.insert(entry);
     }
@@ -519,6 +523,7 @@ impl Registry {
                 })
             }),
             program: Some(program.to_owned()),
+            open: false,
         });
     }
 
@@ -530,6 +535,30 @@ impl Registry {
     /// # Panics
     /// If `info_fn` fails with empty parameters (see [`Registry::register`]).
     pub fn declare_with(&mut self, info_fn: InfoFn, program: &str) {
+        self.declare_entry(info_fn, program, false);
+    }
+
+    /// Like [`Registry::declare_with`], for a type whose parameters depend on what a
+    /// parameter names (an FMU's are its model's): [`Registry::complete`] passes parameters it
+    /// does not list on, and `info_fn` checks them.
+    pub fn declare_open(&mut self, info_fn: InfoFn, program: &str) {
+        self.declare_entry(info_fn, program, true);
+    }
+
+    /// Like [`Registry::register`], for a type whose parameters depend on what a parameter
+    /// names (see [`Registry::declare_open`]).
+    pub fn register_open(&mut self, info_fn: InfoFn, make: MakeFn) {
+        self.register(info_fn, make);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.probe.type_name == probe(info_fn).type_name)
+        {
+            e.open = true;
+        }
+    }
+
+    fn declare_entry(&mut self, info_fn: InfoFn, program: &str, open: bool) {
         let probe = probe(info_fn);
         if self
             .entry(probe.type_name)
@@ -548,6 +577,7 @@ impl Registry {
                 })
             }),
             program: Some(program.to_owned()),
+            open,
         });
     }
 
@@ -650,6 +680,10 @@ impl Registry {
             } else {
                 match decls.iter().find(|d| d.name == name) {
                     Some(d) => d.ty,
+                    None if entry.open => {
+                        complete.set(name, value.clone());
+                        continue;
+                    }
                     None => {
                         return Err(ParamError::Unknown {
                             name: name.into(),

@@ -13,7 +13,7 @@
 
 use std::path::Path;
 
-use super::{lua, record_decl, SystemError};
+use super::{fmus, lua, record_decl, SystemError};
 use modbot_grid::component::Generation;
 use modbot_grid::spec::{Assembly, GridError, GridSpec, RecordDecl};
 use modbot_grid::Registry;
@@ -123,7 +123,9 @@ pub fn load_assembly(
     }
     let base = base_components.len();
     let mut components = base_components.clone();
-    components.extend(decls.components.into_iter().map(|mut c| {
+    let mut own = decls.components;
+    fmus::find_files(&mut own, &current.dir);
+    components.extend(own.into_iter().map(|mut c| {
         c.line += LINE_OFFSET;
         c
     }));
@@ -132,7 +134,7 @@ pub fn load_assembly(
         c.line += LINE_OFFSET;
         c
     }));
-    let registry = &registry
+    let registry = &fmus::with_fmus(registry)
         .with_declared(&system.declared)
         .map_err(|e| SystemError::new(system_file, Some(e.line), e.to_string()))?;
     let refused = |e: GridError| match e.line {
@@ -167,6 +169,7 @@ pub fn load_assembly(
             c.line -= LINE_OFFSET;
         }
     }
+    fmus::one_per_host(&spec, base..spec.components.len(), &file)?;
     // How the grid keeps time is the running system's (`modbot up --lockstep` included).
     spec.timing = system.timing;
     spec.set_clock(system.timing.clock);

@@ -5,6 +5,7 @@
 //! grid { clock = "lockstep", track_ticks = 50, spin_us = 0 }                -- timing, optional
 //! component "A" { type = "counter", host = "h1", period = 1, params = { start = 0 } }
 //! component "B" { type = "gain", host = "h2", period_s = 0.002, params = { k = 0.5 }, policy = "fault" }
+//! component "F" { type = "fmu", fmu = "ff.fmu", host = "h_ff", params = { Jm = 0.5 } }   -- an FMU
 //! connect "A.y -> B.u"                                                         -- or connect("A.y", "B.u")
 //! component_type "scaler" {                          -- a type a host program of its own makes
 //!   program = "my-host", doc = "y = k u",
@@ -45,7 +46,9 @@ const GRID_FIELDS: &[&str] = &[
     "track_ticks",
     "spin_us",
 ];
-const COMPONENT_FIELDS: &[&str] = &["type", "host", "period", "period_s", "params", "policy"];
+const COMPONENT_FIELDS: &[&str] = &[
+    "type", "host", "period", "period_s", "params", "policy", "fmu",
+];
 const TYPE_FIELDS: &[&str] = &["program", "doc", "inputs", "outputs", "params"];
 /// At most this many `component_type` declarations.
 const MAX_TYPES: usize = 256;
@@ -227,10 +230,20 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclErro
         None => return Err(DeclError::missing(what, "host", " (the host process)")),
     };
     let period = period(what, &mut fields)?;
-    let params = match fields.take("params") {
+    let mut params = match fields.take("params") {
         Some(v) => params(what, &v)?,
         None => Params::new(),
     };
+    // An FMU component's file, as written: the loader finds it (see `fmu_path`).
+    if let Some(v) = fields.take(modbot_fmu::FMU) {
+        if type_name != modbot_fmu::TYPE {
+            let why = format!(
+                "'fmu' names the file of a component of type \"fmu\", not of type '{type_name}'"
+            );
+            return Err(DeclError::invalid(what, why));
+        }
+        params.set(modbot_fmu::FMU, ParamValue::Text(string(what, "fmu", &v)?));
+    }
     let policy = match fields.take("policy") {
         Some(v) => text(&v)
             .as_deref()

@@ -44,6 +44,7 @@
 //!   translation of Lua errors into [`SystemError`].
 //! - `grid_decl`: the grid's declaration functions (`grid`, `component`, `connect`) and what
 //!   each one says; the checks against the component types are [`GridSpec::build`]'s.
+//! - `fmus`: FMU components — the type `fmu`, where their files are found, one host each.
 //! - `record_decl`: the data recorder's declaration (`record { signals = ..., file = ... }`)
 //!   and `modbot up --record FILE` ([`RECORD_VAR`]).
 //! - `decl`: what one declaration says, read field by field from its Lua table, with the
@@ -57,6 +58,7 @@
 pub mod assembly;
 mod decl;
 mod error;
+mod fmus;
 pub mod fuzz;
 mod grid_decl;
 mod lua;
@@ -68,6 +70,8 @@ mod validate;
 
 #[cfg(test)]
 mod control_tests;
+#[cfg(test)]
+mod fmu_tests;
 #[cfg(test)]
 mod grid_tests;
 #[cfg(test)]

@@ -12,6 +12,7 @@ use std::path::Path;
 
 use super::assembly::load_assembly;
 use super::decl::{Declarations, ModuleDecl};
+use super::fmus;
 use super::record_decl;
 use super::{ProgramResolver, SystemError, SystemSpec};
 use modbot_grid::component::{DeclaredType, Generation};
@@ -146,29 +147,28 @@ pub(super) fn build(
             return Err(error(t.line, why.to_owned()));
         }
     }
-    let registry = &registry
+    let registry = &fmus::with_fmus(registry)
         .with_declared(&declared)
         .map_err(|e| error(e.line, e.to_string()))?;
-    let records = records(
-        file,
-        decls.records,
-        &decls.components,
-        decls.grid.as_ref(),
-        vars,
-    )?;
+    let mut components = decls.components;
+    fmus::find_files(
+        &mut components,
+        Path::new(file).parent().unwrap_or(Path::new("")),
+    );
+    let records = records(file, decls.records, &components, decls.grid.as_ref(), vars)?;
     let refused = |e: GridError| SystemError::caused(file, e.line, e.kind);
     let grid = match decls.grid {
         Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
             file,
             grid,
-            (decls.components, decls.connections),
+            (components, decls.connections),
             &records,
             registry,
             vars,
             &declared,
         )?),
         Some(grid) => {
-            let (mut components, mut connections) = (decls.components, decls.connections);
+            let mut connections = decls.connections;
             let build = |components, connections| {
                 GridSpec::build(grid.clone(), components, connections, registry).map_err(refused)
             };
@@ -178,6 +178,7 @@ pub(super) fn build(
                 record_decl::add_recorders(&records, &spec, None, decls, refused)?;
                 spec = build(components, connections)?;
             }
+            fmus::one_per_host(&spec, 0..spec.components.len(), file)?;
             Some(spec)
         }
         None => None,
@@ -276,6 +277,7 @@ fn with_assemblies(
         })
     };
     let spec = first(components.clone(), connections.clone())?;
+    fmus::one_per_host(&spec, 0..components.len(), file)?;
     if records.is_empty() {
         return Ok(spec);
     }
