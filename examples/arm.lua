@@ -6,6 +6,8 @@
 --   modbot assembly switch hold --domain arm       -- and holds where it is commanded to be
 --   modbot bus --domain arm                        -- cycles, missed cycles, drive states
 --   modbot top --domain arm                        -- the grid's ledger
+--   modbot up examples/arm.lua --record arm.h5     -- records the bus (below) to HDF5
+--   python3 examples/plot_recording.py arm.h5     -- link position and following error
 --
 -- The assemblies are the files in examples/arm/: hold.lua, ptp.lua (trajectory generator,
 -- rigid-body feed-forward, monitor) and ptp_smooth.lua (the same with a Bessel filter and a
@@ -25,3 +27,13 @@ grid { base_period = 0.001, priority = 60, assemblies = "arm", assembly = vars.a
 -- quick-stops the drives (default 3); more on a host that steals milliseconds at a time.
 component "robot" { type = "bus", host = "bus", period = 1,
                     params = { axes = 6, handover = true, watchdog = tonumber(vars.watchdog) } }
+
+-- The data recorder: what the drives do, tick by tick, written to HDF5 off the real-time path
+-- by a process of its own. It runs when `modbot up --record FILE` names the file.
+record {
+  signals = { "robot.link_position", "robot.demand_position", "robot.motor_position",
+              "robot.motor_velocity", "robot.motor_torque", "robot.statusword" },
+  units = { ["robot.link_position"] = "rad", ["robot.demand_position"] = "rad",
+            ["robot.motor_position"] = "rad", ["robot.motor_velocity"] = "rad/s",
+            ["robot.motor_torque"] = "N m" },
+}

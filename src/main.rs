@@ -74,6 +74,10 @@ enum Command {
         /// reproducible, switches included.
         #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_runtime::grid::switch::parse_scripted)]
         switches: Vec<(u64, String)>,
+        /// Record to this HDF5 file: the description's `record { ... }` writes here, or, if it
+        /// declares none, every output of the system's own components is recorded.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
     },
     /// A live table of the grid: per component its host, period, execution time, overruns
     /// and jitter, and the measured tick rate. Refreshes in place until Ctrl-C.
@@ -151,6 +155,17 @@ fn parse_var(text: &str) -> Result<(String, String), modbot_runtime::system::Var
     modbot_runtime::system::parse_var(text)
 }
 
+/// `vars` with `--record FILE` as the variable every process of the run loads the description
+/// with ([`modbot_runtime::system::RECORD_VAR`]), the file made absolute.
+fn with_record(mut vars: Vec<(String, String)>, record: Option<PathBuf>) -> Vec<(String, String)> {
+    if let Some(file) = record {
+        let file = std::path::absolute(&file).unwrap_or(file);
+        let key = modbot_runtime::system::RECORD_VAR.to_owned();
+        vars.push((key, file.display().to_string()));
+    }
+    vars
+}
+
 fn main() -> ExitCode {
     // Output piped into `head` and closed: end quietly, as Unix tools do, rather than panic
     // on the failed write.
@@ -177,10 +192,11 @@ fn main() -> ExitCode {
             trace,
             lockstep,
             switches,
+            record,
         } => up_cmd::up(
             &file,
             run_for,
-            &vars,
+            &with_record(vars, record),
             &modbot_runtime::supervisor::processes::GridRun {
                 ticks,
                 trace,

@@ -263,7 +263,7 @@ fn a_switch_to_an_unknown_assembly_fails_with_the_reason_and_the_robot_keeps_hol
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("no assembly named 'nope'") && err.contains("hold, ptp, ptp_smooth"),
+        err.contains("no assembly named 'nope'") && err.contains("hold, ptp, ptp_fmu, ptp_smooth"),
         "{err}"
     );
     let status = sut.modbot_ok(&["assembly"]);
@@ -272,25 +272,91 @@ fn a_switch_to_an_unknown_assembly_fails_with_the_reason_and_the_robot_keeps_hol
     down(&mut sut, up);
 }
 
+/// Runs the arm on the real-time clock (in lockstep the grid would wait for a killed host's
+/// restart instead), switches to `assembly`, SIGKILLs its host `host` (generation 2) and waits
+/// until every drive is in quick stop because the assembly faulted; returns `modbot up`'s pid.
+fn kill_host_until_the_drives_stop(sut: &mut TestDomain, assembly: &str, host: &str) -> u32 {
+    let up = up_with(sut, &arm(), Clock::RealTime, &[]);
+    sut.modbot_ok(&["assembly", "switch", assembly]);
+    let pid: u32 = sut
+        .ls_field(&format!("host_{host}_g2"), "PID")
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("the host {host} of {assembly} runs"));
+    sut.signal(pid, Signal::SIGKILL);
+    sut.wait_for("every drive in quick stop", Duration::from_secs(20), || {
+        all_axes(&bus_ledger(sut), "quick stop active")
+    });
+    let ledger = bus_ledger(sut);
+    assert!(ledger.contains("the assembly faulted"), "{ledger}");
+    up
+}
+
 /// SIGKILL of the host of an assembly whose components have the `fault` policy: the grid
 /// faults the assembly and the bus bridge quick-stops every drive.
 #[test]
 fn a_killed_host_of_a_fault_policy_assembly_quick_stops_every_drive() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("killhost");
-    // Real time: in lockstep the grid would wait for the host's restart instead.
-    let up = up_with(&mut sut, &arm(), Clock::RealTime, &[]);
-    sut.modbot_ok(&["assembly", "switch", "ptp"]);
-    let host: u32 = sut
-        .ls_field("host_ctrl_g2", "PID")
-        .and_then(|p| p.parse().ok())
-        .expect("the ptp assembly's host runs");
-    sut.signal(host, Signal::SIGKILL);
-    sut.wait_for("every drive in quick stop", Duration::from_secs(20), || {
-        all_axes(&bus_ledger(&sut), "quick stop active")
-    });
-    let ledger = bus_ledger(&sut);
-    assert!(ledger.contains("the assembly faulted"), "{ledger}");
+    let up = kill_host_until_the_drives_stop(&mut sut, "ptp", "ctrl");
+    down(&mut sut, up);
+}
+
+/// SIGKILL of the host of `ptp_fmu`'s feed-forward FMU (`modbot-fmu-host`, the `fault`
+/// policy): the grid faults the assembly and the bus bridge quick-stops every drive; the
+/// assembly's other host is left alone.
+#[test]
+fn a_killed_fmu_host_faults_its_assembly_and_the_drives_stop() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("killfmu");
+    let up = kill_host_until_the_drives_stop(&mut sut, "ptp_fmu", "ff");
+    let other = sut.ls_field("host_ctrl_g2", "PID");
+    assert!(other.is_some_and(|p| p != "-"), "the other host runs on");
+    down(&mut sut, up);
+}
+
+/// The arm in lockstep switches from `hold` to `ptp_fmu` (the feed-forward an FMU in a host of
+/// its own) while holding, lets it move, and back to `hold` while it moves: each switch at its
+/// announced tick, no bus cycle missed around it, the command continuous (at most one tick's
+/// motion and one tick of the acceleration limit), and the robot moved under the FMU's
+/// assembly.
+#[test]
+fn switching_to_the_fmu_assembly_and_back_misses_no_bus_cycle() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("fmuswap");
+    let up = up(&mut sut, &["dwell=0"]);
+    let mut announced = Vec::new();
+    for (name, settle) in [("ptp_fmu", 1500), ("hold", 300)] {
+        let out = sut.modbot_ok(&["assembly", "switch", name, "--timeout", "60"]);
+        let (generation, tick, at) = switched(out.lines().last().unwrap_or_default());
+        assert_eq!(
+            tick, at,
+            "the switch to {name} happened at its announced tick: {out}"
+        );
+        announced.push((generation, at));
+        std::thread::sleep(Duration::from_millis(settle));
+    }
+    let answer = sut.modbot_ok(&["call", "host_bus.switches"]);
+    let bytes = hex::decode(answer.trim().trim_start_matches("0x")).expect("bytes");
+    let record = bus::decode(&bytes).expect("the bus's record of switches");
+    let switches = render_switches(&record);
+    for &(g, at) in &announced {
+        let s = record
+            .switches
+            .iter()
+            .find(|s| s.generation == g)
+            .unwrap_or_else(|| panic!("the bus saw generation {g}:\n{switches}"));
+        assert_eq!(s.tick, at, "generation {g}:\n{switches}");
+        assert_eq!(
+            s.missed_near, 0,
+            "generation {g} missed bus cycles:\n{switches}"
+        );
+        assert!(s.step <= 1.0 * 0.001 * 1.005, "generation {g}:\n{switches}");
+        assert!(
+            s.velocity_step <= 4.0 * 0.001 * 1.005,
+            "generation {g}:\n{switches}"
+        );
+    }
+    assert!(record.max_step > 1e-4, "the robot moved:\n{switches}");
     down(&mut sut, up);
 }
 

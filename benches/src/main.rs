@@ -3,13 +3,13 @@
 //!
 //! # Commands
 //! - `modbot-benches all [--quick] [--pin] [--fifo] [--out DIR]`: every benchmark in order
-//!   (calls, snapshots, grid, scale, faults, swaps, arm). A benchmark that fails leaves a note in
+//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu). A benchmark that fails leaves a note in
 //!   the report and the run goes on. Writes `report.md`, `report.json` and the SVG plots into
 //!   `target/bench-report/` (next to the `release` directory this executable is in) or `DIR`,
 //!   and prints `report.md`. `--quick` finishes in under 3 minutes.
 //!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
-//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm [options]`: one benchmark, with
-//!   the same report.
+//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu [options]`: one benchmark,
+//!   with the same report.
 //! - `modbot-benches soak [--minutes N] [--seed S] [options]`: MOSER and the arm under a fault a
 //!   second for N minutes (10; 1 with `--quick`). Not part of `all`, which it would outlast.
 //! - `modbot-benches child ROLE ARGS...` (hidden): one side of a benchmark, started by the
@@ -36,11 +36,12 @@
 //!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
 //!   restart), [`swaps`] (6, assembly swaps), [`arm`] (7, the arm holding; the grid's
 //!   [`lockstep`] runs belong to 3), [`soak`] (8, a fault a second for minutes: calls exactly
-//!   once, memory, files).
+//!   once, memory, files), [`fmu`] (9, an FMU component against a built-in doing the same).
 
 mod arm;
 mod calls;
 mod faults;
+mod fmu;
 mod grid;
 mod hogs;
 mod interleave;
@@ -129,6 +130,8 @@ enum Cmd {
     Arm(RunArgs),
     /// 8: MOSER and the arm under a fault a second: calls lost or doubled, restarts, memory.
     Soak(SoakArgs),
+    /// 9: an FMU component's step and release to done against a built-in doing the same.
+    Fmu(RunArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -148,7 +151,7 @@ struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-const BENCHES: [Bench; 7] = [
+const BENCHES: [Bench; 8] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -182,6 +185,11 @@ const BENCHES: [Bench; 7] = [
     Bench {
         name: "arm",
         run: arm::run,
+        needs_binaries: true,
+    },
+    Bench {
+        name: "fmu",
+        run: fmu::run,
         needs_binaries: true,
     },
 ];
@@ -362,6 +370,7 @@ fn main() -> anyhow::Result<()> {
         Cmd::Faults(args) => run_benches(&args, &[bench("faults")]),
         Cmd::Swaps(args) => run_benches(&args, &[bench("swaps")]),
         Cmd::Arm(args) => run_benches(&args, &[bench("arm")]),
+        Cmd::Fmu(args) => run_benches(&args, &[bench("fmu")]),
         Cmd::Soak(args) => {
             let plan = soak::Plan {
                 minutes: args.minutes,

@@ -359,14 +359,18 @@ pub fn shm_usage(domain: &Domain) -> (u64, u64) {
         })
 }
 
-/// The modbot system binaries the grid, scale, fault and swap benchmarks start.
-pub const SYSTEM_BINARIES: [&str; 6] = [
+/// The modbot system binaries the grid, scale, fault, swap and FMU benchmarks start (and the
+/// FMU the last one steps, which the workspace's build puts beside them).
+pub const SYSTEM_BINARIES: [&str; 9] = [
     "modbot",
     "modbot-coordinator",
     "modbot-host",
     "modbot-bus",
     "modbot-sonar",
     "modbot-faulty",
+    "modbot-recorder",
+    "modbot-fmu-host",
+    "modbot_filter3.fmu",
 ];
 
 /// The directory of this executable: the workspace's binaries are built there too.

@@ -142,6 +142,24 @@ impl PortType {
     }
 }
 
+impl PortType {
+    /// The type written as [`Display`](core::fmt::Display) writes it (`bool`, `i64`, `f64`,
+    /// `f64[N]` with N ≥ 1); `None` for anything else.
+    pub fn parse(text: &str) -> Option<PortType> {
+        match text {
+            "bool" => Some(PortType::Bool),
+            "i64" => Some(PortType::I64),
+            "f64" => Some(PortType::F64),
+            array => {
+                let digits = array.strip_prefix("f64[")?.strip_suffix(']')?;
+                let n: usize = digits.parse().ok().filter(|&n| n >= 1)?;
+                // Only the canonical spelling: "f64[06]" and "f64[+6]" are not types.
+                (n.to_string() == digits).then_some(PortType::F64s(n))
+            }
+        }
+    }
+}
+
 impl core::fmt::Display for PortType {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
@@ -491,6 +509,24 @@ impl Done {
 mod tests {
     use super::*;
     use crate::hex;
+
+    #[test]
+    fn a_port_type_reads_back_from_its_text_and_nothing_else_is_one() {
+        for ty in [
+            PortType::Bool,
+            PortType::I64,
+            PortType::F64,
+            PortType::F64s(1),
+            PortType::F64s(4096),
+        ] {
+            assert_eq!(PortType::parse(&ty.to_string()), Some(ty));
+        }
+        for text in [
+            "", "f32", "f64[]", "f64[0]", "f64[06]", "f64[+6]", "f64[6", "F64",
+        ] {
+            assert_eq!(PortType::parse(text), None, "{text}");
+        }
+    }
 
     #[test]
     fn a_record_packs_every_port_into_8_byte_words_and_reads_back() {

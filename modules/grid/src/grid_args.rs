@@ -43,7 +43,7 @@ impl GridArgs {
             .grid
             .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))?;
         if self.lockstep {
-            grid.timing.clock = modbot_runtime::grid::GridClock::Lockstep;
+            grid.set_clock(modbot_runtime::grid::GridClock::Lockstep);
         }
         match (&self.assembly, self.generation) {
             (Some(name), Some(generation)) => Ok(system::load_assembly(

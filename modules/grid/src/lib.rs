@@ -6,6 +6,8 @@
 //! - `modbot-host`: steps the components of one host of the description.
 //! - `modbot-bus`: the bus bridge, the host named `bus`: serves the drives every tick, with its
 //!   watchdog.
+//! - `modbot-recorder`: the data recorder's host: steps `record` components (`modbot-record`),
+//!   which write a run's signals to HDF5.
 //!
 //! [`grid_args`]: the options they share (the description, its variables, an assembly);
 //! [`host_process`]: what a host process does around its clocked work (shared by the two hosts);

@@ -12,6 +12,7 @@
 //! | `gain` | `u: f64` | `y: f64` = k · u | `k` (f64, required) |
 //! | `sum` | `a: f64`, `b: f64` | `y: f64` = a + b | |
 //! | `integrator` | `u: f64` | `y: f64` += u · period_s at each release | `initial` (f64, 0) |
+//! | `lowpass` | `u: f64` | `y: f64` ← a·y + (1 − a)·k·u, a = e^(−period_s/T) (T y' = k u − y, u held) | `k` (f64, 1), `T` (s ≥ 0, 0.01) |
 //! | `delay` | `u: f64` | `y: f64` = the u of the previous release | `initial` (f64, 0) |
 //! | `vec_gain` | `u: f64[n]` | `y: f64[n]` = k · u | `n` (i64 1..=64, required), `k` (f64, required) |
 //! | `pack` | `a: f64`, `b: f64` | `v: f64[2]` = [a, b] | |
@@ -26,11 +27,14 @@ use super::component::{
 };
 
 impl Registry {
-    /// The built-in components: these, the example controllers ([`crate::control`]) and the
-    /// bus ([`crate::bus::robot`]).
+    /// The built-in components: these, the example controllers ([`crate::control`]), the
+    /// bus ([`crate::bus::robot`]), and the data recorder ([`crate::record_type`], which the
+    /// program `modbot-recorder` makes).
     pub fn builtin() -> Registry {
         let mut registry = Registry::new();
         register_all(&mut registry);
+        // Made by a program of its own, which writes the file off the real-time path.
+        crate::record_type::declare(&mut registry);
         registry
     }
 }
@@ -58,6 +62,19 @@ pub fn register_all(registry: &mut Registry) {
     registry.register(integrator_info, |p| {
         Ok(Box::new(Integrator {
             y: p.f64("initial")?,
+            h: p.f64(PERIOD_S)?,
+        }))
+    });
+    registry.register(lowpass_info, |p| {
+        let time_constant = p.f64("T")?;
+        if time_constant.is_nan() || time_constant < 0.0 {
+            let why = format!("must be 0 or more seconds, not {time_constant}");
+            return Err(ParamError::invalid("T", why).into());
+        }
+        Ok(Box::new(Lowpass {
+            y: 0.0,
+            k: p.f64("k")?,
+            time_constant,
             h: p.f64(PERIOD_S)?,
         }))
     });
@@ -226,6 +243,35 @@ struct Integrator {
 impl Component for Integrator {
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         self.y += inputs[0].as_f64() * self.h;
+        put(&mut outputs[0], self.y);
+    }
+}
+
+fn lowpass_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
+    let doc = "first-order low-pass with gain, T y' = k u - y, exact for u held over its period";
+    let params = vec![f64_param("k", 1.0), f64_param("T", 0.01)];
+    f64_info("lowpass", doc, &["u"], &["y"], params)
+}
+
+/// The arithmetic of the FMU `modbot_filter3` (fmus/filter3), step for step: the native
+/// counterpart of the FMU benchmark (`modbot-benches fmu`).
+struct Lowpass {
+    y: f64,
+    k: f64,
+    /// T, seconds (0: y = k·u).
+    time_constant: f64,
+    /// Its period, seconds.
+    h: f64,
+}
+
+impl Component for Lowpass {
+    fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
+        let a = if self.time_constant > 0.0 {
+            (-self.h / self.time_constant).exp()
+        } else {
+            0.0
+        };
+        self.y = a * self.y + (1.0 - a) * self.k * inputs[0].as_f64();
         put(&mut outputs[0], self.y);
     }
 }
@@ -475,7 +521,11 @@ mod tests {
     #[test]
     fn registry_checks_params_against_the_declarations() {
         let sut = Registry::builtin();
-        assert_eq!(sut.type_names().len(), 18);
+        assert_eq!(
+            sut.type_names().len(),
+            20,
+            "19 built in, and the data recorder"
+        );
         let err = sut.info("gain", &Params::new()).unwrap_err().to_string();
         assert_eq!(err, "param 'k' (f64) is required for type 'gain'");
         let err = sut

@@ -444,6 +444,9 @@ struct Entry {
     /// For a type a description declares ([`Registry::declare`]): the host program that
     /// makes it. `None`: this process makes it.
     program: Option<String>,
+    /// Whether it takes parameters it does not list without parameters (an FMU's are its
+    /// model's): [`Registry::complete`] passes them on, and its `info` checks them.
+    open: bool,
 }
 
 /// The component types a system can use, by name.
@@ -485,15 +488,13 @@ impl Registry {
         make: impl Fn(&Params) -> Result<Box<dyn Component>, ComponentError> + Send + Sync + 'static,
     ) {
         let make: Maker = std::sync::Arc::new(make);
-        let probe = match info_fn(&Params::new()) {
-            Ok(probe) => probe,
-            Err(e) => panic!("a component type must describe itself without parameters: {e}"),
-        };
+        let probe = probe(info_fn);
         let entry = Entry {
             probe,
             info: std::sync::Arc::new(info_fn),
             make,
             program: None,
+            open: false,
         };
         self.insert(entry);
     }
@@ -522,6 +523,61 @@ impl Registry {
                 })
             }),
             program: Some(program.to_owned()),
+            open: false,
+        });
+    }
+
+    /// Adds a type that the host program `program` makes, described by `info_fn` (whose ports
+    /// may depend on the parameters, as a registered type's): the types the runtime knows and
+    /// a program of its own makes (the data recorder, FMUs). A type this process registered
+    /// itself is kept.
+    ///
+    /// # Panics
+    /// If `info_fn` fails with empty parameters (see [`Registry::register`]).
+    pub fn declare_with(&mut self, info_fn: InfoFn, program: &str) {
+        self.declare_entry(info_fn, program, false);
+    }
+
+    /// Like [`Registry::declare_with`], for a type whose parameters depend on what a
+    /// parameter names (an FMU's are its model's): [`Registry::complete`] passes parameters it
+    /// does not list on, and `info_fn` checks them.
+    pub fn declare_open(&mut self, info_fn: InfoFn, program: &str) {
+        self.declare_entry(info_fn, program, true);
+    }
+
+    /// Like [`Registry::register`], for a type whose parameters depend on what a parameter
+    /// names (see [`Registry::declare_open`]).
+    pub fn register_open(&mut self, info_fn: InfoFn, make: MakeFn) {
+        self.register(info_fn, make);
+        if let Some(e) = self
+            .entries
+            .iter_mut()
+            .find(|e| e.probe.type_name == probe(info_fn).type_name)
+        {
+            e.open = true;
+        }
+    }
+
+    fn declare_entry(&mut self, info_fn: InfoFn, program: &str, open: bool) {
+        let probe = probe(info_fn);
+        if self
+            .entry(probe.type_name)
+            .is_ok_and(|e| e.program.is_none())
+        {
+            return;
+        }
+        let (type_name, made_by) = (probe.type_name, program.to_owned());
+        self.insert(Entry {
+            probe,
+            info: std::sync::Arc::new(info_fn),
+            make: std::sync::Arc::new(move |_| {
+                Err(ComponentError::MadeElsewhere {
+                    type_name: type_name.to_owned(),
+                    program: made_by.clone(),
+                })
+            }),
+            program: Some(program.to_owned()),
+            open,
         });
     }
 
@@ -624,6 +680,10 @@ impl Registry {
             } else {
                 match decls.iter().find(|d| d.name == name) {
                     Some(d) => d.ty,
+                    None if entry.open => {
+                        complete.set(name, value.clone());
+                        continue;
+                    }
                     None => {
                         return Err(ParamError::Unknown {
                             name: name.into(),
@@ -789,6 +849,17 @@ impl ComponentError {
     /// Any other refusal: an error of the component type's own, or a message.
     pub fn other(source: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> ComponentError {
         ComponentError::Other(source.into())
+    }
+}
+
+/// What `info_fn` says without parameters: the type's name and parameter list.
+///
+/// # Panics
+/// If it fails: that is a bug in the component type.
+fn probe(info_fn: InfoFn) -> ComponentInfo {
+    match info_fn(&Params::new()) {
+        Ok(probe) => probe,
+        Err(e) => panic!("a component type must describe itself without parameters: {e}"),
     }
 }
 

@@ -39,6 +39,8 @@
 //! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
 //! - [`host`]: a component host: steps its components on release, publishes their outputs.
 //! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
+//! - [`record_type`]: the data recorder (`record { ... }`) as a component type: its params and
+//!   ports (the component, which writes HDF5, is `modbot-record`'s).
 //! - [`offload`]: a writer whose bytes a thread of normal priority writes out (the trace).
 //! - [`ledger`]: the overrun ledger as `modbot top` shows it.
 //! - [`bus`]: the drives on the bus and the bus bridge (its watchdog, safe stop, switches).
@@ -53,6 +55,7 @@ pub mod coordinator;
 pub mod host;
 pub mod ledger;
 pub mod offload;
+pub mod record_type;
 pub mod recorder;
 pub mod reference;
 pub mod spec;

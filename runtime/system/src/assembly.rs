@@ -13,9 +13,9 @@
 
 use std::path::Path;
 
-use super::{lua, SystemError};
+use super::{fmus, lua, record_decl, SystemError};
 use modbot_grid::component::Generation;
-use modbot_grid::spec::{Assembly, GridSpec};
+use modbot_grid::spec::{Assembly, GridError, GridSpec, RecordDecl};
 use modbot_grid::Registry;
 
 /// Lines of assembly declarations are offset by this while the combined grid is checked, so
@@ -98,18 +98,19 @@ pub fn load_assembly(
     }
     let (grid, base_components, base_connections) = current.decls.clone();
     let base_hosts: Vec<&str> = base_components.iter().map(|c| c.host.as_str()).collect();
-    if let Some(c) = decls
+    let on_base_host = decls
         .components
         .iter()
-        .find(|c| base_hosts.contains(&c.host.as_str()))
-    {
+        .map(|c| (&c.name, &c.host, c.line))
+        .chain(decls.records.iter().map(|r| (&r.name, &r.host, r.line)))
+        .find(|(_, host, _)| base_hosts.contains(&host.as_str()));
+    if let Some((name, host, line)) = on_base_host {
         return Err(SystemError::new(
             &file,
-            Some(c.line),
+            Some(line),
             format!(
-                "component '{}': host '{}' runs the system's own components; give the \
-                 assembly's components hosts of their own",
-                c.name, c.host
+                "component '{name}': host '{host}' runs the system's own components; give the \
+                 assembly's components hosts of their own"
             ),
         ));
     }
@@ -122,7 +123,9 @@ pub fn load_assembly(
     }
     let base = base_components.len();
     let mut components = base_components.clone();
-    components.extend(decls.components.into_iter().map(|mut c| {
+    let mut own = decls.components;
+    fmus::find_files(&mut own, &current.dir);
+    components.extend(own.into_iter().map(|mut c| {
         c.line += LINE_OFFSET;
         c
     }));
@@ -131,18 +134,33 @@ pub fn load_assembly(
         c.line += LINE_OFFSET;
         c
     }));
-    let registry = &registry
+    let registry = &fmus::with_fmus(registry)
         .with_declared(&system.declared)
         .map_err(|e| SystemError::new(system_file, Some(e.line), e.to_string()))?;
-    let mut spec =
-        GridSpec::build(grid.clone(), components, connections, registry).map_err(|e| {
-            match e.line {
-                Some(l) if l >= LINE_OFFSET => {
-                    SystemError::caused(&file, Some(l - LINE_OFFSET), e.kind)
-                }
-                line => SystemError::caused(system_file, line, e.kind),
-            }
-        })?;
+    let refused = |e: GridError| match e.line {
+        Some(l) if l >= LINE_OFFSET => SystemError::caused(&file, Some(l - LINE_OFFSET), e.kind),
+        line => SystemError::caused(system_file, line, e.kind),
+    };
+    let build = |components, connections| {
+        GridSpec::build(grid.clone(), components, connections, registry).map_err(refused)
+    };
+    let mut spec = build(components.clone(), connections.clone())?;
+    if !decls.records.is_empty() {
+        // The assembly's recorder: its signals may be the system's and the assembly's, and
+        // it keeps the text of both files.
+        spec.timing = system.timing;
+        let records: Vec<RecordDecl> = (decls.records.into_iter())
+            .filter_map(|mut r| {
+                r.file = record_decl::file_of(&r.file, &current.vars, Some(name))?;
+                r.line += LINE_OFFSET;
+                r.sources = vec![record_decl::absolute(&current.system_file), file.clone()];
+                Some(r)
+            })
+            .collect();
+        let decls = (&mut components, &mut connections);
+        record_decl::add_recorders(&records, &spec, None, decls, refused)?;
+        spec = build(components, connections)?;
+    }
     for c in spec.components.iter_mut().skip(base) {
         c.line -= LINE_OFFSET;
     }
@@ -151,8 +169,10 @@ pub fn load_assembly(
             c.line -= LINE_OFFSET;
         }
     }
+    fmus::one_per_host(&spec, base..spec.components.len(), &file)?;
     // How the grid keeps time is the running system's (`modbot up --lockstep` included).
     spec.timing = system.timing;
+    spec.set_clock(system.timing.clock);
     spec.declared = system.declared.clone();
     spec.assembly = Some(Assembly {
         name: name.to_owned(),

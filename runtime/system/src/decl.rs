@@ -18,7 +18,7 @@ use super::read::{
 use super::{DeclError, GiveUp, GroupSpec, ModuleSpec, Restart, RestartPolicy, Supervision};
 use modbot_core::transport::{check_name, ReceiveMode};
 use modbot_grid::component::DeclaredType;
-use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl};
+use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl, RecordDecl};
 
 /// Everything the description declared, in order, before the cross-checks.
 #[derive(Debug, Default)]
@@ -39,6 +39,8 @@ pub(super) struct Declarations {
     pub components: Vec<ComponentDecl>,
     /// The `connect` declarations in order.
     pub connections: Vec<ConnectDecl>,
+    /// The `record` declaration (at most one).
+    pub records: Vec<RecordDecl>,
 }
 
 /// A `module` declaration: a [`ModuleSpec`] whose program is not looked up yet and whose

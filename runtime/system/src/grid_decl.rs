@@ -5,6 +5,7 @@
 //! grid { clock = "lockstep", track_ticks = 50, spin_us = 0 }                -- timing, optional
 //! component "A" { type = "counter", host = "h1", period = 1, params = { start = 0 } }
 //! component "B" { type = "gain", host = "h2", period_s = 0.002, params = { k = 0.5 }, policy = "fault" }
+//! component "F" { type = "fmu", fmu = "ff.fmu", host = "h_ff", params = { Jm = 0.5 } }   -- an FMU
 //! connect "A.y -> B.u"                                                         -- or connect("A.y", "B.u")
 //! component_type "scaler" {                          -- a type a host program of its own makes
 //!   program = "my-host", doc = "y = k u",
@@ -45,7 +46,9 @@ const GRID_FIELDS: &[&str] = &[
     "track_ticks",
     "spin_us",
 ];
-const COMPONENT_FIELDS: &[&str] = &["type", "host", "period", "period_s", "params", "policy"];
+const COMPONENT_FIELDS: &[&str] = &[
+    "type", "host", "period", "period_s", "params", "policy", "fmu",
+];
 const TYPE_FIELDS: &[&str] = &["program", "doc", "inputs", "outputs", "params"];
 /// At most this many `component_type` declarations.
 const MAX_TYPES: usize = 256;
@@ -226,24 +229,21 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclErro
         Some(v) => string(what, "host", &v)?,
         None => return Err(DeclError::missing(what, "host", " (the host process)")),
     };
-    let period =
-        match (fields.take("period"), fields.take("period_s")) {
-            (Some(_), Some(_)) => {
-                let why = "give 'period' (base ticks) or 'period_s' (seconds), not both";
-                return Err(DeclError::invalid(what, why));
-            }
-            (Some(v), None) => Period::Ticks(number(&v).ok_or_else(|| {
-                DeclError::field(what, "period", "a number of base ticks", show(&v))
-            })?),
-            (None, Some(v)) => Period::Seconds(number(&v).ok_or_else(|| {
-                DeclError::field(what, "period_s", "a number of seconds", show(&v))
-            })?),
-            (None, None) => Period::Ticks(1.0),
-        };
-    let params = match fields.take("params") {
+    let period = period(what, &mut fields)?;
+    let mut params = match fields.take("params") {
         Some(v) => params(what, &v)?,
         None => Params::new(),
     };
+    // An FMU component's file, as written: the loader finds it (see `fmu_path`).
+    if let Some(v) = fields.take(modbot_fmu::FMU) {
+        if type_name != modbot_fmu::TYPE {
+            let why = format!(
+                "'fmu' names the file of a component of type \"fmu\", not of type '{type_name}'"
+            );
+            return Err(DeclError::invalid(what, why));
+        }
+        params.set(modbot_fmu::FMU, ParamValue::Text(string(what, "fmu", &v)?));
+    }
     let policy = match fields.take("policy") {
         Some(v) => text(&v)
             .as_deref()
@@ -260,6 +260,23 @@ fn component(name: &str, line: u32, v: &Value) -> Result<ComponentDecl, DeclErro
         policy,
         line,
     })
+}
+
+/// `period = k` (base ticks) or `period_s = x` (seconds) of `what`; every base tick if neither.
+pub(super) fn period(what: &str, fields: &mut Fields) -> Result<Period, DeclError> {
+    match (fields.take("period"), fields.take("period_s")) {
+        (Some(_), Some(_)) => {
+            let why = "give 'period' (base ticks) or 'period_s' (seconds), not both";
+            Err(DeclError::invalid(what, why))
+        }
+        (Some(v), None) => Ok(Period::Ticks(number(&v).ok_or_else(|| {
+            DeclError::field(what, "period", "a number of base ticks", show(&v))
+        })?)),
+        (None, Some(v)) => Ok(Period::Seconds(number(&v).ok_or_else(|| {
+            DeclError::field(what, "period_s", "a number of seconds", show(&v))
+        })?)),
+        (None, None) => Ok(Period::Ticks(1.0)),
+    }
 }
 
 /// The table of `component_type "name" { ... }`, declared at `line`.
@@ -327,23 +344,15 @@ fn port(what: &str, field: &str, text: &str) -> Result<PortDecl, DeclError> {
     if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
         return Err(bad("has no valid name (letters, digits, _)".into()));
     }
-    let ty = match ty {
-        "f64" => PortType::F64,
-        "i64" => PortType::I64,
-        "bool" => PortType::Bool,
-        array => match array
-            .strip_prefix("f64[")
-            .and_then(|n| n.strip_suffix(']'))
-            .and_then(|n| n.parse::<usize>().ok())
-        {
-            Some(n) if (1..=MAX_ARRAY).contains(&n) => PortType::F64s(n),
-            _ => {
-                return Err(bad(format!(
-                    "has type '{array}': use f64, i64, bool or f64[N] (N from 1 to {MAX_ARRAY})"
-                )))
-            }
-        },
-    };
+    let ty = match PortType::parse(ty) {
+        Some(PortType::F64s(n)) if n > MAX_ARRAY => None,
+        parsed => parsed,
+    }
+    .ok_or_else(|| {
+        bad(format!(
+            "has type '{ty}': use f64, i64, bool or f64[N] (N from 1 to {MAX_ARRAY})"
+        ))
+    })?;
     Ok(PortDecl::new(intern(name), ty))
 }
 

@@ -202,8 +202,8 @@ fn unknown_component_type_is_refused_listing_the_known_ones() {
         &with_grid("\ncomponent \"A\" { type = \"gian\", host = \"h\" }\n"),
         Some(4),
         "component 'A': unknown component type 'gian' (known: counter, ramp, sine, gain, sum, \
-         integrator, delay, vec_gain, pack, sleeper, ptp, hold_position, feedforward, cascade, \
-         monitor, waypoints, bus, drive_enable)",
+         integrator, lowpass, delay, vec_gain, pack, sleeper, ptp, hold_position, feedforward, \
+         cascade, monitor, waypoints, bus, drive_enable, record, fmu)",
     );
 }
 
@@ -488,7 +488,7 @@ fn bad_component_fields_are_refused() {
         ),
         ("type = \"ramp\", host = \"h\", policy = \"skip\"", "field 'policy' must be \"hold\" or \"fault\", not 'skip'"),
         ("type = \"ramp\", host = \"h\", params = 3", "field 'params' must be a table"),
-        ("type = \"ramp\", host = \"h\", rate = 3", "component 'A': unknown field 'rate' (expected type, host, period, period_s, params, policy)"),
+        ("type = \"ramp\", host = \"h\", rate = 3", "component 'A': unknown field 'rate' (expected type, host, period, period_s, params, policy, fmu)"),
     ] {
         let source = with_grid(&format!("component \"A\" {{ {fields} }}\n"));
         assert_error(&source, Some(3), fragment);

@@ -44,6 +44,9 @@
 //!   translation of Lua errors into [`SystemError`].
 //! - `grid_decl`: the grid's declaration functions (`grid`, `component`, `connect`) and what
 //!   each one says; the checks against the component types are [`GridSpec::build`]'s.
+//! - `fmus`: FMU components — the type `fmu`, where their files are found, one host each.
+//! - `record_decl`: the data recorder's declaration (`record { signals = ..., file = ... }`)
+//!   and `modbot up --record FILE` ([`RECORD_VAR`]).
 //! - `decl`: what one declaration says, read field by field from its Lua table, with the
 //!   checks that need nothing but that table (ranges, policies, unknown fields).
 //! - `read`: typed values out of Lua values (strings, integers, seconds, lists, field tables),
@@ -55,22 +58,28 @@
 pub mod assembly;
 mod decl;
 mod error;
+mod fmus;
 pub mod fuzz;
 mod grid_decl;
 mod lua;
 pub mod program;
 mod read;
 mod record;
+mod record_decl;
 mod validate;
 
 #[cfg(test)]
 mod control_tests;
+#[cfg(test)]
+mod fmu_tests;
 #[cfg(test)]
 mod grid_tests;
 #[cfg(test)]
 mod in_process_tests;
 #[cfg(test)]
 mod let_tests;
+#[cfg(test)]
+mod record_tests;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -86,6 +95,7 @@ use modbot_grid::{GridSpec, Registry};
 pub use assembly::{assembly_names, load_assembly};
 pub use error::{DeclError, SystemError, VarError};
 pub use program::{DefaultResolver, ProgramResolver};
+pub use record_decl::RECORD_VAR;
 
 /// A checked system description: everything the supervisor needs to start the robot.
 #[derive(Debug, Clone, PartialEq)]

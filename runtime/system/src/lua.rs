@@ -28,8 +28,8 @@ use mlua::chunk::ChunkMode;
 use mlua::{HookTriggers, Lua, LuaOptions, MultiValue, StdLib, Value, VmState};
 
 use super::decl::{self, Declarations};
-use super::grid_decl;
 use super::record::{caller_line, fail, given, one_arg, open_body, stop, Shared, PRELUDE_NAME};
+use super::{grid_decl, record_decl};
 use super::{DeclError, GroupSpec, SystemError};
 
 /// The most memory a description may use.
@@ -161,6 +161,7 @@ fn sandbox(record: &Shared, vars: &[(String, String)]) -> mlua::Result<Lua> {
     globals.raw_set("module", module_fn(&lua, record)?)?;
     globals.raw_set("group", group_fn(&lua, record)?)?;
     grid_decl::register(&lua, &globals, record)?;
+    record_decl::register(&lua, &globals, record)?;
     let failed = record.clone();
     let failed_check = lua.create_function(move |_, ()| {
         let stopped = failed.borrow().failure.is_some();

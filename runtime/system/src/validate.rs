@@ -12,9 +12,14 @@ use std::path::Path;
 
 use super::assembly::load_assembly;
 use super::decl::{Declarations, ModuleDecl};
+use super::fmus;
+use super::record_decl;
 use super::{ProgramResolver, SystemError, SystemSpec};
 use modbot_grid::component::{DeclaredType, Generation};
-use modbot_grid::spec::{Assembly, ComponentDecl, ConnectDecl, GridDecl};
+use modbot_grid::spec::GridError;
+use modbot_grid::spec::{
+    Assembly, ComponentDecl, ConnectDecl, GridDecl, Period, RecordDecl, Signals,
+};
 use modbot_grid::{GridSpec, Registry};
 
 /// Checks `decls` (from the file `file`), finds every module's program and checks the grid
@@ -142,29 +147,49 @@ pub(super) fn build(
             return Err(error(t.line, why.to_owned()));
         }
     }
-    let registry = &registry
+    let registry = &fmus::with_fmus(registry)
         .with_declared(&declared)
         .map_err(|e| error(e.line, e.to_string()))?;
+    let mut components = decls.components;
+    fmus::find_files(
+        &mut components,
+        Path::new(file).parent().unwrap_or(Path::new("")),
+    );
+    let records = records(file, decls.records, &components, decls.grid.as_ref(), vars)?;
+    let refused = |e: GridError| SystemError::caused(file, e.line, e.kind);
     let grid = match decls.grid {
         Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
             file,
             grid,
-            decls.components,
-            decls.connections,
+            (components, decls.connections),
+            &records,
             registry,
             vars,
             &declared,
         )?),
-        Some(grid) => Some(
-            GridSpec::build(grid, decls.components, decls.connections, registry)
-                .map_err(|e| SystemError::caused(file, e.line, e.kind))?,
-        ),
+        Some(grid) => {
+            let mut connections = decls.connections;
+            let build = |components, connections| {
+                GridSpec::build(grid.clone(), components, connections, registry).map_err(refused)
+            };
+            let mut spec = build(components.clone(), connections.clone())?;
+            if !records.is_empty() {
+                let decls = (&mut components, &mut connections);
+                record_decl::add_recorders(&records, &spec, None, decls, refused)?;
+                spec = build(components, connections)?;
+            }
+            fmus::one_per_host(&spec, 0..spec.components.len(), file)?;
+            Some(spec)
+        }
         None => None,
     };
     let grid = grid.map(|mut g| {
         g.declared = declared;
         g
     });
+    if let Some(grid) = &grid {
+        runtime_programs(file, grid, registry, resolver, &mut host_programs)?;
+    }
 
     let groups = decls.groups;
     let modules = decls
@@ -192,12 +217,13 @@ pub(super) fn build(
     })
 }
 
-/// The grid of a description with assemblies: its own components and the first assembly's.
+/// The grid of a description with assemblies: its own components (its recorder among them)
+/// and the first assembly's.
 fn with_assemblies(
     file: &str,
     grid: GridDecl,
-    components: Vec<ComponentDecl>,
-    connections: Vec<ConnectDecl>,
+    (mut components, mut connections): (Vec<ComponentDecl>, Vec<ConnectDecl>),
+    records: &[RecordDecl],
     registry: &Registry,
     vars: &[(String, String)],
     declared: &[DeclaredType],
@@ -221,33 +247,138 @@ fn with_assemblies(
     }
     let dir = std::fs::canonicalize(&dir).unwrap_or(dir);
     let line = grid.line;
-    let unloaded = GridSpec {
-        base_period: grid.base_period,
-        cpus: grid.cpus.clone(),
-        priority: grid.priority,
-        mlock: grid.mlock,
-        components: Vec::new(),
-        connections: Vec::new(),
-        line,
-        timing: grid.timing,
-        declared: declared.to_vec(),
-        assembly: Some(Assembly {
-            name: String::new(),
-            generation: Generation::SYSTEM,
-            dir,
-            base: components.len(),
-            decls: (grid, components, connections),
-            vars: vars.to_vec(),
-            system_file: file.to_owned(),
-        }),
+    let first = |components: Vec<ComponentDecl>, connections: Vec<ConnectDecl>| {
+        let unloaded = GridSpec {
+            base_period: grid.base_period,
+            cpus: grid.cpus.clone(),
+            priority: grid.priority,
+            mlock: grid.mlock,
+            components: Vec::new(),
+            connections: Vec::new(),
+            line,
+            timing: grid.timing,
+            declared: declared.to_vec(),
+            assembly: Some(Assembly {
+                name: String::new(),
+                generation: Generation::SYSTEM,
+                dir: dir.clone(),
+                base: components.len(),
+                decls: (grid.clone(), components, connections),
+                vars: vars.to_vec(),
+                system_file: file.to_owned(),
+            }),
+        };
+        load_assembly(&unloaded, &decl.first, Generation(1), registry).map_err(|mut e| {
+            if e.file.is_empty() {
+                e.file = file.to_owned();
+                e.line = Some(line);
+            }
+            e
+        })
     };
-    load_assembly(&unloaded, &decl.first, Generation(1), registry).map_err(|mut e| {
-        if e.file.is_empty() {
-            e.file = file.to_owned();
-            e.line = Some(line);
+    let spec = first(components.clone(), connections.clone())?;
+    fmus::one_per_host(&spec, 0..components.len(), file)?;
+    if records.is_empty() {
+        return Ok(spec);
+    }
+    // The system's recorder is one of its own components: it stays when assemblies change,
+    // and records only what stays too.
+    let own = components.clone();
+    let decls = (&mut components, &mut connections);
+    let refused = |e: GridError| SystemError::caused(file, e.line, e.kind);
+    record_decl::add_recorders(records, &spec, Some(&own), decls, refused)?;
+    first(components, connections)
+}
+
+/// Finds the programs of the types the runtime declares (the data recorder's, an FMU's) that
+/// `grid` uses — an error at the first component whose program is missing — and, with
+/// assemblies, of every such type (an assembly loaded later may use it).
+fn runtime_programs(
+    file: &str,
+    grid: &GridSpec,
+    registry: &Registry,
+    resolver: &dyn ProgramResolver,
+    found: &mut Vec<(String, PathBuf)>,
+) -> Result<(), SystemError> {
+    for c in &grid.components {
+        let Some(program) = c.program.as_deref() else {
+            continue;
+        };
+        if found.iter().any(|(n, _)| n == program) {
+            continue;
         }
-        e
-    })
+        let Some(path) = resolver.resolve(program) else {
+            return Err(SystemError::new(
+                file,
+                Some(c.line),
+                format!(
+                    "component '{}': its type '{}' is made by the program '{program}': {}",
+                    c.name,
+                    c.type_name,
+                    resolver.searched(program)
+                ),
+            ));
+        };
+        found.push((program.to_owned(), path));
+    }
+    if grid.assembly.is_some() {
+        for type_name in registry.type_names() {
+            let Some(program) = registry.program_of(type_name) else {
+                continue;
+            };
+            if found.iter().any(|(n, _)| n == program) {
+                continue;
+            }
+            if let Some(path) = resolver.resolve(program) {
+                found.push((program.to_owned(), path));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The description's recorders, with `modbot up --record FILE` applied ([`RECORD_VAR`]): the
+/// declared one writes FILE, or, without one, FILE records every output of the system's own
+/// components.
+fn records(
+    file: &str,
+    mut records: Vec<RecordDecl>,
+    components: &[ComponentDecl],
+    grid: Option<&GridDecl>,
+    vars: &[(String, String)],
+) -> Result<Vec<RecordDecl>, SystemError> {
+    let source = record_decl::absolute(file);
+    for r in &mut records {
+        r.sources = vec![source.clone()];
+    }
+    records.retain_mut(|r| match record_decl::file_of(&r.file, vars, None) {
+        Some(f) => {
+            r.file = f;
+            true
+        }
+        None => false,
+    });
+    let asked = record_decl::file_of("", vars, None);
+    if let (Some(path), true, Some(g)) = (asked, records.is_empty(), grid) {
+        records.push(RecordDecl {
+            name: "record".into(),
+            host: "record".into(),
+            signals: Signals::AllOf(components.iter().map(|c| c.name.clone()).collect()),
+            file: path,
+            period: Period::Ticks(1.0),
+            units: Vec::new(),
+            sources: vec![source],
+            line: g.line,
+        });
+    }
+    match (records.first(), grid) {
+        (Some(r), None) => Err(SystemError::new(
+            file,
+            Some(r.line),
+            "there is no grid to record: declare it, as in grid { base_period = 0.001 }",
+        )),
+        _ => Ok(records),
+    }
 }
 
 /// The declared module names, for a message.

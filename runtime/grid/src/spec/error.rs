@@ -111,6 +111,9 @@ pub enum GridErrorKind {
         component: String,
         input: &'static str,
     },
+    /// A `record` declaration names a signal that is not an output, or nothing.
+    #[error("record '{record}': {what}")]
+    Record { record: String, what: String },
     #[error("component '{component}' is fed by {sources} components; at most {MAX_SOURCES}")]
     TooManySources { component: String, sources: usize },
 }

@@ -19,7 +19,9 @@ use super::component::{
 use modbot_core::transport::check_name;
 
 mod error;
+mod record;
 pub use error::{GridError, GridErrorKind, HostNameError, HostPrograms, PeriodError};
+pub use record::{expand as expand_record, RecordDecl, Signals};
 
 /// The most components a grid may have (indices are 16 bits on the wire).
 pub const MAX_COMPONENTS: usize = 65535;
@@ -461,8 +463,21 @@ impl GridSpec {
         self.priority.map(|p| p.saturating_sub(1).max(1))
     }
 
+    /// Sets the clock (`modbot up --lockstep` over the description's), and tells the recorders
+    /// whether they may take their time (see [`crate::record_type`]'s `lossless`).
+    pub fn set_clock(&mut self, clock: GridClock) {
+        self.timing.clock = clock;
+        let lossless = super::component::ParamValue::Bool(clock == GridClock::Lockstep);
+        for c in &mut self.components {
+            if c.type_name == crate::record_type::TYPE {
+                c.params.set(crate::record_type::LOSSLESS, lossless.clone());
+            }
+        }
+    }
+
     /// Checks the declarations against the component types of `registry`. Takes time linear
-    /// in the size of the description.
+    /// in the size of the description. (A data recorder, `record { ... }`, is added to
+    /// declarations checked without it: see [`expand_record`].)
     pub fn build(
         grid: GridDecl,
         components: Vec<ComponentDecl>,

@@ -1,0 +1,156 @@
+//! `record { ... }`: a data recorder, declared by the signals it records, becomes a component
+//! of type `record` ([`crate::record_type`]) with one input per signal and a connection from
+//! each signal to it.
+//!
+//! The recorder's input types are its signals' types, which only the checked grid knows, so a
+//! grid with recorders is checked without them first ([`GridSpec::build`]), then each one is
+//! added ([`expand`]) and the whole checked again.
+
+use std::collections::HashSet;
+
+use super::{
+    ComponentDecl, ConnectDecl, GridError, GridErrorKind, GridSpec, OverrunPolicy, Period,
+};
+use crate::component::{ParamValue, Params};
+use crate::record_type::{self, Signal};
+
+/// A `record { ... }` declaration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordDecl {
+    /// The recorder component's name (`record` unless the declaration says).
+    pub name: String,
+    /// Its host (`record` unless the declaration says): a process of its own.
+    pub host: String,
+    pub signals: Signals,
+    /// The HDF5 file, an absolute path.
+    pub file: String,
+    /// Its period (every base tick unless the declaration says).
+    pub period: Period,
+    /// The units the declaration knows: (signal, unit).
+    pub units: Vec<(String, String)>,
+    /// The description files whose text the recording keeps: the system's, then an assembly's.
+    pub sources: Vec<String>,
+    pub line: u32,
+}
+
+/// What a recorder records.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Signals {
+    /// These outputs, `comp.port`, in this order.
+    Listed(Vec<String>),
+    /// Every output of these components, in component and port order (what `modbot up
+    /// --record FILE` records when the description declares no recorder: the system's own
+    /// components).
+    AllOf(Vec<String>),
+}
+
+fn refused(r: &RecordDecl, signal: &str, why: String) -> GridError {
+    GridError {
+        line: Some(r.line),
+        kind: GridErrorKind::Record {
+            record: r.name.clone(),
+            what: format!("signal '{signal}' {why}"),
+        },
+    }
+}
+
+/// The signals of `r` with their types, read from `spec` (the grid without recorders).
+fn signals(r: &RecordDecl, spec: &GridSpec) -> Result<Vec<Signal>, GridError> {
+    let names: Vec<String> = match &r.signals {
+        Signals::Listed(names) => names.clone(),
+        Signals::AllOf(components) => components
+            .iter()
+            .filter_map(|c| spec.component(c))
+            .flat_map(|c| {
+                let c = &spec.components[c];
+                c.info
+                    .outputs
+                    .iter()
+                    .map(|p| format!("{}.{}", c.name, p.name))
+            })
+            .collect(),
+    };
+    let mut seen = HashSet::new();
+    names
+        .iter()
+        .map(|name| {
+            if !seen.insert(name.as_str()) {
+                return Err(refused(r, name, "is recorded twice".into()));
+            }
+            let Some((comp, port)) = name.split_once('.') else {
+                return Err(refused(r, name, "is not component.port".into()));
+            };
+            let Some(c) = spec.component(comp) else {
+                let known: Vec<&str> = spec.components.iter().map(|c| c.name.as_str()).collect();
+                let why = format!(
+                    "no component is named '{comp}' (components: {})",
+                    known.join(", ")
+                );
+                return Err(refused(r, name, why));
+            };
+            let info = &spec.components[c].info;
+            let Some(p) = info.output(port) else {
+                let outputs: Vec<&str> = info.outputs.iter().map(|p| p.name).collect();
+                let why = format!(
+                    "'{comp}' has no output '{port}' (outputs: {})",
+                    outputs.join(", ")
+                );
+                return Err(refused(r, name, why));
+            };
+            Ok(Signal {
+                name: name.clone(),
+                ty: info.outputs[p].ty,
+            })
+        })
+        .collect()
+}
+
+/// The recorder component `r` declares, and the connections that feed it, with the types of
+/// `spec` (the grid without recorders); `lossless` when its grid runs in lockstep.
+pub fn expand(
+    r: &RecordDecl,
+    spec: &GridSpec,
+    lossless: bool,
+) -> Result<(ComponentDecl, Vec<ConnectDecl>), GridError> {
+    let signals = signals(r, spec)?;
+    if signals.is_empty() {
+        return Err(GridError {
+            line: Some(r.line),
+            kind: GridErrorKind::Record {
+                record: r.name.clone(),
+                what: "there is nothing to record: give signals = { \"comp.port\", ... }".into(),
+            },
+        });
+    }
+    let text = |s: String| ParamValue::Text(s);
+    let params = Params::new()
+        .with(
+            record_type::SIGNALS,
+            text(record_type::signals_text(&signals)),
+        )
+        .with(record_type::FILE, text(r.file.clone()))
+        .with(record_type::UNITS, text(record_type::units_text(&r.units)))
+        .with(record_type::SOURCES, text(r.sources.join("\n")))
+        .with(record_type::LOSSLESS, ParamValue::Bool(lossless));
+    let connections = signals
+        .iter()
+        .filter_map(|s| {
+            let (comp, port) = s.name.split_once('.')?;
+            Some(ConnectDecl {
+                from: (comp.to_owned(), port.to_owned()),
+                to: (r.name.clone(), s.name.clone()),
+                line: r.line,
+            })
+        })
+        .collect();
+    let component = ComponentDecl {
+        name: r.name.clone(),
+        type_name: record_type::TYPE.to_owned(),
+        host: r.host.clone(),
+        period: r.period,
+        params,
+        policy: OverrunPolicy::Hold,
+        line: r.line,
+    };
+    Ok((component, connections))
+}

@@ -1,0 +1,25 @@
+//! modbot-record: the data recorder (MoRC's Data Recorder) — the `record` component, which
+//! writes the signals of a run to an HDF5 file that h5py, MATLAB or HDFView open, off the
+//! real-time path. Uses `modbot-grid` (whose [`modbot_grid::record_type`] is the recorder's
+//! interface, known to every process) and the pure-Rust `hdf5-pure` (no C library).
+//!
+//! A description says `record { signals = { "ptp.q", "robot.link_position" }, file = "run.h5" }`;
+//! the grid makes that a component on a host of its own, which the program `modbot-recorder`
+//! (this crate's [`register`] in a host program) steps every tick.
+//!
+//! # Layout
+//! - [`component`]: the component — a release hands its inputs over as a row, without a lock,
+//!   an allocation or a wait; [`register`].
+//! - [`rows`]: the pool of rows passed between the real-time thread and the writer.
+//! - [`writer`]: the writer thread, which appends batches to the file (when full, and at least
+//!   every 50 ms).
+//! - [`file`]: the file's layout (datasets, attributes) and the crash-atomic appends.
+//! - [`path`]: which file a recorder writes (a restarted one does not replace its own).
+
+pub mod component;
+pub mod file;
+pub mod path;
+pub mod rows;
+pub mod writer;
+
+pub use component::register;

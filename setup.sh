@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Installs what modbot needs beyond the Rust toolchain, where it is missing (run it again: it
+# skips what is there):
+# - libclang, for the `fmi` crate, which generates its FMI bindings with bindgen at build time
+#   (Debian/Ubuntu: libclang-dev, through apt-get; elsewhere install it and set LIBCLANG_PATH);
+# - with --tests, Python's h5py (the tests read the recordings with it) and FMPy (the tests
+#   validate and simulate the FMUs with it), through pip.
+set -euo pipefail
+
+have_libclang() {
+    [ -n "${LIBCLANG_PATH:-}" ] && return 0
+    compgen -G "/usr/lib/llvm-*/lib/libclang.so" > /dev/null
+}
+
+if ! have_libclang; then
+    echo "setup: installing libclang-dev (for the fmi crate's bindgen)"
+    sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends libclang-dev > /dev/null
+fi
+
+if [ "${1:-}" = "--tests" ] && ! python3 -c "import h5py, fmpy" 2> /dev/null; then
+    echo "setup: installing h5py and FMPy (for the tests)"
+    python3 -m pip install --quiet --disable-pip-version-check "h5py>=3.8" "fmpy==0.3.32"
+fi

@@ -1,0 +1,209 @@
+//! The data recorder (`record { ... }`, `modbot up --record FILE`) under `modbot up`, each test
+//! in a domain of its own, its recordings read back by h5py: a run of the arm opens with its
+//! datasets, shapes and attributes; a SIGKILLed recorder leaves a file that opens and misses
+//! at most the last 100 ms of what it was given.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use common::arm::{arm, one_arm_at_a_time};
+use common::python::{python, python_file};
+use common::TestDomain;
+use nix::sys::signal::Signal;
+
+/// A recording file of the test's own, removed on drop (with what a restart wrote beside it).
+struct Recording(PathBuf);
+
+impl Recording {
+    fn new(sut: &TestDomain) -> Recording {
+        Recording(std::env::temp_dir().join(format!("{}.h5", sut.name())))
+    }
+
+    fn path(&self) -> &str {
+        self.0.to_str().unwrap()
+    }
+
+    /// The file a restarted recorder wrote: `NAME.1.h5`.
+    fn restarted(&self) -> PathBuf {
+        self.0.with_extension("1.h5")
+    }
+}
+
+impl Drop for Recording {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+        let _ = std::fs::remove_file(self.restarted());
+    }
+}
+
+/// 10 s of the arm (10 000 ticks of 1 ms, in lockstep), holding and then moving (`ptp` from
+/// tick 300), recorded with `--record`: h5py opens the file and finds the tick, time and
+/// generation of every tick, each recorded signal as ticks × 6 with its unit, the base
+/// period and the description's text; the robot moved, within the monitor's following error;
+/// and the plot script's numbers come from it.
+#[test]
+fn ten_seconds_of_the_arm_moving_open_in_h5py_with_datasets_shapes_and_attributes() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("recarm");
+    let file = Recording::new(&sut);
+    let domain = format!("domain={}", sut.name());
+    let arm = arm();
+    let args = [
+        "up",
+        arm.to_str().unwrap(),
+        "--var",
+        &domain,
+        "--var",
+        "dwell=0",
+        "--lockstep",
+        "--ticks",
+        "10000",
+        "--switch",
+        "300:ptp",
+        "--record",
+        file.path(),
+    ];
+    let up = sut.spawn_logged("modbot", &args);
+    let status = sut.wait_exit(up, Duration::from_secs(300));
+    assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+    let checked = python(
+        r#"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], "r")
+signals = ["robot.link_position", "robot.demand_position", "robot.motor_position",
+           "robot.motor_velocity", "robot.motor_torque", "robot.statusword"]
+assert sorted(f.keys()) == sorted(signals + ["tick", "time", "generation"]), list(f.keys())
+tick = f["tick"][:]
+assert (tick == np.arange(10000)).all(), (tick[:3], tick[-3:], len(tick))
+assert np.allclose(f["time"][:], tick * 0.001, rtol=0, atol=1e-12)
+assert f["time"].attrs["unit"] == "s"
+for s in signals:
+    assert f[s][:].shape == (10000, 6), (s, f[s][:].shape)
+    assert f[s].attrs["type"] == "f64[6]"
+assert f["robot.link_position"].attrs["unit"] == "rad"
+assert f["robot.motor_velocity"].attrs["unit"] == "rad/s"
+assert "unit" not in f["robot.statusword"].attrs
+assert f.attrs["base_period"] == 0.001 and f.attrs["period"] == 0.001
+assert f.attrs["description"] == open(sys.argv[2]).read()
+assert f.attrs["description_file"] == sys.argv[2]
+g = f["generation"][:]
+assert g[0] == 1 and g[-1] == 2 and (np.diff(g) >= 0).all(), np.unique(g)
+switch = int(tick[np.argmax(g == 2)])
+assert 300 <= switch < 2300, switch
+link, demand = f["robot.link_position"][:], f["robot.demand_position"][:]
+assert (link.max(axis=0) - link.min(axis=0) > 0.2).all(), "the robot moved"
+assert np.abs(demand - link).max() < 0.1, "within the monitor's following error"
+print("switch", switch)
+"#,
+        &[file.path(), arm.to_str().unwrap()],
+    );
+    println!("{checked}");
+    let plot = arm.parent().unwrap().join("plot_recording.py");
+    let summary = python_file(&plot, &[file.path(), "--summary"]);
+    assert!(
+        summary.starts_with("rows 10000  from 0.000 s to 9.999 s"),
+        "{summary}"
+    );
+    assert!(summary.contains("generations 1 2"), "{summary}");
+    assert_eq!(
+        summary.matches("max |following error|").count(),
+        6,
+        "{summary}"
+    );
+}
+
+/// A grid in lockstep recording two signals, whose recorder is SIGKILLed mid-run: the
+/// coordinator waits for the release the dead recorder took (in lockstep nothing moves on
+/// without it), so the last tick the recorder was given is the one before; the file it left
+/// opens in h5py, every dataset holds at least the rows `tick` counts, in order, and it misses
+/// at most the last 100 ms (100 ticks of 1 ms) of what the recorder was given. The restarted
+/// recorder writes a file of its own beside it.
+#[test]
+fn a_sigkilled_recorder_leaves_a_file_h5py_opens_missing_at_most_100_ms() {
+    let mut sut = TestDomain::new("reckill");
+    let file = Recording::new(&sut);
+    let system = sut.write_system(&format!(
+        r#"supervision {{ heartbeat_timeout = 2.0 }}
+grid {{ base_period = 0.001, clock = "lockstep" }}
+component "A" {{ type = "ramp", host = "h1", period = 1 }}
+component "B" {{ type = "counter", host = "h1", period = 2 }}
+record {{ signals = {{ "A.y", "B.y" }}, file = "{}" }}
+"#,
+        file.path()
+    ));
+    let up = sut.spawn_logged(
+        "modbot",
+        &["up", system.to_str().unwrap(), "--ticks", "100000000"],
+    );
+    sut.wait_for(
+        "the recording is 20 000 rows or more",
+        Duration::from_secs(120),
+        || rows(&file.0) >= 20_000,
+    );
+    let recorder: u32 = sut
+        .ls_field("host_record", "PID")
+        .and_then(|p| p.parse().ok())
+        .expect("the recorder runs");
+    sut.signal(recorder, Signal::SIGKILL);
+    // In lockstep the coordinator waits 10 s for the release the recorder took, then says so.
+    let stuck = "a release due at tick ";
+    sut.wait_for(
+        "the coordinator gives up the dead recorder's release",
+        Duration::from_secs(120),
+        || sut.output_of(up).contains(stuck),
+    );
+    sut.wait_for(
+        "the restarted recorder writes",
+        Duration::from_secs(120),
+        || rows(&file.restarted()) > 0,
+    );
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+    let output = sut.output_of(up);
+    let given: i64 = output
+        .split(stuck)
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|t| t.parse::<i64>().ok())
+        .map(|t| t - 1)
+        .expect("the tick the coordinator waited for");
+    let checked = python(
+        r#"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], "r")
+tick = f["tick"][:]
+assert (tick == np.arange(len(tick))).all(), "every row, in order"
+for name in ["A.y", "B.y", "time", "generation"]:
+    assert len(f[name]) >= len(tick), (name, len(f[name]), len(tick))
+assert np.allclose(np.diff(f["A.y"][1:len(tick)]), 0.001, rtol=0, atol=1e-9), "A.y is the ramp"
+later = h5py.File(sys.argv[2], "r")["tick"][:]
+assert later[0] > tick[-1], (later[0], tick[-1])
+print(tick[-1])
+"#,
+        &[file.path(), file.restarted().to_str().unwrap()],
+    );
+    let last: i64 = checked.trim().parse().expect("the last tick in the file");
+    let missing = given - last;
+    println!("given up to tick {given}, the file holds up to {last}: {missing} ms missing");
+    assert!(
+        (0..=100).contains(&missing),
+        "{missing} ticks of 1 ms are missing"
+    );
+}
+
+/// The rows of the recording at `path` so far, as h5py counts them (0 while there is none, or
+/// while its writer holds the file: hdf5-pure locks it as the C library does).
+fn rows(path: &Path) -> u64 {
+    let script = "import sys, h5py; print(len(h5py.File(sys.argv[1], 'r')['tick']))";
+    std::process::Command::new("python3")
+        .args(["-c", script, path.to_str().unwrap()])
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .ok()
+        .and_then(|out| String::from_utf8_lossy(&out.stdout).trim().parse().ok())
+        .unwrap_or(0)
+}
