@@ -9,12 +9,14 @@ use std::path::Path;
 const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-ipc-schema", "ipc_schema", 0),
     ("modbot-transport", "runtime/transport", 1),
+    ("modbot-data", "runtime/data", 1),
     ("modbot-core", "runtime/core", 2),
     ("modbot-testkit", "runtime/testkit", 2),
     ("modbot-grid", "runtime/grid", 3),
     ("modbot-modules", "modules", 3),
     ("modbot-system", "runtime/system", 4),
     ("modbot-supervisor", "runtime/supervisor", 5),
+    ("modbot-program", "runtime/program", 5),
     ("modbot-runtime", "runtime", 6),
     ("modbot-grid-processes", "modules/grid", 7),
     ("modbot", ".", 8),
@@ -96,13 +98,13 @@ fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
 }
 
 #[test]
-fn only_the_system_descriptions_link_lua() {
+fn only_the_system_descriptions_and_the_robot_programs_link_lua() {
     let lua: Vec<&str> = LAYERS
         .iter()
         .filter(|(_, dir, _)| dependencies(dir).contains("mlua"))
         .map(|(name, ..)| *name)
         .collect();
-    assert_eq!(lua, ["modbot-system"]);
+    assert_eq!(lua, ["modbot-system", "modbot-program"]);
 }
 
 /// The module path of the source file `file` of a crate whose sources are in `src`

@@ -148,9 +148,9 @@ pub(super) fn build(
     let grid = match decls.grid {
         Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
             file,
+            &domain,
             grid,
-            decls.components,
-            decls.connections,
+            (decls.components, decls.connections),
             registry,
             vars,
             &declared,
@@ -192,12 +192,13 @@ pub(super) fn build(
     })
 }
 
-/// The grid of a description with assemblies: its own components and the first assembly's.
+/// The grid of a description with assemblies: its own components and the first assembly's
+/// (which reads the assembly data of `domain`).
 fn with_assemblies(
     file: &str,
+    domain: &str,
     grid: GridDecl,
-    components: Vec<ComponentDecl>,
-    connections: Vec<ConnectDecl>,
+    (components, connections): (Vec<ComponentDecl>, Vec<ConnectDecl>),
     registry: &Registry,
     vars: &[(String, String)],
     declared: &[DeclaredType],
@@ -239,6 +240,7 @@ fn with_assemblies(
             decls: (grid, components, connections),
             vars: vars.to_vec(),
             system_file: file.to_owned(),
+            data: Some(modbot_data::path_for(domain)),
         }),
     };
     load_assembly(&unloaded, &decl.first, Generation(1), registry).map_err(|mut e| {
