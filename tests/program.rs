@@ -2,7 +2,8 @@
 //! `examples/arm.lua` in lockstep, each test in a domain and an assembly data directory of its
 //! own: a program's commands switch their assemblies in order and leave their runs in
 //! assembly data; a failed precondition stops the program at its line with the robot
-//! holding; the REPL reads commands from a pipe; assembly data outlives `modbot down`.
+//! holding; the REPL reads commands from a pipe; assembly data outlives `modbot down`; and
+//! the KR 16 experiment (`examples/kr16_ff.lua`) shows what the elastic feed-forward gains.
 
 mod common;
 
@@ -31,18 +32,15 @@ fn examples() -> PathBuf {
 /// The arm in lockstep in the test's domain, its assembly data in `dir`; returns when every
 /// drive is enabled.
 fn up(sut: &mut TestDomain, dir: &TempDir) -> u32 {
+    up_system(sut, dir, &arm())
+}
+
+/// The robot of `system` (an arm's description) in lockstep, as [`up`].
+fn up_system(sut: &mut TestDomain, dir: &TempDir, system: &Path) -> u32 {
     sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
     let domain = format!("domain={}", sut.name());
-    let up = sut.spawn_logged(
-        "modbot",
-        &[
-            "up",
-            arm().to_str().unwrap(),
-            "--var",
-            &domain,
-            "--lockstep",
-        ],
-    );
+    let system = system.to_str().unwrap();
+    let up = sut.spawn_logged("modbot", &["up", system, "--var", &domain, "--lockstep"]);
     wait_enabled(sut, up);
     up
 }
@@ -250,4 +248,48 @@ fn assembly_data_survives_modbot_down_and_up() {
     assert_eq!(code, 0, "{out}{err}");
     assert!(out.contains("run 2: again (goto)"), "{out}");
     down(&mut sut, up2);
+}
+
+/// MoRC's experiment, `examples/kr16_ff.lua` on the KR 16 of `examples/kr16.lua` (elastic
+/// joints on axes 1-3, 16 kg load): the same Bessel-filtered 5° move once with the rigid and
+/// once with the elastic feed-forward, each its own assembly in one program; the elastic one
+/// cuts the residual link oscillation after arrival at least six-fold (the program fails
+/// otherwise) and settles sooner, and both runs are kept in assembly data.
+#[test]
+fn the_kr16_program_shows_the_elastic_feed_forward_cutting_the_residual_oscillation_six_fold() {
+    let (_arm, mut sut, dir) = arm_test("program_kr16");
+    let examples = arm().parent().unwrap().to_path_buf();
+    let up = up_system(&mut sut, &dir, &examples.join("kr16.lua"));
+    let (code, out, err) = run(&sut, &examples.join("kr16_ff.lua"));
+    assert_eq!(code, 0, "{out}{err}");
+    let value = |prefix: &str, after: &str| -> f64 {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("{out}"));
+        let rest = &line[line.find(after).unwrap_or_else(|| panic!("{line}")) + after.len()..];
+        rest.split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let (rigid, elastic) = (
+        value("rigid ", "residual after arrival "),
+        value("elastic ", "residual after arrival "),
+    );
+    assert!(
+        rigid >= 6.0 * elastic,
+        "rigid {rigid} mrad, elastic {elastic} mrad\n{out}"
+    );
+    assert!(elastic < 0.5 / 1.6, "under 0.5 mm at 1.6 m: {elastic} mrad");
+    assert!(
+        value("elastic ", "settling ") < value("rigid ", "settling "),
+        "{out}"
+    );
+    let ratio: f64 = sut
+        .modbot_ok(&["data", "get", "kr16.ratio"])
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(ratio >= 6.0, "{ratio}");
+    let data = sut.modbot_ok(&["data", "ls"]);
+    assert!(data.contains("ptp_ff.model = \"elastic\""), "{data}");
+    down(&mut sut, up);
 }

@@ -475,7 +475,7 @@ mod tests {
     #[test]
     fn registry_checks_params_against_the_declarations() {
         let sut = Registry::builtin();
-        assert_eq!(sut.type_names().len(), 20);
+        assert_eq!(sut.type_names().len(), 22);
         let err = sut.info("gain", &Params::new()).unwrap_err().to_string();
         assert_eq!(err, "param 'k' (f64) is required for type 'gain'");
         let err = sut

@@ -5,10 +5,13 @@
 //! Inputs `q` (measured: the link position, what the arm really does) and `q_ref` (commanded),
 //! f64 arrays of `axes`, and `done: bool` (the trajectory generator's). Params `band` (f64
 //! rad, default 1e-3: the settling band), `quiet` (f64 s, default 0.1: how long the error must
-//! stay in the band to count as settled).
+//! stay in the band to count as settled), `lag` (i64 releases, default 0: `q` is compared with
+//! `q_ref` as it was that many releases before — the releases it takes the reference to reach
+//! the robot through the components between, one each under LET).
 //!
 //! Counting starts at the first live release (a release while the assembly is being prepared,
-//! to track, starts it afresh). The error is e = max over the axes of |q_ref − q|.
+//! to track, starts it afresh). The error is e = max over the axes of |q_ref − q| (q_ref
+//! `lag` releases old).
 //!
 //! | output | |
 //! |---|---|
@@ -56,6 +59,7 @@ pub(super) fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
             axes_decl(),
             ParamDecl::optional("band", ParamType::F64, ParamValue::F64(1e-3)),
             ParamDecl::optional("quiet", ParamType::F64, ParamValue::F64(0.1)),
+            ParamDecl::optional("lag", ParamType::I64, ParamValue::I64(0)),
         ],
     })
 }
@@ -79,6 +83,11 @@ struct Motion {
 
 struct Settle {
     band: f64,
+    /// The last `lag + 1` references, oldest first from `next` (a ring).
+    refs: Vec<Vec<f64>>,
+    next: usize,
+    /// Whether `refs` holds references (filled at the first release).
+    filled: bool,
     /// `quiet` and [`NO_MOTION_S`] in base ticks.
     quiet_ticks: u64,
     no_motion_ticks: u64,
@@ -98,12 +107,21 @@ impl Settle {
             let why = format!("must be a number of seconds ≥ 0, not {quiet}");
             return Err(ParamError::invalid("quiet", why).into());
         }
+        let lag = p.i64("lag")?;
+        if !(0..=10_000).contains(&lag) {
+            let why = format!("must be 0 to 10000 releases, not {lag}");
+            return Err(ParamError::invalid("lag", why).into());
+        }
+        let n = super::axes(p)?;
         // The registry's probe has no timing: a millisecond then.
         let base = p.f64(BASE_PERIOD_S).unwrap_or(0.001);
         let period = p.f64(PERIOD_S).unwrap_or(base);
         let ticks = |s: f64| (s / base).round().max(0.0) as u64;
         Ok(Settle {
             band,
+            refs: vec![vec![0.0; n]; lag as usize + 1],
+            next: 0,
+            filled: false,
             quiet_ticks: ticks(quiet),
             no_motion_ticks: ticks(NO_MOTION_S).max(ticks(period)),
             base_period_s: base,
@@ -112,10 +130,31 @@ impl Settle {
     }
 }
 
+impl Settle {
+    /// Every reference of the history `q_ref` (a robot at rest there).
+    fn fill(&mut self, q_ref: &[f64]) {
+        for slot in &mut self.refs {
+            for (r, x) in slot.iter_mut().zip(q_ref) {
+                *r = *x;
+            }
+        }
+    }
+}
+
 impl Component for Settle {
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let tick = rel.tick.0;
-        let (q, q_ref) = (array(&inputs[0]), array(&inputs[1]));
+        let q = array(&inputs[0]);
+        if !std::mem::replace(&mut self.filled, true) {
+            self.fill(array(&inputs[1]));
+        }
+        // In with the newest reference, out with the one `lag` releases old.
+        let slot = &mut self.refs[self.next];
+        for (r, x) in slot.iter_mut().zip(array(&inputs[1])) {
+            *r = *x;
+        }
+        self.next = (self.next + 1) % self.refs.len();
+        let q_ref = &self.refs[self.next][..];
         let done = matches!(inputs[2], PortValue::Bool(true));
         let e = q_ref
             .iter()
@@ -167,6 +206,8 @@ impl Component for Settle {
     fn track(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         self.step(rel, inputs, outputs);
         self.motion = Motion::default();
+        // The history starts afresh too: at rest, every past reference is the current one.
+        self.fill(array(&inputs[1]));
     }
 }
 
@@ -259,6 +300,35 @@ mod tests {
             out[1],
             PortValue::Bool(false),
             "the tracked move does not count"
+        );
+    }
+
+    #[test]
+    fn with_a_lag_the_measure_compares_with_the_reference_that_many_releases_old() {
+        let mut registry = Registry::new();
+        super::super::register(&mut registry);
+        let mut params = Params::new()
+            .with("axes", ParamValue::I64(1))
+            .with("lag", ParamValue::I64(2));
+        params.set_timing(0.001, 1);
+        let info = registry.info("settle", &params).unwrap();
+        let mut sut = registry.instantiate("settle", &params).unwrap();
+        let mut out = info.zero_outputs();
+        // The robot follows the reference exactly, two releases late.
+        let reference = [0.0, 0.1, 0.2, 0.3, 0.3, 0.3];
+        for t in 0..reference.len() {
+            let q = reference[t.saturating_sub(2)];
+            let inputs = [
+                PortValue::F64s(vec![q]),
+                PortValue::F64s(vec![reference[t]]),
+                PortValue::Bool(false),
+            ];
+            sut.step(&Released::at(t as u64), &inputs, &mut out);
+        }
+        assert_eq!(
+            f(&out[0]),
+            0.0,
+            "no following error once the lag is taken out"
         );
     }
 
