@@ -5,9 +5,13 @@
 //!   `tool`).
 //! - `check FILE`: load and check a system description (see `check_cmd`).
 //! - `up FILE`, `down`: run a system under the supervisor, and stop it (see `up_cmd`).
+//! - `program run FILE`, `program repl`: robot programs (see `program_cmd`); `data ls|get`:
+//!   the assembly data they keep (see `data_cmd`).
 
 mod assembly_cmd;
 mod check_cmd;
+mod data_cmd;
+mod program_cmd;
 mod rvmf_cmd;
 mod tool;
 mod up_cmd;
@@ -104,6 +108,18 @@ enum Command {
     Assembly {
         #[command(subcommand)]
         command: Option<assembly_cmd::AssemblyCommand>,
+    },
+    /// Robot programs: `modbot program run FILE` runs one, `modbot program repl` reads
+    /// commands one line at a time.
+    Program {
+        #[command(subcommand)]
+        command: program_cmd::ProgramCommand,
+    },
+    /// The domain's assembly data, where robot programs keep their commands' parameters and
+    /// results: `modbot data ls`, `modbot data get KEY`.
+    Data {
+        #[command(subcommand)]
+        command: data_cmd::DataCommand,
     },
     /// Stop the system running in the domain (from another terminal).
     Down,
@@ -210,6 +226,8 @@ fn main() -> ExitCode {
             timeout_ms,
         } => tool::bus(&cli.domain, switches, timeout_ms),
         Command::Assembly { command } => assembly_cmd::run(&cli.domain, command),
+        Command::Program { command } => program_cmd::run(&cli.domain, command),
+        Command::Data { command } => data_cmd::run(&cli.domain, command),
         Command::Down => tool::down(&cli.domain),
         Command::Ls { tsv } => tool::ls(&cli.domain, tsv),
         Command::Call {

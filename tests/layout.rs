@@ -9,6 +9,7 @@ use std::path::Path;
 const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-ipc-schema", "ipc_schema", 0),
     ("modbot-transport", "runtime/transport", 1),
+    ("modbot-data", "runtime/data", 1),
     ("modbot-core", "runtime/core", 2),
     ("modbot-testkit", "runtime/testkit", 2),
     ("modbot-grid", "runtime/grid", 3),
@@ -17,6 +18,7 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-fmu", "runtime/fmu", 4),
     ("modbot-system", "runtime/system", 5),
     ("modbot-supervisor", "runtime/supervisor", 6),
+    ("modbot-program", "runtime/program", 6),
     ("modbot-runtime", "runtime", 7),
     ("modbot-grid-processes", "modules/grid", 8),
     ("modbot-fmu-host", "modules/fmu", 9),
@@ -100,13 +102,13 @@ fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
 }
 
 #[test]
-fn only_the_system_descriptions_link_lua() {
+fn only_the_system_descriptions_and_the_robot_programs_link_lua() {
     let lua: Vec<&str> = LAYERS
         .iter()
         .filter(|(_, dir, _)| dependencies(dir).contains("mlua"))
         .map(|(name, ..)| *name)
         .collect();
-    assert_eq!(lua, ["modbot-system"]);
+    assert_eq!(lua, ["modbot-system", "modbot-program"]);
 }
 
 /// The module path of the source file `file` of a crate whose sources are in `src`

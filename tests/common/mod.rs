@@ -47,6 +47,8 @@ pub struct TestDomain {
     children: Vec<(String, Child)>,
     /// Files this test wrote (system descriptions, captured output); removed on drop.
     files: Vec<PathBuf>,
+    /// Variables every process this test starts gets (`MODBOT_DATA_DIR`, say).
+    env: Vec<(String, String)>,
 }
 
 impl TestDomain {
@@ -55,7 +57,13 @@ impl TestDomain {
             domain: modbot_testkit::TestDomain::new("t", test),
             children: Vec::new(),
             files: Vec::new(),
+            env: Vec::new(),
         }
+    }
+
+    /// Gives every process this test starts from now on the variable `key` = `value`.
+    pub fn set_env(&mut self, key: &str, value: &str) {
+        self.env.push((key.to_owned(), value.to_owned()));
     }
 
     /// Writes a system description for this domain (`domain "..."` followed by `body`).
@@ -74,6 +82,7 @@ impl TestDomain {
             .args(args)
             .env("MODBOT_DOMAIN", self.name())
             .env("RUST_LOG", "info")
+            .envs(self.env.iter().map(|(k, v)| (k, v)))
             .stdout(out.try_clone().unwrap())
             .stderr(out)
             .spawn()
@@ -169,6 +178,7 @@ impl TestDomain {
             .args(args)
             .env("MODBOT_DOMAIN", self.name())
             .env("RUST_LOG", "info")
+            .envs(self.env.iter().map(|(k, v)| (k, v)))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -183,12 +193,26 @@ impl TestDomain {
     /// test: unless the test chooses one, these wait up to 60 s (an answer still returns at
     /// once).
     pub fn modbot(&self, args: &[&str]) -> Output {
-        Command::new(bin("modbot"))
+        self.modbot_with_input(args, "")
+    }
+
+    /// Runs `modbot ARGS` in this domain with `input` on its standard input.
+    pub fn modbot_with_input(&self, args: &[&str], input: &str) -> Output {
+        use std::io::Write;
+        let mut child = Command::new(bin("modbot"))
             .args(args)
             .args(generous_wait(args))
             .env("MODBOT_DOMAIN", self.name())
-            .output()
-            .unwrap()
+            .envs(self.env.iter().map(|(k, v)| (k, v)))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        stdin.write_all(input.as_bytes()).unwrap();
+        drop(stdin);
+        child.wait_with_output().unwrap()
     }
 
     /// Runs `modbot ARGS` and returns stdout, asserting success.

@@ -14,6 +14,7 @@ use modbot_runtime::grid::GridSpec;
 use modbot_runtime::transport::channels::Channels;
 use modbot_runtime::{signals, IpcTransport, ModuleBuilder};
 
+use crate::board::Board;
 use crate::grid_args::GridArgs;
 use crate::service_thread::serve_module;
 
@@ -86,7 +87,8 @@ impl HostProcess {
 
     /// Announces the process: its module (`--name`, else `default_name`; `--addr`, else
     /// `default_addr`), as `declare` builds it, served with `state` on a thread of normal
-    /// priority, so that a method call never delays the clocked work. Then locks memory if
+    /// priority, so that a method call never delays the clocked work; its blackboard shows the
+    /// components' latest outputs ([`Board`]). Then locks memory if
     /// the grid asks (`grid { mlock = true }`) and makes this thread the real-time one.
     pub fn serve<S: Send + 'static>(
         &mut self,
@@ -104,9 +106,18 @@ impl HostProcess {
             .transport
             .take()
             .ok_or_else(|| anyhow::anyhow!("the module of this host is served already"))?;
-        let service = serve_module(move || {
-            Ok(declare(ModuleBuilder::new(&name, addr).mode(mode)).open(transport, state)?)
-        })?;
+        let mut board = Board::new(
+            self.host.outputs_view(),
+            self.grid.base_period.as_secs_f64(),
+        );
+        let bb = board.blackboard()?;
+        let service = serve_module(
+            move || {
+                let module = declare(ModuleBuilder::new(&name, addr).mode(mode));
+                Ok(module.blackboard(bb).open(transport, state)?)
+            },
+            move |module| board.refresh(&mut module.ctx().bb),
+        )?;
         modbot_runtime::supervisor::env::apply_mlockall();
         modbot_runtime::supervisor::rt::real_time_thread(
             self.grid.host_priority(),

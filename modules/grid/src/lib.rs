@@ -11,10 +11,12 @@
 //!
 //! [`grid_args`]: the options they share (the description, its variables, an assembly);
 //! [`host_process`]: what a host process does around its clocked work (shared by the two hosts);
-//! [`service_thread`]: a module served on a thread of normal priority beside the real-time one.
+//! [`service_thread`]: a module served on a thread of normal priority beside the real-time one;
+//! [`board`]: a host's blackboard, its components' latest outputs.
 //! The module programs that use no grid are in `modbot-modules`, which links no grid, bus or
 //! Lua.
 
+pub mod board;
 pub mod grid_args;
 pub mod host_process;
 pub mod service_thread;

@@ -8,10 +8,12 @@ use std::time::Duration;
 use modbot_runtime::{signals, Module};
 
 /// Starts the thread: it opens the module with `open` (so the module announces itself only
-/// after the caller opened its grid channels), then serves it until a termination signal.
+/// after the caller opened its grid channels), then serves it until a termination signal,
+/// calling `between` between rounds of serving (at least every 2 ms: the host's blackboard).
 /// Returns once the module is open, or with the error that kept it from opening.
 pub fn serve_module<S: 'static>(
     open: impl FnOnce() -> anyhow::Result<Module<S>> + Send + 'static,
+    mut between: impl FnMut(&mut Module<S>) + Send + 'static,
 ) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<()>>> {
     let (opened_tx, opened) = std::sync::mpsc::channel();
     let handle = std::thread::Builder::new().name("service".into()).spawn(
@@ -32,6 +34,7 @@ pub fn serve_module<S: 'static>(
                 while served < 16 && module.poll_once()? {
                     served += 1;
                 }
+                between(&mut module);
                 module.housekeeping();
                 if served == 0 {
                     std::thread::sleep(Duration::from_millis(2));

@@ -523,8 +523,8 @@ mod tests {
         let sut = Registry::builtin();
         assert_eq!(
             sut.type_names().len(),
-            20,
-            "19 built in, and the data recorder"
+            24,
+            "23 built in, and the data recorder"
         );
         let err = sut.info("gain", &Params::new()).unwrap_err().to_string();
         assert_eq!(err, "param 'k' (f64) is required for type 'gain'");

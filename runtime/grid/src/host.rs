@@ -22,6 +22,7 @@ use modbot_ipc_schema::grid::{
 use zerocopy::IntoBytes;
 
 use super::component::{Component, ComponentError, Generation, Registry, Released, Tick};
+use super::outputs_view::{self, OutputsView, SharedOutputs};
 use super::spec::GridSpec;
 use super::versions::{self, Versions};
 use super::wire::{self, Listener, Notifier, Pub, Sub};
@@ -97,6 +98,10 @@ pub struct Host {
     pub stale: u64,
     /// Where bindings replaced at a switch go to be dropped, off the serving thread.
     reaper: std::sync::mpsc::Sender<Binding>,
+    /// The latest outputs, for the host's module (its blackboard), and the newest release tick
+    /// served.
+    view: SharedOutputs,
+    last_tick: u64,
 }
 
 /// A thread that drops what it is sent. It is started before the serving thread raises its
@@ -213,6 +218,19 @@ impl Host {
                 out_len,
             });
         }
+        let view = OutputsView {
+            names: hosted
+                .iter()
+                .flat_map(|h| {
+                    let info = &spec.components[h.index].info;
+                    info.outputs
+                        .iter()
+                        .map(|p| format!("{}.{}", h.name, p.name))
+                })
+                .collect(),
+            values: hosted.iter().flat_map(|h| h.outputs.clone()).collect(),
+            ..OutputsView::default()
+        };
         let prepare = if spec.assembly.is_some() && generation == Generation::SYSTEM {
             Some(wire::prepare_subscriber(node)?)
         } else {
@@ -234,7 +252,15 @@ impl Host {
             spec: spec.clone(),
             stale: 0,
             reaper: reaper()?,
+            view: std::sync::Arc::new(std::sync::Mutex::new(view)),
+            last_tick: 0,
         })
+    }
+
+    /// The latest outputs of its components, refreshed whenever it served releases (see
+    /// [`outputs_view`]).
+    pub fn outputs_view(&self) -> SharedOutputs {
+        self.view.clone()
     }
 
     pub fn name(&self) -> &str {
@@ -285,6 +311,8 @@ impl Host {
             self.batch = batch;
         }
         if served > 0 {
+            let outputs = self.hosted.iter().map(|h| h.outputs.as_slice());
+            outputs_view::refresh(&self.view, self.last_tick, outputs);
             self.send_done()?;
             if let Err(e) = self.done_wake.notify() {
                 tracing::debug!("done wake-up not sent: {e:?}");
@@ -498,6 +526,7 @@ impl Host {
             let done = Done::new(n, c as u16, Done::STALE, 0, 0).of_generation(generation.0);
             return self.push_done(&done);
         }
+        self.last_tick = self.last_tick.max(n);
         let start = now();
         let rel = Released {
             tick: Tick(n),

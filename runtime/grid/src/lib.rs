@@ -22,7 +22,8 @@
 //!   a type refuses for ([`ComponentError`], [`ParamError`]).
 //! - [`builtin`]: the built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`, `integrator`,
 //!   `delay`, `vec_gain`, `pack`, `sleeper`).
-//! - [`control`]: example controllers: `ptp`, `hold_position`, `feedforward`, `cascade`, `monitor`.
+//! - [`control`]: example controllers: `ptp`, `hold_position`, `feedforward`, `cascade`, `monitor`,
+//!   `waypoints`, `setpoint`, `settle`.
 //! - [`spec`]: the checked grid ([`GridSpec`]): components, hosts, periods in base ticks,
 //!   connections, and the *sources* of a component (the release notice's order); built from
 //!   declarations by [`GridSpec::build`], which says what is wrong with them ([`GridError`]).
@@ -38,6 +39,8 @@
 //! - [`tick`]: where the base tick comes from (an absolute timerfd; a free-running source).
 //! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
 //! - [`host`]: a component host: steps its components on release, publishes their outputs.
+//! - [`outputs_view`]: the latest outputs of a host's components, copied for its module
+//!   (shown on its blackboard, read by robot programs).
 //! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
 //! - [`record_type`]: the data recorder (`record { ... }`) as a component type: its params and
 //!   ports (the component, which writes HDF5, is `modbot-record`'s).
@@ -56,6 +59,7 @@ pub mod host;
 pub mod ledger;
 pub mod offload;
 pub mod record_type;
+pub mod outputs_view;
 pub mod recorder;
 pub mod reference;
 pub mod spec;

@@ -3,7 +3,8 @@
 //!
 //! A system whose grid says `assemblies = "DIR", assembly = "NAME"` keeps its own components
 //! (the bus) and adds those of one assembly, the file `DIR/NAME.lua` next to the description.
-//! An assembly file is sandboxed Lua like a description, with `vars`, and declares only
+//! An assembly file is sandboxed Lua like a description, with `vars` and `data(key)` (the
+//! domain's assembly data: a robot program's parameters for it), and declares only
 //! `component` and `connect`; it connects its components to the system's ports (as in
 //! `connect "robot.motor_position -> hold.start"`). Its components run on hosts of their own:
 //! a host of the system's components cannot take them.
@@ -80,7 +81,7 @@ pub fn load_assembly(
             return Err(SystemError::new(&file, None, message));
         }
     };
-    let decls = lua::evaluate(&file, &source, &current.vars)?;
+    let decls = lua::evaluate(&file, &source, &current.vars, current.data.as_deref())?;
     let stray = [
         decls.domain.as_ref().map(|d| d.1),
         decls.supervision.as_ref().map(|s| s.1),
@@ -182,6 +183,7 @@ pub fn load_assembly(
         decls: (grid, base_components, base_connections),
         vars: current.vars.clone(),
         system_file: current.system_file.clone(),
+        data: current.data.clone(),
     });
     Ok(spec)
 }

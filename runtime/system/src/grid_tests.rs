@@ -203,7 +203,8 @@ fn unknown_component_type_is_refused_listing_the_known_ones() {
         Some(4),
         "component 'A': unknown component type 'gian' (known: counter, ramp, sine, gain, sum, \
          integrator, lowpass, delay, vec_gain, pack, sleeper, ptp, hold_position, feedforward, \
-         cascade, monitor, waypoints, bus, drive_enable, record, fmu)",
+         cascade, monitor, waypoints, setpoint, settle, bessel, joint_ff, bus, drive_enable, \
+         record, fmu)",
     );
 }
 

@@ -39,9 +39,13 @@
 //!   [`parse_var`] for `--var KEY=VALUE`.
 //! - `error`: [`SystemError`] (`file:line: message`, with its cause), [`DeclError`] (what is
 //!   wrong with one declaration's values) and [`VarError`] (a bad `--var`).
-//! - `lua`: the sandboxed evaluation: which Lua libraries exist, the memory and instruction
-//!   budgets, the declaration functions (`domain`, `supervision`, `module`, `group`) and the
-//!   translation of Lua errors into [`SystemError`].
+//! - [`sandbox`]: the Lua sandbox of every modbot Lua file (descriptions, assemblies, robot
+//!   programs): libraries, memory and instruction limits, guarded protected calls, `file:line`
+//!   out of Lua's errors, values between Lua and modbot.
+//! - `lua`: the evaluation of a description in the sandbox: the declaration functions
+//!   (`domain`, `supervision`, `module`, `group`), `vars`, and Lua errors as [`SystemError`].
+//! - `data_fn`: `data(key)` in assembly files, read from the domain's assembly data
+//!   (`modbot-data`).
 //! - `grid_decl`: the grid's declaration functions (`grid`, `component`, `connect`) and what
 //!   each one says; the checks against the component types are [`GridSpec::build`]'s.
 //! - `fmus`: FMU components — the type `fmu`, where their files are found, one host each.
@@ -56,6 +60,7 @@
 //! - [`program`]: how a program name becomes an executable path ([`DefaultResolver`]).
 
 pub mod assembly;
+mod data_fn;
 mod decl;
 mod error;
 mod fmus;
@@ -66,6 +71,7 @@ pub mod program;
 mod read;
 mod record;
 mod record_decl;
+pub mod sandbox;
 mod validate;
 
 #[cfg(test)]
@@ -378,7 +384,7 @@ pub fn load_str_with_registry(
     vars: &[(String, String)],
     registry: &Registry,
 ) -> Result<SystemSpec, SystemError> {
-    let declarations = lua::evaluate(file_name, source, vars)?;
+    let declarations = lua::evaluate(file_name, source, vars, None)?;
     validate::build(file_name, declarations, resolver, registry, vars)
 }
 

@@ -6,7 +6,7 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use mlua::{Lua, MultiValue, Value};
+use mlua::{MultiValue, Value};
 
 use super::decl::Declarations;
 use super::DeclError;
@@ -100,28 +100,4 @@ pub(super) fn fail(record: &Shared, line: u32, error: DeclError) -> mlua::Error 
     stop()
 }
 
-/// The Lua error that unwinds a failed description (its message is never shown: the recorded
-/// failure is).
-pub(super) fn stop() -> mlua::Error {
-    mlua::Error::runtime("the system description failed")
-}
-
-/// The current line of the nearest function of the description on the stack above the running
-/// callback (skipping C functions such as `pcall`, and the prelude's wrappers).
-pub(super) fn caller_line(lua: &Lua) -> u32 {
-    for level in 1..64 {
-        let frame = lua.inspect_stack(level, |d| {
-            let prelude = d.source().source.as_deref() == Some(PRELUDE_NAME);
-            (prelude, d.current_line())
-        });
-        match frame {
-            None => break,
-            Some((false, Some(line))) => return u32::try_from(line).unwrap_or(u32::MAX),
-            Some(_) => continue,
-        }
-    }
-    0
-}
-
-/// The chunk name of [`PRELUDE`].
-pub(super) const PRELUDE_NAME: &str = "=modbot prelude";
+pub(super) use super::sandbox::{caller_line, stop};

@@ -160,6 +160,7 @@ pub(super) fn build(
     let grid = match decls.grid {
         Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
             file,
+            &domain,
             grid,
             (components, decls.connections),
             &records,
@@ -218,9 +219,10 @@ pub(super) fn build(
 }
 
 /// The grid of a description with assemblies: its own components (its recorder among them)
-/// and the first assembly's.
+/// and the first assembly's (which reads the assembly data of `domain`).
 fn with_assemblies(
     file: &str,
+    domain: &str,
     grid: GridDecl,
     (mut components, mut connections): (Vec<ComponentDecl>, Vec<ConnectDecl>),
     records: &[RecordDecl],
@@ -266,6 +268,7 @@ fn with_assemblies(
                 decls: (grid.clone(), components, connections),
                 vars: vars.to_vec(),
                 system_file: file.to_owned(),
+                data: Some(modbot_data::path_for(domain)),
             }),
         };
         load_assembly(&unloaded, &decl.first, Generation(1), registry).map_err(|mut e| {

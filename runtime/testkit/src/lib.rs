@@ -8,12 +8,15 @@
 //!   hangs.
 //! - [`wait_until`] and [`eventually`]: event-free waiting on a condition with a generous
 //!   deadline, saying what was last seen when it does not hold.
+//! - [`TempDir`]: a directory of one test's own (programs, assembly data), removed on drop.
 //!
 //! The suites build their fixtures on these: `runtime/tests/support` (modules on threads,
 //! both transport backends) and `tests/common` (the real programs as processes).
 
 mod domain;
+mod temp;
 mod wait;
 
 pub use domain::TestDomain;
+pub use temp::TempDir;
 pub use wait::{eventually, wait_until, watchdog};

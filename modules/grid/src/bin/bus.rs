@@ -11,7 +11,7 @@ use modbot_grid_processes::host_process::{HostArgs, HostProcess};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
-use modbot_runtime::bus::{robot, PlantParams, SimBackend};
+use modbot_runtime::bus::{robot, DriveParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::grid::component::Registry;
 use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
@@ -128,11 +128,10 @@ fn run() -> anyhow::Result<()> {
         );
         axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
         let period_ns = grid.base_period.as_nanos() as u64;
-        let bridge = Bridge::new(
-            Box::new(SimBackend::new(axes, PlantParams::default())),
-            period_ns,
-        )
-        .watchdog_periods(robot::watchdog_periods(&bus.params).map_err(anyhow::Error::msg)?);
+        let joints = robot::joints(&bus.params, axes).map_err(anyhow::Error::msg)?;
+        let sim = SimBackend::with_joints(&joints, DriveParams::default())?;
+        let bridge = Bridge::new(Box::new(sim), period_ns)
+            .watchdog_periods(robot::watchdog_periods(&bus.params).map_err(anyhow::Error::msg)?);
         let made = Arc::new(Mutex::new(
             if grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep {
                 bridge.lockstep()

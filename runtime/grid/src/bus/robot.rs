@@ -10,7 +10,10 @@
 //!   (default 6), `backend` (`sim`), `watchdog` (base periods without a release after which
 //!   the coordinator is lost and the drives stop, default 3), `handover` (bool, default false:
 //!   with it, input and output `handover`, the running generator's handover forwarded one
-//!   cycle later, see [`handover`]). In the bus bridge process (`modbot-bus`) it drives that
+//!   cycle later, see [`handover`]), and the simulated joints' mechanics per axis
+//!   ([`joints`]: `motor_inertia`, `link_inertia`, `stiffness`, `damping`,
+//!   `viscous_friction`, `coulomb_friction`, `torque_limit`; each one value for every axis or
+//!   one per axis, [`PlantParams::default`]'s unless given). In the bus bridge process (`modbot-bus`) it drives that
 //!   process's [`Bridge`], which has the watchdog, handed to it by [`register_bridge`];
 //!   elsewhere (the reference run, tests) a private simulation.
 //! - `drive_enable`: walks every drive through the CiA 402 state machine to operation enabled
@@ -26,7 +29,7 @@ use super::backend::AxisCommand;
 use super::bridge::{self, Bridge, Served};
 use super::cia402::DriveState;
 use super::plant::PlantParams;
-use super::sim::SimBackend;
+use super::sim::{DriveParams, SimBackend};
 use crate::component::{
     Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
     PortDecl, PortType, PortValue, Registry, Released, PERIOD_S,
@@ -100,8 +103,57 @@ fn bus_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
                 ParamValue::I64(bridge::LOST_AFTER as i64),
             ),
             handover::param(),
-        ],
+        ]
+        .into_iter()
+        .chain(JOINT_PARAMS.iter().map(|(name, default)| {
+            ParamDecl::optional(name, ParamType::F64s, ParamValue::F64s(vec![*default]))
+        }))
+        .collect(),
     })
+}
+
+/// The joint parameters of `bus` and their defaults ([`PlantParams::default`]'s).
+const JOINT_PARAMS: [(&str, f64); 7] = [
+    ("motor_inertia", 0.5),
+    ("link_inertia", 2.0),
+    ("stiffness", 2.0e4),
+    ("damping", 10.0),
+    ("viscous_friction", 1.0),
+    ("coulomb_friction", 3.0),
+    ("torque_limit", 200.0),
+];
+
+/// The mechanics of the `axes` simulated joints, from `bus`'s params: each joint parameter is
+/// one value for every axis or one per axis; the rest is [`PlantParams::default`]'s. A joint
+/// its checks refuse (a non-positive inertia, a sub-step too long for its elastic mode) is
+/// refused here, naming the axis.
+pub fn joints(p: &Params, axes: usize) -> Result<Vec<PlantParams>, ParamError> {
+    let mut joints = vec![PlantParams::default(); axes];
+    for (name, _) in JOINT_PARAMS {
+        let Some(ParamValue::F64s(_)) = p.get(name) else {
+            continue;
+        };
+        let values = crate::control::per_axis(p, name, axes, "finite", f64::is_finite)?;
+        for (joint, x) in joints.iter_mut().zip(values) {
+            let slot = match name {
+                "motor_inertia" => &mut joint.motor_inertia,
+                "link_inertia" => &mut joint.link_inertia,
+                "stiffness" => &mut joint.stiffness,
+                "damping" => &mut joint.damping,
+                "viscous_friction" => &mut joint.viscous_friction,
+                "coulomb_friction" => &mut joint.coulomb_friction,
+                _ => &mut joint.torque_limit,
+            };
+            *slot = x;
+        }
+    }
+    for (axis, joint) in joints.iter().enumerate() {
+        if let Err(e) = joint.check() {
+            let why = format!("makes joint {axis} invalid: {e}");
+            return Err(ParamError::invalid(e.name, why));
+        }
+    }
+    Ok(joints)
 }
 
 /// Param `watchdog`: the base periods without a release after which the bus bridge judges
@@ -129,11 +181,9 @@ fn make_bus(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
         return Err(ParamError::invalid("backend", why).into());
     }
     let period_ns = (p.f64(PERIOD_S)? * 1e9).round() as u64;
-    let bridge = Bridge::new(
-        Box::new(SimBackend::new(n, PlantParams::default())),
-        period_ns,
-    )
-    .watchdog_periods(watchdog_periods(p)?);
+    let sim = SimBackend::with_joints(&joints(p, n)?, DriveParams::default())
+        .map_err(|e| ParamError::invalid(e.name, e.to_string()))?;
+    let bridge = Bridge::new(Box::new(sim), period_ns).watchdog_periods(watchdog_periods(p)?);
     Ok(Box::new(Bus {
         bridge: Arc::new(Mutex::new(bridge)),
     }))

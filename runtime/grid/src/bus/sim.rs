@@ -339,12 +339,25 @@ impl SimBackend {
         plant: PlantParams,
         drive: DriveParams,
     ) -> Result<SimBackend, InvalidParameter> {
-        plant.check()?;
+        SimBackend::with_joints(&vec![plant; axes], drive)
+    }
+
+    /// A drive per joint of `plants` (a robot whose joints differ), with `drive`'s settings.
+    pub fn with_joints(
+        plants: &[PlantParams],
+        drive: DriveParams,
+    ) -> Result<SimBackend, InvalidParameter> {
         drive.check()?;
-        let one = Drive::new(plant, drive.quick_stop_option);
+        let drives = plants
+            .iter()
+            .map(|plant| {
+                plant.check()?;
+                Ok(Drive::new(*plant, drive.quick_stop_option))
+            })
+            .collect::<Result<Vec<_>, InvalidParameter>>()?;
         Ok(SimBackend {
             params: drive,
-            drives: vec![one; axes],
+            drives,
         })
     }
 

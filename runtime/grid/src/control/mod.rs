@@ -14,6 +14,10 @@
 //! | `cascade` | `q_ref`, `qd_ref`, `tau_ff`, `q`, `qd` | `tau` | `kp`, `kv`, `ki`, `tau_max` (per axis, required) |
 //! | `monitor` | `q`, `qd`, `q_ref` | `ok: bool`, `code: i64`, `axis: i64` | `q_min`, `q_max`, `qd_max`, `following_max` (per axis, required) |
 //! | `waypoints` | `done: bool` | `goal` | `points` (flat list of points, required), `dwell` (f64 s, 0) |
+//! | `setpoint` | — | `value` | `value` (per axis, required) |
+//! | `settle` | `q`, `q_ref`, `done: bool` | `peak_following`, `residual`, `settling_s: f64`, `arrived`, `settled: bool`, `arrival_tick: i64` | `band` (f64 rad, 1e-3), `quiet` (f64 s, 0.1), `lag` (i64 releases, 0) |
+//! | `bessel` | `q`, `qd`, `qdd` | `q`, `qd`, `qdd` (filtered) | `bessel_hz` (f64, required) |
+//! | `joint_ff` | `q`, `qd`, `qdd` | `q_m`, `qd_m`, `tau_ff` | `model` (`rigid`/`elastic`), `motor_inertia`, `link_inertia`, `stiffness`, `damping`, `viscous`, `coulomb`, `coulomb_velocity` (per axis) |
 //!
 //! All are deterministic, allocate only when made, and never emit NaN: a non-finite input is
 //! ignored by the generators and gives 0 on the affected axis of `feedforward` and `cascade`;
@@ -31,13 +35,22 @@
 //! - [`monitor`]: latching limits on position, velocity and following error; a breach is an
 //!   unsafe state that faults its assembly.
 //! - [`waypoints`]: a robot program's goals, point to point, round and round.
+//! - [`low_pass`]: `bessel`, the Bessel low-pass as a component of its own; [`joint_ff`]: the
+//!   feed-forward of elastic joints, rigid or elastic (motor demand with the spring deflection).
+//! - [`setpoint`]: a constant target (a program command's goal); [`settle`]: how a motion
+//!   ends — peak following error, arrival, residual oscillation, settling time (what a
+//!   program's command waits for and records).
 //! - this file: the parameter and port helpers they share, and [`register`].
 
 pub mod bessel;
 pub mod cascade;
 pub mod feedforward;
 pub mod handover;
+pub mod joint_ff;
+pub mod low_pass;
 pub mod monitor;
+pub mod setpoint;
+pub mod settle;
 pub mod trajectory;
 pub mod waypoints;
 
@@ -59,6 +72,10 @@ pub fn register(registry: &mut Registry) {
     registry.register(cascade::info, cascade::make);
     registry.register(monitor::info, monitor::make);
     registry.register(waypoints::info, waypoints::make);
+    registry.register(setpoint::info, setpoint::make);
+    registry.register(settle::info, settle::make);
+    registry.register(low_pass::info, low_pass::make);
+    registry.register(joint_ff::info, joint_ff::make);
 }
 
 /// The `axes` parameter every control component declares.

@@ -17,6 +17,8 @@
 //! The goal it starts with is all zeros: what `goal` reads before its source's first output
 //! is valid (LET). So it never moves towards those zeros, whatever `start` says then; but a
 //! first goal of exactly all zeros is not new either: it takes effect after another goal.
+//! A `ptp` that tracked (its assembly was prepared while another ran) has taken no goal yet:
+//! the first it reads live is new, all zeros included (its sources are valid by then).
 //!
 //! Each axis follows a trapezoidal velocity profile (triangular when the distance is too short
 //! to reach the velocity limit). The axes are time-synchronized: the axis that needs longest at
@@ -585,6 +587,8 @@ impl Component for Ptp {
         }
         self.ahead = ahead;
         self.latched = true;
+        // No goal taken: the first one read live is new, whatever it is.
+        self.taken.fill(f64::NAN);
         rest(outputs, &self.target);
         outputs[3] = PortValue::Bool(true);
         self.write_handover(tick, &mut outputs[4]);
@@ -821,6 +825,14 @@ mod tests {
         sut.step(2, &[&[1.0, 1.0], &[0.35, -0.25]]);
         assert_eq!(sut.out(0), [0.35, -0.25]);
         assert_eq!(sut.outputs[3], PortValue::Bool(false));
+    }
+
+    #[test]
+    fn after_tracking_a_goal_of_all_zeros_is_new() {
+        let mut sut = ptp(&[1.0, 1.0], &[1.0, 1.0], 0.0);
+        sut.track(0, &[&[0.0, 0.0], &[0.3, -0.2]]);
+        let seen = run(&mut sut, 1, 10_000, &[0.0, 0.0]);
+        assert_eq!(seen.last().unwrap()[0], [0.0, 0.0], "moved home");
     }
 
     #[test]

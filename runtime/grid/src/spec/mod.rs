@@ -157,6 +157,9 @@ pub struct Assembly {
     pub vars: Vec<(String, String)>,
     /// The system description's file, for messages.
     pub system_file: String,
+    /// The domain's assembly data (`modbot-data`), which assembly files read with `data(key)`
+    /// (`None`: they read nothing).
+    pub data: Option<std::path::PathBuf>,
 }
 
 /// The `assemblies = "dir", assembly = "first"` fields of `grid { ... }`.

@@ -2,5 +2,6 @@
 //! numerics, and the simulated drives in closed loop.
 
 mod cia402;
+mod joints;
 mod plant;
 mod sim;

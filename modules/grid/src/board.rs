@@ -1,0 +1,103 @@
+//! A host process's blackboard: the latest outputs of its components, as items
+//! `<component>.<output>` (f64, i64, bool, f64 arrays), `tick` (the newest release tick it
+//! served) and `base_period_s` (the grid's base tick, s), copied from the serving thread's [`OutputsView`] by the module's thread. So
+//! `modbot bb host_ctrl_g3` shows what an assembly's components do, and a robot program reads
+//! them (`read("settle.settled")`).
+
+use modbot_runtime::blackboard::{BlackboardError, ItemId};
+use modbot_runtime::grid::outputs_view::{copy_port, OutputsView, SharedOutputs};
+use modbot_runtime::grid::PortValue;
+use modbot_runtime::{Blackboard, OwnedValue, Value};
+
+/// The blackboard's side of the view.
+pub struct Board {
+    view: SharedOutputs,
+    /// The grid's base tick, s: the unit of `tick`.
+    base_period_s: f64,
+    /// The refresh last shown.
+    seen: u64,
+    /// A copy taken under the lock, written to the blackboard after it.
+    copy: Vec<PortValue>,
+    tick: u64,
+    /// The items: `tick`, then one per output in the view's order.
+    tick_id: Option<ItemId>,
+    ids: Vec<ItemId>,
+}
+
+impl Board {
+    pub fn new(view: SharedOutputs, base_period_s: f64) -> Board {
+        let copy = lock(&view).values.clone();
+        Board {
+            view,
+            base_period_s,
+            seen: 0,
+            copy,
+            tick: 0,
+            tick_id: None,
+            ids: Vec::new(),
+        }
+    }
+
+    /// The blackboard with an item per output, `tick` and `base_period_s`.
+    pub fn blackboard(&mut self) -> Result<Blackboard, BlackboardError> {
+        let view = lock(&self.view).clone();
+        let mut builder = Blackboard::builder()
+            .item("tick", OwnedValue::I64(0))
+            .item("base_period_s", OwnedValue::F64(self.base_period_s));
+        for (name, value) in view.names.iter().zip(&view.values) {
+            builder = builder.item(name, owned(value));
+        }
+        let bb = builder.build()?;
+        self.tick_id = Some(bb.id("tick")?);
+        self.ids = view
+            .names
+            .iter()
+            .map(|n| bb.id(n))
+            .collect::<Result<_, _>>()?;
+        Ok(bb)
+    }
+
+    /// Writes what changed since the last call to `bb`.
+    pub fn refresh(&mut self, bb: &mut Blackboard) {
+        {
+            let view = lock(&self.view);
+            if view.seq == self.seen {
+                return;
+            }
+            self.seen = view.seq;
+            self.tick = view.tick;
+            for (to, from) in self.copy.iter_mut().zip(&view.values) {
+                copy_port(to, from);
+            }
+        }
+        if let Some(id) = self.tick_id {
+            let _ = bb.write_id(id, Value::I64(i64::try_from(self.tick).unwrap_or(i64::MAX)));
+        }
+        for (id, value) in self.ids.iter().zip(&self.copy) {
+            let written = match value {
+                PortValue::Bool(b) => bb.write_id(*id, Value::Bool(*b)),
+                PortValue::I64(i) => bb.write_id(*id, Value::I64(*i)),
+                PortValue::F64(x) => bb.write_id(*id, Value::F64(*x)),
+                PortValue::F64s(xs) => {
+                    bb.write_id(*id, Value::F64s(modbot_ipc_schema::F64s::from_slice(xs)))
+                }
+            };
+            if let Err(e) = written {
+                tracing::debug!("blackboard item not written: {e}");
+            }
+        }
+    }
+}
+
+fn lock(view: &SharedOutputs) -> std::sync::MutexGuard<'_, OutputsView> {
+    view.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+fn owned(value: &PortValue) -> OwnedValue {
+    match value {
+        PortValue::Bool(b) => OwnedValue::Bool(*b),
+        PortValue::I64(i) => OwnedValue::I64(*i),
+        PortValue::F64(x) => OwnedValue::F64(*x),
+        PortValue::F64s(xs) => OwnedValue::F64s(xs.clone()),
+    }
+}

@@ -1,0 +1,256 @@
+//! The running system as a program drives it: a tool endpoint in its domain.
+//!
+//! - switches go through `modbot_grid::switch` (what `modbot assembly switch` does);
+//! - the grid's tick and base period are the `tick` and `base_period_s` items of a host of
+//!   the system's own components (the bus bridge: served every tick);
+//! - `read("a.b")` is item `b` of module `a` when a module of that name runs, else output `b`
+//!   of component `a`: item `a.b` of the host that steps it — a host of the running
+//!   assembly's generation, or of the system's own components;
+//! - a fault is the coordinator's ledger saying the grid faulted.
+
+use std::time::Duration;
+
+use modbot_core::calls::CallOptions;
+use modbot_core::domain::Domain;
+use modbot_core::tool::{Calls, Tool};
+use modbot_grid::spec::{GridRole, COORDINATOR};
+use modbot_grid::switch;
+use modbot_ipc_schema::{OwnedValue, Value};
+
+use super::{Robot, RobotError};
+
+/// How long one read or call may take.
+const CALL_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long a switch may take (preparing a new assembly takes a fraction of a second here).
+const SWITCH_TIMEOUT: Duration = Duration::from_secs(60);
+/// How long a component is looked for among the hosts before it is said not to exist.
+const LOOK_AGAIN: Duration = Duration::from_secs(2);
+
+/// A running system in a domain.
+pub struct SystemRobot {
+    tool: Tool,
+    /// The running assembly's generation, once known.
+    generation: Option<u16>,
+    /// Where components were found: (generation, component, host module).
+    hosts: Vec<(u16, String, String)>,
+    /// The host module whose `tick` is the grid's.
+    clock: Option<String>,
+}
+
+impl SystemRobot {
+    /// Joins `domain` as the tool `modbot-program`.
+    pub fn open(domain: &str) -> Result<SystemRobot, RobotError> {
+        let domain = Domain::new(domain).map_err(|e| RobotError::Grid(e.to_string()))?;
+        let tool = Tool::open(&domain, "modbot-program")
+            .map_err(|e| RobotError::Grid(format!("cannot join the domain: {e}")))?;
+        Ok(SystemRobot {
+            tool,
+            generation: None,
+            hosts: Vec::new(),
+            clock: None,
+        })
+    }
+
+    /// The running assembly's generation.
+    fn generation(&mut self) -> Result<u16, RobotError> {
+        if let Some(g) = self.generation {
+            return Ok(g);
+        }
+        let status = switch::status(&mut self.tool).map_err(|e| RobotError::Grid(e.to_string()))?;
+        self.generation = Some(status.generation);
+        Ok(status.generation)
+    }
+
+    /// The live host modules of generation `generation` and of the system's own components.
+    fn host_modules(&self, generation: u16) -> Result<Vec<String>, RobotError> {
+        let modules = self
+            .tool
+            .list_modules()
+            .map_err(|e| RobotError::Grid(e.to_string()))?;
+        Ok(modules
+            .into_iter()
+            .filter(|m| m.alive)
+            .filter(|m| match GridRole::of(&m.name) {
+                Some(GridRole::Host { generation: g, .. }) => g.0 == generation || g.0 == 0,
+                _ => false,
+            })
+            .map(|m| m.name)
+            .collect())
+    }
+
+    fn module_alive(&self, name: &str) -> Result<bool, RobotError> {
+        let modules = self
+            .tool
+            .list_modules()
+            .map_err(|e| RobotError::Grid(e.to_string()))?;
+        Ok(modules.iter().any(|m| m.alive && m.name == name))
+    }
+
+    fn bb_get(&mut self, module: &str, item: &str) -> Result<OwnedValue, String> {
+        self.tool.call_blocking(
+            module,
+            "bb_get",
+            &[Value::Text(item)],
+            CallOptions::timeout(CALL_TIMEOUT),
+            |r| match r {
+                Ok(args) => args
+                    .get(0)
+                    .map(|v| v.to_owned_value())
+                    .ok_or_else(|| "an empty answer".to_owned()),
+                Err(e) => Err(e.to_string()),
+            },
+        )
+    }
+
+    /// The host module that has item `item` (`component.output`) in the running generation.
+    fn host_of(&mut self, component: &str, item: &str) -> Result<String, RobotError> {
+        let generation = self.generation()?;
+        if let Some((_, _, module)) = self
+            .hosts
+            .iter()
+            .find(|(g, c, _)| *g == generation && c == component)
+        {
+            return Ok(module.clone());
+        }
+        // A host that has just taken over may not be in this tool's view of the directory
+        // yet: look again for a little while.
+        let deadline = std::time::Instant::now() + LOOK_AGAIN;
+        let mut seen = Vec::new();
+        loop {
+            for module in self.host_modules(generation)? {
+                match self.bb_get(&module, item) {
+                    Ok(_) => {
+                        self.hosts
+                            .push((generation, component.to_owned(), module.clone()));
+                        return Ok(module);
+                    }
+                    Err(why) => seen.push(format!("{module}: {why}")),
+                }
+            }
+            if std::time::Instant::now() > deadline {
+                break;
+            }
+            seen.clear();
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Err(RobotError::Read {
+            what: item.to_owned(),
+            why: format!(
+                "no module named '{component}' runs, and no component '{component}' with that \
+                 output in the running assembly (generation {generation}) or the system's own \
+                 (hosts asked: {})",
+                if seen.is_empty() {
+                    "none".to_owned()
+                } else {
+                    seen.join("; ")
+                }
+            ),
+        })
+    }
+
+    /// The host module that keeps the grid's tick: one of the system's own components'.
+    fn clock(&mut self) -> Result<String, RobotError> {
+        if let Some(c) = &self.clock {
+            return Ok(c.clone());
+        }
+        let hosts = self.host_modules(u16::MAX)?;
+        let found = hosts.into_iter().find(|m| {
+            matches!(GridRole::of(m), Some(GridRole::Host { generation, .. }) if generation.0 == 0)
+        });
+        let clock = found.ok_or_else(|| {
+            RobotError::Grid("no host of the system's own components runs (no grid?)".into())
+        })?;
+        self.clock = Some(clock.clone());
+        Ok(clock)
+    }
+
+    fn clock_item(&mut self, item: &str) -> Result<OwnedValue, RobotError> {
+        let clock = self.clock()?;
+        self.bb_get(&clock, item).map_err(|why| {
+            self.clock = None;
+            RobotError::Grid(format!("{clock}.{item}: {why}"))
+        })
+    }
+}
+
+impl Robot for SystemRobot {
+    fn switch(&mut self, name: &str) -> Result<u64, RobotError> {
+        let switched = switch::switch(&mut self.tool, name, SWITCH_TIMEOUT).map_err(|e| {
+            RobotError::Switch {
+                assembly: name.to_owned(),
+                why: match e {
+                    switch::SwitchError::Failed { reason, .. } => reason,
+                    other => other.to_string(),
+                },
+            }
+        })?;
+        self.generation = Some(switched.generation);
+        self.hosts.retain(|(g, _, _)| *g == switched.generation);
+        Ok(switched.tick)
+    }
+
+    fn tick(&mut self) -> Result<u64, RobotError> {
+        match self.clock_item("tick")? {
+            OwnedValue::I64(t) => Ok(u64::try_from(t).unwrap_or(0)),
+            other => Err(RobotError::Grid(format!("the tick is {other}"))),
+        }
+    }
+
+    fn base_period_s(&mut self) -> Result<f64, RobotError> {
+        match self.clock_item("base_period_s")? {
+            OwnedValue::F64(s) if s > 0.0 => Ok(s),
+            other => Err(RobotError::Grid(format!("the base period is {other}"))),
+        }
+    }
+
+    fn read(&mut self, what: &str) -> Result<OwnedValue, RobotError> {
+        let (module, item) = what.split_once('.').ok_or_else(|| RobotError::Read {
+            what: what.to_owned(),
+            why: "write module.item or component.output".into(),
+        })?;
+        let read_error = |why: String| RobotError::Read {
+            what: what.to_owned(),
+            why,
+        };
+        if self.module_alive(module)? {
+            return self.bb_get(module, item).map_err(read_error);
+        }
+        let host = self.host_of(module, what)?;
+        self.bb_get(&host, what).map_err(|why| {
+            // Its host may have gone (a switch by someone else): look again next time.
+            self.hosts.retain(|(_, c, _)| c != module);
+            self.generation = None;
+            read_error(why)
+        })
+    }
+
+    fn call(&mut self, target: &str, args: &[OwnedValue]) -> Result<Vec<OwnedValue>, RobotError> {
+        let (module, method) = target.split_once('.').ok_or_else(|| RobotError::Call {
+            target: target.to_owned(),
+            why: "write module.method".into(),
+        })?;
+        let values: Vec<Value<'_>> = args.iter().map(OwnedValue::as_value).collect();
+        self.tool
+            .call_owned(module, method, &values, CallOptions::timeout(CALL_TIMEOUT))
+            .map_err(|e| RobotError::Call {
+                target: target.to_owned(),
+                why: e.to_string(),
+            })
+    }
+
+    fn fault(&mut self) -> Result<Option<String>, RobotError> {
+        let row = self.tool.call_blocking(
+            COORDINATOR,
+            "ledger",
+            &[],
+            CallOptions::timeout(CALL_TIMEOUT),
+            |r| -> Result<_, String> {
+                let args = r.map_err(|e| e.to_string())?;
+                let bytes = args.bytes(0).map_err(|e| e.to_string())?;
+                Ok(modbot_ipc_schema::ledger::decode(bytes)?.0)
+            },
+        );
+        let row = row.map_err(|e| RobotError::Grid(format!("the coordinator's ledger: {e}")))?;
+        Ok((row.state == "faulted").then_some(row.fault))
+    }
+}

@@ -1,0 +1,474 @@
+//! The interpreter against a fake robot: every tick() advances the grid by 10 ticks, `settle`
+//! settles 200 ticks after a switch, and everything the program asks is logged.
+
+use std::cell::RefCell;
+use std::path::Path;
+use std::rc::Rc;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use modbot_data::Store;
+use modbot_ipc_schema::OwnedValue;
+
+use super::*;
+
+type Log = Rc<RefCell<Vec<String>>>;
+
+struct FakeRobot {
+    log: Log,
+    ctrl_c: Arc<AtomicBool>,
+    tick: u64,
+    switched_at: u64,
+    assembly: String,
+    fault: Option<String>,
+}
+
+impl Robot for FakeRobot {
+    fn switch(&mut self, name: &str) -> Result<u64, RobotError> {
+        if name == "missing" {
+            return Err(RobotError::Switch {
+                assembly: name.into(),
+                why: "no assembly named 'missing'".into(),
+            });
+        }
+        self.tick += 100;
+        self.switched_at = self.tick;
+        self.assembly = name.to_owned();
+        self.fault = None;
+        self.log
+            .borrow_mut()
+            .push(format!("switch {name} at {}", self.tick));
+        Ok(self.tick)
+    }
+
+    fn tick(&mut self) -> Result<u64, RobotError> {
+        self.tick += 10;
+        Ok(self.tick)
+    }
+
+    fn base_period_s(&mut self) -> Result<f64, RobotError> {
+        Ok(0.001)
+    }
+
+    fn read(&mut self, what: &str) -> Result<OwnedValue, RobotError> {
+        let settled = self.tick >= self.switched_at + 200;
+        Ok(match what {
+            "robot.link_position" => OwnedValue::F64s(vec![0.0; 6]),
+            "settle.settled" => OwnedValue::Bool(settled),
+            "settle.peak_following" => OwnedValue::F64(0.0125),
+            "settle.residual" => OwnedValue::F64(0.0005),
+            "settle.settling_s" => OwnedValue::F64(0.05),
+            "settle.arrival_tick" => OwnedValue::I64(self.switched_at as i64 + 150),
+            "host_bus.tick" => OwnedValue::I64(self.tick as i64),
+            _ => {
+                return Err(RobotError::Read {
+                    what: what.into(),
+                    why: "no such module or component".into(),
+                })
+            }
+        })
+    }
+
+    fn call(&mut self, target: &str, args: &[OwnedValue]) -> Result<Vec<OwnedValue>, RobotError> {
+        self.log
+            .borrow_mut()
+            .push(format!("call {target} {}", args.len()));
+        if target == "fake.ctrl_c" {
+            self.ctrl_c.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+        if target == "fake.fault" {
+            self.fault = Some("monitor watch: following error".into());
+        }
+        Ok(args.to_vec())
+    }
+
+    fn fault(&mut self) -> Result<Option<String>, RobotError> {
+        Ok(self.fault.clone())
+    }
+}
+
+struct Fixture {
+    sut: Interpreter,
+    log: Log,
+    reports: Log,
+    dir: modbot_testkit::TempDir,
+}
+
+fn fixture(test: &str) -> Fixture {
+    let dir = modbot_testkit::TempDir::new(test);
+    let log = Log::default();
+    let reports = Log::default();
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let robot = FakeRobot {
+        log: log.clone(),
+        ctrl_c: interrupt.clone(),
+        tick: 1000,
+        switched_at: 0,
+        assembly: "hold".into(),
+        fault: None,
+    };
+    let store = Store::open(&dir.path().join("data.redb")).unwrap();
+    let to = reports.clone();
+    let sut = Interpreter::new(
+        Box::new(robot),
+        store,
+        Options {
+            dir: dir.path().to_owned(),
+            interrupt: Interrupt::Flag(interrupt.clone()),
+            report: Box::new(move |line| to.borrow_mut().push(line.to_owned())),
+        },
+    )
+    .unwrap();
+    Fixture {
+        sut,
+        log,
+        reports,
+        dir,
+    }
+}
+
+fn store_of(dir: &Path) -> Store {
+    Store::open_existing(&dir.join("data.redb"))
+        .unwrap()
+        .unwrap()
+}
+
+fn switches(log: &Log) -> Vec<String> {
+    log.borrow()
+        .iter()
+        .filter_map(|l| {
+            l.strip_prefix("switch ")
+                .map(|s| s.split(' ').next().unwrap().to_owned())
+        })
+        .collect()
+}
+
+#[test]
+fn a_program_of_three_commands_switches_their_assemblies_in_order_and_keeps_their_runs() {
+    let mut f = fixture("three");
+    let program = f.dir.write(
+        "three.lua",
+        "ptp { q = { 0.1, 0, 0, 0, 0, 0 }, v = 0.5 }\nhold {}\nwait { s = 0.05 }\n\
+         ptp { q = { 0, 0, 0, 0, 0, 0 } }\n",
+    );
+    f.sut.run_file(&program).unwrap();
+    assert_eq!(switches(&f.log), ["goto", "hold", "goto"]);
+    let store = store_of(f.dir.path());
+    let runs = store.runs().unwrap();
+    let names: Vec<&str> = runs.iter().map(|(_, r)| r.command.as_str()).collect();
+    assert_eq!(names, ["ptp", "hold", "wait", "ptp"]);
+    let (_, first) = &runs[0];
+    assert_eq!(first.origin, format!("{}:1", program.display()));
+    assert_eq!(first.assembly, "goto");
+    assert!(first.ok());
+    assert!(first.end_tick >= first.start_tick + 200);
+    assert_eq!(
+        first.value("peak_following"),
+        Some(&OwnedValue::F64(0.0125))
+    );
+    // The wait lasted 50 ticks of grid time at least.
+    assert!(runs[2].1.end_tick >= runs[2].1.start_tick + 50);
+    // The parameters went to assembly data before the switch, the results after the run.
+    assert_eq!(
+        store.get("goto.q").unwrap(),
+        Some(OwnedValue::F64s(vec![0.0; 6]))
+    );
+    assert_eq!(store.get("goto.v").unwrap(), Some(OwnedValue::F64(1.0)));
+    assert_eq!(
+        store.get("ptp.settling_s").unwrap(),
+        Some(OwnedValue::F64(0.05))
+    );
+    assert_eq!(f.reports.borrow().len(), 4);
+    assert!(
+        f.reports.borrow()[0].starts_with("run 1: ptp (goto) at "),
+        "{:?}",
+        f.reports
+    );
+}
+
+#[test]
+fn a_failing_precondition_stops_at_the_calling_line_and_leaves_the_robot_holding() {
+    let mut f = fixture("pre");
+    let program = f.dir.write(
+        "bad.lua",
+        "ptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n\nptp { q = { 1, 2 } }\nhold {}\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}:3: ptp: precondition failed: q has 2 values; the robot has 6 axes",
+            program.display()
+        )
+    );
+    assert!(matches!(f.sut.left(), Left::Holding(_)));
+    assert_eq!(switches(&f.log), ["goto", "hold"]);
+    let runs = store_of(f.dir.path()).runs().unwrap();
+    assert_eq!(runs.len(), 2);
+    assert!(
+        runs[1]
+            .1
+            .outcome
+            .starts_with("failed: ptp: precondition failed"),
+        "{}",
+        runs[1].1
+    );
+}
+
+#[test]
+fn a_failure_before_any_motion_leaves_the_robot_untouched() {
+    let mut f = fixture("untouched");
+    let program = f.dir.write("bad.lua", "local x = 1\nptpp { q = {} }\n");
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(e.line, Some(2));
+    assert!(e.message.contains("ptpp"), "{e}");
+    assert_eq!(f.sut.left(), Left::Untouched);
+    assert!(switches(&f.log).is_empty());
+}
+
+#[test]
+fn bad_input_names_its_file_and_line() {
+    let cases = [
+        (
+            "ptp { q = { 0, 0, 0, 0, 0, 0 }, speed = 2 }\n",
+            1,
+            "ptp: unknown parameter 'speed' (it takes a, band, bessel_hz, q, timeout, v)",
+        ),
+        (
+            "\nlocal v = read(\"nobody.x\")\n",
+            2,
+            "read(\"nobody.x\"): no such module or component",
+        ),
+        (
+            "ptp(3)\n",
+            1,
+            "ptp: takes a table of parameters (ptp{ ... }), not a integer",
+        ),
+        (
+            "command \"read\" { }\n",
+            1,
+            "command \"read\": a command's name is",
+        ),
+        (
+            "command \"x\" { runn = function() end }\n",
+            1,
+            "command \"x\": unknown field 'runn'",
+        ),
+        (
+            "local t = {}\nt.x.y = 1\n",
+            2,
+            "attempt to index a nil value",
+        ),
+        ("x = = 1\n", 1, "unexpected symbol"),
+        (
+            "require \"../etc\"\n",
+            1,
+            "require \"../etc\": a library is named by",
+        ),
+        ("require \"absent\"\n", 1, "require \"absent\": cannot read"),
+        (
+            "string.gsub(\"a\", \"a\", \"b\")\n",
+            1,
+            "not available in a robot program",
+        ),
+        (
+            "command \"go\" { run = function() return { assembly = \"missing\" } end }\ngo {}\n",
+            2,
+            "go: assembly 'missing' was not switched to",
+        ),
+    ];
+    for (i, (source, line, message)) in cases.iter().enumerate() {
+        let mut f = fixture(&format!("bad{i}"));
+        let program = f.dir.write("p.lua", source);
+        let e = f.sut.run_file(&program).unwrap_err();
+        assert_eq!(e.file, program.display().to_string(), "{source}");
+        assert_eq!(e.line, Some(*line), "{source}: {e}");
+        assert!(
+            e.message.starts_with(message) || e.message.contains(message),
+            "{source}: {e}"
+        );
+    }
+}
+
+#[test]
+fn a_command_defined_in_a_library_next_to_the_program_runs_like_a_builtin() {
+    let mut f = fixture("library");
+    f.dir.write(
+        "moves.lua",
+        "command \"home\" {\n  doc = \"goes home\",\n  params = { v = \"speed\" },\n  \
+         run = function(p) return { assembly = \"goto\", args = { q = { 0, 0, 0, 0, 0, 0 }, v = p.v } } end,\n  \
+         done = function(p, r) return read(\"settle.settled\") end,\n  \
+         eval = function(p, r) return { took = r.end_tick - r.start_tick } end,\n}\n\
+         return { answer = 42 }\n",
+    );
+    let program = f.dir.write(
+        "prog.lua",
+        "local m = require \"moves\"\nassert(m.answer == 42)\nassert(require \"moves\" == m)\n\
+         local r = home { v = 0.25 }\nassert(r.took >= 200)\ndata(\"note\", \"home done\")\n",
+    );
+    f.sut.run_file(&program).unwrap();
+    let store = store_of(f.dir.path());
+    assert_eq!(store.get("goto.v").unwrap(), Some(OwnedValue::F64(0.25)));
+    assert_eq!(
+        store.get("note").unwrap(),
+        Some(OwnedValue::Text("home done".into()))
+    );
+    assert!(matches!(store.get("home.took").unwrap(), Some(OwnedValue::I64(t)) if t >= 200));
+    let help = f.sut.help();
+    assert!(help.contains("home { v }  goes home"), "{help}");
+    assert!(
+        help.contains("ptp { a, band, bessel_hz, q, timeout, v }"),
+        "{help}"
+    );
+}
+
+#[test]
+fn an_error_in_a_librarys_hook_names_the_call_and_the_hook_line() {
+    let mut f = fixture("hookerror");
+    f.dir.write(
+        "lib.lua",
+        "command \"check\" {\n  pre = function(p)\n    error(\"the gripper is open\")\n  end,\n}\n",
+    );
+    let program = f.dir.write("prog.lua", "require \"lib\"\ncheck {}\n");
+    let e = f.sut.run_file(&program).unwrap_err();
+    let lib = f.dir.path().join("lib.lua");
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}:2: check: precondition: {}:3: the gripper is open",
+            program.display(),
+            lib.display()
+        )
+    );
+}
+
+#[test]
+fn a_failed_evaluation_stops_the_program() {
+    let mut f = fixture("eval");
+    let program = f.dir.write(
+        "prog.lua",
+        "command \"measure\" { eval = function(p, r) return false, \"too much overshoot\" end }\n\
+         measure {}\nhold {}\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(e.line, Some(2));
+    assert_eq!(e.message, "measure: evaluation failed: too much overshoot");
+    assert!(switches(&f.log).is_empty());
+}
+
+#[test]
+fn a_command_not_done_within_its_timeout_of_grid_time_stops_the_program() {
+    let mut f = fixture("timeout");
+    let program = f.dir.write(
+        "prog.lua",
+        "command \"never\" {\n  run = function() return { timeout = 0.5 } end,\n  done = function() return false end,\n}\nnever {}\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(e.line, Some(5));
+    assert!(
+        e.message
+            .starts_with("never: not done within 0.5 s of grid time"),
+        "{e}"
+    );
+}
+
+#[test]
+fn ctrl_c_stops_a_loop_and_a_command_waiting_and_leaves_the_robot_holding() {
+    let mut f = fixture("interrupt");
+    // The fake robot asks for the stop when called `fake.ctrl_c`, as Ctrl-C would.
+    let program = f.dir.write(
+        "loop.lua",
+        "hold {}\ncall(\"fake.ctrl_c\")\nwhile true do end\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(
+        (e.line, e.message.as_str()),
+        (Some(3), "interrupted (Ctrl-C)")
+    );
+    assert!(matches!(f.sut.left(), Left::Holding(_)));
+    let program = f.dir.write(
+        "wait.lua",
+        "command \"forever\" { done = function() call(\"fake.ctrl_c\") return false end }\nforever {}\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(
+        (e.line, e.message.as_str()),
+        (Some(2), "forever: interrupted (Ctrl-C)")
+    );
+    assert_eq!(
+        f.sut.left(),
+        Left::Untouched,
+        "the second program moved nothing"
+    );
+}
+
+#[test]
+fn a_program_that_computes_forever_between_commands_is_stopped() {
+    let mut f = fixture("budget");
+    let program = f
+        .dir
+        .write("prog.lua", "local n = 0\nwhile true do n = n + 1 end\n");
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert!(
+        e.message.contains("computed too long between two commands"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_repl_prints_values_not_command_results_and_goes_on_after_an_error() {
+    let mut f = fixture("repl");
+    assert_eq!(f.sut.run_line("1 + 1").unwrap(), Some("2".into()));
+    assert_eq!(f.sut.run_line("x = { 1.5, 2, a = true }").unwrap(), None);
+    assert_eq!(
+        f.sut.run_line("x").unwrap(),
+        Some("{ 1.5, 2, a = true }".into())
+    );
+    assert_eq!(
+        f.sut.run_line("ptp { q = { 0, 0, 0, 0, 0, 0 } }").unwrap(),
+        None
+    );
+    let e = f.sut.run_line("ptp { q = 1 }").unwrap_err();
+    assert_eq!(e.file, "stdin");
+    assert!(
+        e.message
+            .starts_with("ptp: precondition failed: q is required"),
+        "{e}"
+    );
+    assert_eq!(f.sut.left(), Left::Untouched, "the line moved nothing");
+    assert_eq!(f.sut.run_line("hold {}").unwrap(), None);
+    let e = f
+        .sut
+        .run_line("ptp { q = { 0, 0, 0, 0, 0, 0 } } ptp { q = 1 }")
+        .unwrap_err();
+    assert!(e.message.starts_with("ptp: precondition failed"), "{e}");
+    assert!(
+        matches!(f.sut.left(), Left::Holding(_)),
+        "the line moved the robot"
+    );
+    assert_eq!(switches(&f.log), ["goto", "hold", "goto", "hold"]);
+    assert_eq!(
+        f.sut.run_line("call(\"host_bus.block\", 2, true)").unwrap(),
+        Some("2\ttrue".into())
+    );
+    assert_eq!(
+        f.sut.run_line("data(\"ptp.peak_following\")").unwrap(),
+        Some("0.0125".into())
+    );
+}
+
+#[test]
+fn a_faulted_assembly_stops_its_command() {
+    let mut f = fixture("fault");
+    let program = f.dir.write(
+        "prog.lua",
+        "command \"boom\" {\n  run = function() return { assembly = \"goto\" } end,\n  \
+         done = function() call(\"fake.fault\") return false end,\n}\nboom {}\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(e.line, Some(5));
+    assert_eq!(
+        e.message,
+        "boom: the assembly faulted: monitor watch: following error"
+    );
+}

@@ -1,0 +1,295 @@
+//! Robot programs (`modbot program`, MoRC's program interpreter) on the simulated arm of
+//! `examples/arm.lua` in lockstep, each test in a domain and an assembly data directory of its
+//! own: a program's commands switch their assemblies in order and leave their runs in
+//! assembly data; a failed precondition stops the program at its line with the robot
+//! holding; the REPL reads commands from a pipe; assembly data outlives `modbot down`; and
+//! the KR 16 experiment (`examples/kr16_ff.lua`) shows what the elastic feed-forward gains.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use modbot_testkit::TempDir;
+use std::time::Duration;
+
+use common::arm::{arm, one_arm_at_a_time, wait_enabled};
+use common::TestDomain;
+
+/// The arm of one test: its domain, a directory for its programs and assembly data (one arm
+/// at a time in this binary, as in the other arm tests).
+fn arm_test(test: &str) -> (std::sync::MutexGuard<'static, ()>, TestDomain, TempDir) {
+    let arm = one_arm_at_a_time();
+    let sut = TestDomain::new(test);
+    let dir = TempDir::new(test);
+    (arm, sut, dir)
+}
+
+/// The example programs.
+fn examples() -> PathBuf {
+    arm().parent().unwrap().join("programs")
+}
+
+/// The arm in lockstep in the test's domain, its assembly data in `dir`; returns when every
+/// drive is enabled.
+fn up(sut: &mut TestDomain, dir: &TempDir) -> u32 {
+    up_system(sut, dir, &arm())
+}
+
+/// The robot of `system` (an arm's description) in lockstep, as [`up`].
+fn up_system(sut: &mut TestDomain, dir: &TempDir, system: &Path) -> u32 {
+    sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
+    let domain = format!("domain={}", sut.name());
+    let system = system.to_str().unwrap();
+    let up = sut.spawn_logged("modbot", &["up", system, "--var", &domain, "--lockstep"]);
+    wait_enabled(sut, up);
+    up
+}
+
+fn down(sut: &mut TestDomain, up: u32) {
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+    assert_eq!(
+        sut.leftover_files(),
+        Vec::<PathBuf>::new(),
+        "{}",
+        sut.output_of(up)
+    );
+}
+
+/// `modbot program run FILE`: (exit code, stdout, stderr).
+fn run(sut: &TestDomain, program: &Path) -> (i32, String, String) {
+    let out = sut.modbot(&["program", "run", program.to_str().unwrap()]);
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The assemblies switched to, in order, as `modbot assembly` lists them (after the first).
+fn switched(sut: &TestDomain) -> Vec<String> {
+    let status = sut.modbot_ok(&["assembly"]);
+    status
+        .lines()
+        .filter(|l| l.contains(": switched at tick"))
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .map(|name| name.trim_end_matches(':').to_owned())
+        .collect()
+}
+
+/// `examples/programs/three.lua`: a program of three commands — `ptp` (assembly `goto`), a
+/// command of the program's own library (`tour`: assembly `ptp`, the robot going round) and
+/// `hold` — switches the three
+/// assemblies in that order, each once the one before is done, and leaves its runs and results
+/// in assembly data: `modbot data` shows them, and the goal went there before the switch.
+#[test]
+fn a_program_of_three_commands_switches_three_assemblies_in_order_and_leaves_results_in_assembly_data(
+) {
+    let (_arm, mut sut, dir) = arm_test("program_three");
+    let program = examples().join("three.lua");
+    let up = up(&mut sut, &dir);
+    let before = switched(&sut);
+    let (code, out, err) = run(&sut, &program);
+    assert_eq!(code, 0, "{out}{err}");
+    let after = switched(&sut);
+    assert_eq!(after[before.len()..], ["goto", "ptp", "hold"], "{after:?}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 4, "{out}");
+    let at = program.display();
+    for (line, start) in lines.iter().zip([
+        format!("run 1: ptp (goto) at {at}:9, ticks "),
+        format!("run 2: tour (ptp) at {at}:10, ticks "),
+        format!("run 3: hold (hold) at {at}:11, ticks "),
+        "peak following error of the ptp: ".to_owned(),
+    ]) {
+        assert!(line.starts_with(&start), "{out}");
+    }
+    let data = sut.modbot_ok(&["data", "ls"]);
+    assert!(
+        data.contains("goto.q = [0.2, -0.1, 0.1, 0.0, 0.0, 0.0]"),
+        "{data}"
+    );
+    assert!(data.contains("run.2: tour (ptp)"), "{data}");
+    for key in [
+        "ptp.peak_following",
+        "ptp.settling_s",
+        "ptp.residual",
+        "tour.moved",
+        "tour.ticks",
+    ] {
+        let value = sut.modbot_ok(&["data", "get", key]);
+        let x: f64 = value
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("{key} = {value}"));
+        assert!(x.is_finite() && x >= 0.0, "{key} = {x}");
+    }
+    let peak: f64 = sut
+        .modbot_ok(&["data", "get", "ptp.peak_following"])
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(peak > 0.0 && peak < 0.1, "peak following error {peak} rad");
+    let run1 = sut.modbot_ok(&["data", "get", "run.1"]);
+    assert!(run1.contains(", ok: arrival_tick="), "{run1}");
+    down(&mut sut, up);
+}
+
+/// A precondition that fails (a goal for two axes on a six-axis robot) stops the program with
+/// `file:line: why` at the line that called the command, exit 1, after the command before it
+/// ran; the robot is left holding (assembly `hold`), and the later command never runs.
+#[test]
+fn a_failing_precondition_stops_the_program_at_its_line_and_leaves_the_robot_holding() {
+    let (_arm, mut sut, dir) = arm_test("program_pre");
+    let program = dir.write(
+        "bad.lua",
+        "ptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n\nptp { q = { 0.5, 0.5 } }\nptp { q = { 0, 0, 0, 0, 0, 0 } }\n",
+    );
+    let up = up(&mut sut, &dir);
+    let before = switched(&sut);
+    let (code, out, err) = run(&sut, &program);
+    assert_eq!(code, 1, "{out}{err}");
+    let first = err.lines().next().unwrap_or_default();
+    assert_eq!(
+        first,
+        format!(
+            "{}:3: ptp: precondition failed: q has 2 values; the robot has 6 axes",
+            program.display()
+        )
+    );
+    assert!(
+        err.contains("the robot holds (assembly hold from tick "),
+        "{err}"
+    );
+    assert_eq!(switched(&sut)[before.len()..], ["goto", "hold"]);
+    assert!(sut.modbot_ok(&["assembly"]).starts_with("assembly hold "));
+    let data = sut.modbot_ok(&["data", "ls"]);
+    assert!(data.contains("run.2: ptp at"), "{data}");
+    assert!(data.contains("failed: ptp: precondition failed"), "{data}");
+    down(&mut sut, up);
+}
+
+/// The REPL reads one command per line from a pipe: `help` lists the commands with their
+/// parameters, `ptp` and `hold` switch their assemblies and report their runs, an expression's
+/// value is printed, and a bad line says why (`stdin:1: ...`) and the REPL goes on (the robot
+/// at rest where the line before left it: that line moved nothing).
+#[test]
+fn the_repl_reads_commands_from_stdin_and_runs_ptp_and_hold() {
+    let (_arm, mut sut, dir) = arm_test("program_repl");
+    let up = up(&mut sut, &dir);
+    let before = switched(&sut);
+    let input = "help\nptp { q = { -0.1, 0, 0.05, 0, 0, 0 }, v = 0.5 }\nread(\"settle.settled\")\n\
+                 ptp { speed = 1 }\nhold {}\n#read(\"robot.link_position\")\n";
+    let out = sut.modbot_with_input(&["program", "repl"], input);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(
+        stdout.contains("ptp { a, band, bessel_hz, q, timeout, v }"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("      q: the goal: one joint position per axis"),
+        "{stdout}"
+    );
+    let lines: Vec<&str> = stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("run 1:"))
+        .collect();
+    assert_eq!(lines.len(), 4, "{stdout}");
+    assert!(
+        lines[0].starts_with("run 1: ptp (goto) at stdin:1"),
+        "{stdout}"
+    );
+    assert_eq!(lines[1], "true", "settled when the command was done");
+    assert!(
+        lines[2].starts_with("run 3: hold (hold) at stdin:1"),
+        "{stdout}"
+    );
+    assert_eq!(lines[3], "6");
+    assert!(
+        stderr.starts_with("stdin:1: ptp: unknown parameter 'speed'"),
+        "{stderr}"
+    );
+    assert_eq!(switched(&sut)[before.len()..], ["goto", "hold"]);
+    down(&mut sut, up);
+}
+
+/// Assembly data outlives the system: what a program kept is listed by `modbot data` while
+/// the system is down, and after `modbot up` a program reads it back and the `goto` assembly
+/// is loaded with the goal kept there.
+#[test]
+fn assembly_data_survives_modbot_down_and_up() {
+    let (_arm, mut sut, dir) = arm_test("program_data");
+    let first = dir.write(
+        "first.lua",
+        "data(\"cell.part\", \"bracket 7\")\nptp { q = { 0.15, 0, 0, 0, 0, 0.1 } }\n",
+    );
+    let up1 = up(&mut sut, &dir);
+    let (code, out, err) = run(&sut, &first);
+    assert_eq!(code, 0, "{out}{err}");
+    down(&mut sut, up1);
+    let kept = sut.modbot_ok(&["data", "ls"]);
+    assert!(kept.contains("cell.part = \"bracket 7\""), "{kept}");
+    assert!(kept.contains("run.1: ptp (goto)"), "{kept}");
+
+    let up2 = up(&mut sut, &dir);
+    let second = dir.write(
+        "second.lua",
+        "assert(data(\"cell.part\") == \"bracket 7\", \"the part is kept\")\n\
+         local q = data(\"goto.q\")\nassert(q[1] == 0.15 and q[6] == 0.1, \"the goal is kept\")\n\
+         command \"again\" {\n  run = function() return { assembly = \"goto\" } end,\n  \
+         done = function() return read(\"settle.settled\") end,\n}\nagain {}\n\
+         local at = read(\"robot.demand_position\")\nassert(at[1] == 0.15 and at[6] == 0.1, \"moved to the kept goal\")\n",
+    );
+    let (code, out, err) = run(&sut, &second);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(out.contains("run 2: again (goto)"), "{out}");
+    down(&mut sut, up2);
+}
+
+/// MoRC's experiment, `examples/kr16_ff.lua` on the KR 16 of `examples/kr16.lua` (elastic
+/// joints on axes 1-3, 16 kg load): the same Bessel-filtered 5° move once with the rigid and
+/// once with the elastic feed-forward, each its own assembly in one program; the elastic one
+/// cuts the residual link oscillation after arrival at least six-fold (the program fails
+/// otherwise) and settles sooner, and both runs are kept in assembly data.
+#[test]
+fn the_kr16_program_shows_the_elastic_feed_forward_cutting_the_residual_oscillation_six_fold() {
+    let (_arm, mut sut, dir) = arm_test("program_kr16");
+    let examples = arm().parent().unwrap().to_path_buf();
+    let up = up_system(&mut sut, &dir, &examples.join("kr16.lua"));
+    let (code, out, err) = run(&sut, &examples.join("kr16_ff.lua"));
+    assert_eq!(code, 0, "{out}{err}");
+    let value = |prefix: &str, after: &str| -> f64 {
+        let line = out
+            .lines()
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("{out}"));
+        let rest = &line[line.find(after).unwrap_or_else(|| panic!("{line}")) + after.len()..];
+        rest.split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let (rigid, elastic) = (
+        value("rigid ", "residual after arrival "),
+        value("elastic ", "residual after arrival "),
+    );
+    assert!(
+        rigid >= 6.0 * elastic,
+        "rigid {rigid} mrad, elastic {elastic} mrad\n{out}"
+    );
+    assert!(elastic < 0.5 / 1.6, "under 0.5 mm at 1.6 m: {elastic} mrad");
+    assert!(
+        value("elastic ", "settling ") < value("rigid ", "settling "),
+        "{out}"
+    );
+    let ratio: f64 = sut
+        .modbot_ok(&["data", "get", "kr16.ratio"])
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(ratio >= 6.0, "{ratio}");
+    let data = sut.modbot_ok(&["data", "ls"]);
+    assert!(data.contains("ptp_ff.model = \"elastic\""), "{data}");
+    down(&mut sut, up);
+}
