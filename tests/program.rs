@@ -250,6 +250,50 @@ fn assembly_data_survives_modbot_down_and_up() {
     down(&mut sut, up2);
 }
 
+/// Ctrl-C (SIGINT) while a command waits stops the program with the line it is at, exit 1,
+/// and leaves the robot holding: the run is kept as failed.
+#[test]
+fn ctrl_c_stops_the_program_and_leaves_the_robot_holding() {
+    let (_arm, mut sut, dir) = arm_test("program_ctrl_c");
+    let program = dir.write(
+        "long.lua",
+        "ptp { q = { 0.05, 0, 0, 0, 0, 0 } }\nwait { s = 100000 }\n",
+    );
+    let up = up(&mut sut, &dir);
+    let run = sut.spawn_logged("modbot", &["program", "run", program.to_str().unwrap()]);
+    sut.wait_until("the program waits", Duration::from_secs(60), || {
+        let out = sut.output_of(run);
+        if out.contains("run 1: ptp (goto)") {
+            Ok(())
+        } else {
+            Err(out)
+        }
+    });
+    sut.signal(run, nix::sys::signal::Signal::SIGINT);
+    let status = sut.wait_exit(run, Duration::from_secs(60));
+    let out = sut.output_of(run);
+    assert_eq!(status.code(), Some(1), "{out}");
+    assert!(
+        out.contains(&format!(
+            "{}:2: wait: interrupted (Ctrl-C)",
+            program.display()
+        )),
+        "{out}"
+    );
+    assert!(
+        out.contains("the robot holds (assembly hold from tick "),
+        "{out}"
+    );
+    assert!(sut.modbot_ok(&["assembly"]).starts_with("assembly hold "));
+    let data = sut.modbot_ok(&["data", "ls"]);
+    assert!(data.contains("run.2: wait at"), "{data}");
+    assert!(
+        data.contains("failed: wait: interrupted (Ctrl-C)"),
+        "{data}"
+    );
+    down(&mut sut, up);
+}
+
 /// MoRC's experiment, `examples/kr16_ff.lua` on the KR 16 of `examples/kr16.lua` (elastic
 /// joints on axes 1-3, 16 kg load): the same Bessel-filtered 5° move once with the rigid and
 /// once with the elastic feed-forward, each its own assembly in one program; the elastic one

@@ -319,9 +319,12 @@ fn execute_call(
             call.run.assembly = assembly.clone();
             let stored = shared.borrow().store.put_all(&entries);
             stored.map_err(|e| call.fail(e))?;
-            shared.borrow_mut().moved = true;
             let switched = shared.borrow_mut().robot.switch(assembly);
-            switched.map_err(|e| call.fail(e))?
+            let tick = switched.map_err(|e| call.fail(e))?;
+            // Switched: a failure from now on leaves the robot holding (a switch that failed
+            // left the running assembly as it was).
+            shared.borrow_mut().moved = true;
+            tick
         }
         None => {
             let tick = shared.borrow_mut().robot.tick();

@@ -153,11 +153,15 @@ impl SystemRobot {
         if let Some(c) = &self.clock {
             return Ok(c.clone());
         }
-        let hosts = self.host_modules(u16::MAX)?;
-        let found = hosts.into_iter().find(|m| {
-            matches!(GridRole::of(m), Some(GridRole::Host { generation, .. }) if generation.0 == 0)
+        let modules = self
+            .tool
+            .list_modules()
+            .map_err(|e| RobotError::Grid(e.to_string()))?;
+        let found = modules.into_iter().find(|m| {
+            m.alive
+                && matches!(GridRole::of(&m.name), Some(GridRole::Host { generation, .. }) if generation.0 == 0)
         });
-        let clock = found.ok_or_else(|| {
+        let clock = found.map(|m| m.name).ok_or_else(|| {
             RobotError::Grid("no host of the system's own components runs (no grid?)".into())
         })?;
         self.clock = Some(clock.clone());
