@@ -220,6 +220,8 @@ pub(super) fn build(
 
 /// The grid of a description with assemblies: its own components (its recorder among them)
 /// and the first assembly's (which reads the assembly data of `domain`).
+// The description's parts a grid with assemblies is made of, each its own argument.
+#[allow(clippy::too_many_arguments)]
 fn with_assemblies(
     file: &str,
     domain: &str,
