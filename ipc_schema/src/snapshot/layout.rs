@@ -204,6 +204,20 @@ impl SnapshotLayout {
         values: &[V],
     ) -> Result<usize, SnapshotError> {
         let needed = self.check(out, values)?;
+        self.write_checked(out, addr, seq, stamp_ns, values, needed);
+        Ok(needed)
+    }
+
+    /// [`SnapshotLayout::write`] once `out` and `values` were checked: `needed` bytes.
+    fn write_checked<V: AsValue>(
+        &self,
+        out: &mut [u8],
+        addr: Addr,
+        seq: u64,
+        stamp_ns: u64,
+        values: &[V],
+        needed: usize,
+    ) {
         out[..HEADER_LEN].copy_from_slice(self.header(addr, seq, stamp_ns, needed).as_bytes());
         let mut name_at = HEADER_LEN + ENTRY_LEN * self.items.len();
         let mut val_at = self.values_at();
@@ -229,7 +243,6 @@ impl SnapshotLayout {
             put_value(&mut out[start..start + vlen], v);
             val_at = start + vlen;
         }
-        Ok(needed)
     }
 
     /// Writes the snapshot `seq` of `values` into `out`, which may still hold an earlier
@@ -253,14 +266,14 @@ impl SnapshotLayout {
         earlier: Option<(u64, u64)>,
     ) -> Result<Written, SnapshotError> {
         let needed = self.check(out, values)?;
-        let Some((earlier_seq, earlier_stamp)) = earlier else {
-            return self.write(out, addr, seq, stamp_ns, values).map(whole);
+        let reusable = earlier.is_some_and(|(earlier_seq, earlier_stamp)| {
+            written_at.len() == self.items.len()
+                && self.holds(out, addr, earlier_seq, earlier_stamp, needed, values)
+        });
+        let Some((earlier_seq, _)) = earlier.filter(|_| reusable) else {
+            self.write_checked(out, addr, seq, stamp_ns, values, needed);
+            return Ok(Written::Whole { len: needed });
         };
-        if written_at.len() != self.items.len()
-            || !self.holds(out, addr, earlier_seq, earlier_stamp, needed, values)
-        {
-            return self.write(out, addr, seq, stamp_ns, values).map(whole);
-        }
         out[..HEADER_LEN].copy_from_slice(self.header(addr, seq, stamp_ns, needed).as_bytes());
         let mut val_at = self.values_at();
         let mut items = 0;
@@ -303,10 +316,6 @@ impl SnapshotLayout {
             .zip(values)
             .all(|(e, v)| e.val_len.get() as usize == value_len(&v.as_value()))
     }
-}
-
-fn whole(len: usize) -> Written {
-    Written::Whole { len }
 }
 
 /// Writes `v`'s bytes (little-endian) into `dst`, which is exactly as long.
