@@ -16,6 +16,8 @@
 //!
 //! The table is allocated once; payloads kept for retransmission live in per-slot buffers that
 //! are reused, so the hot path does not allocate once a buffer has grown to the payload size.
+//! Finding a call costs the same whatever the number outstanding: a handle names its slot, an
+//! answer finds its call through a (peer, sequence) index, and free slots wait on a stack.
 
 use core::time::Duration;
 
@@ -23,8 +25,9 @@ use modbot_ipc_schema::{Addr, Seq};
 
 use crate::error::CallError;
 
-/// The most calls one module has outstanding at once.
-pub const MAX_OUTSTANDING: usize = 256;
+/// The most calls one module has outstanding at once (a slot index fits a byte, and one
+/// value of it means "none").
+pub const MAX_OUTSTANDING: usize = 255;
 
 /// Payload bytes a slot keeps without growing its buffer.
 const KEPT_PAYLOAD: usize = 256;
@@ -96,6 +99,9 @@ impl CallOptions {
 }
 
 /// A call waiting in the method queue.
+///
+/// Its low byte is the slot the call occupies, the rest counts calls: a handle is never
+/// reused, and it finds its slot without a search.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct CallHandle(u64);
 
@@ -103,7 +109,14 @@ impl CallHandle {
     pub fn id(self) -> u64 {
         self.0
     }
+
+    fn slot(self) -> usize {
+        (self.0 & 0xff) as usize
+    }
 }
+
+/// No slot, in the (peer, sequence) index.
+const NO_SLOT: u8 = u8::MAX;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum SlotState {
@@ -211,6 +224,11 @@ pub struct MethodQueue {
     in_use: Vec<u32>,
     /// Per peer, where the round-robin search for a free sequence number starts.
     next_seq: Vec<u8>,
+    /// Per peer and sequence number, the slot of the call that holds it ([`NO_SLOT`] if none).
+    by_seq: Vec<[u8; 32]>,
+    /// Slots free, taken from the end.
+    free: Vec<u8>,
+    /// Counts calls, for their handles.
     next_handle: u64,
     /// Earliest deadline of any slot, so the expiry scan runs only when one is due.
     earliest_ns: u64,
@@ -226,6 +244,8 @@ impl Default for MethodQueue {
                 .collect(),
             in_use: vec![0; 256],
             next_seq: vec![0; 256],
+            by_seq: vec![[NO_SLOT; 32]; 256],
+            free: (0..MAX_OUTSTANDING as u8).rev().collect(),
             next_handle: 1,
             earliest_ns: u64::MAX,
             len: 0,
@@ -247,11 +267,7 @@ impl MethodQueue {
         if self.in_use[p] == u32::MAX {
             return Err(CallError::TooManyOutstanding(peer));
         }
-        let free_slot = self
-            .slots
-            .iter()
-            .position(Option::is_none)
-            .ok_or(CallError::QueueFull(self.len))?;
+        let free_slot = usize::from(*self.free.last().ok_or(CallError::QueueFull(self.len))?);
         let mut n = self.next_seq[p];
         while self.in_use[p] & (1 << n) != 0 {
             n = (n + 1) & Seq::MAX;
@@ -259,7 +275,9 @@ impl MethodQueue {
         self.next_seq[p] = (n + 1) & Seq::MAX;
         self.in_use[p] |= 1 << n;
         let seq = Seq::new(n).expect("masked to 5 bits");
-        let handle = CallHandle(self.next_handle);
+        self.free.pop();
+        self.by_seq[p][usize::from(n)] = free_slot as u8;
+        let handle = CallHandle((self.next_handle << 8) | free_slot as u64);
         self.next_handle += 1;
         let timeout_ns = timeout.as_nanos() as u64;
         let deadline_ns = now_ns.saturating_add(timeout_ns);
@@ -292,9 +310,11 @@ impl MethodQueue {
     }
 
     fn index(&self, handle: CallHandle) -> Option<usize> {
+        let i = handle.slot();
         self.slots
-            .iter()
-            .position(|s| s.is_some_and(|s| s.handle == handle))
+            .get(i)?
+            .is_some_and(|s| s.handle == handle)
+            .then_some(i)
     }
 
     /// The buffer to keep `handle`'s payload in for retransmission (cleared, capacity kept).
@@ -337,9 +357,10 @@ impl MethodQueue {
     /// answers its retransmissions too): its sequence number stays in quarantine as a timed-out
     /// call's does, so that a late second answer is not taken for a newer call that reused it.
     pub fn answer(&mut self, peer: Addr, seq: Seq, now_ns: u64) -> Option<Answered> {
-        let i = self.slots.iter().position(|s| {
-            s.is_some_and(|s| s.peer == peer && s.seq == seq && s.state == SlotState::Waiting)
-        })?;
+        let i = usize::from(self.by_seq[usize::from(peer.0)][usize::from(seq.get())]);
+        self.slots
+            .get(i)?
+            .filter(|s| s.peer == peer && s.seq == seq && s.state == SlotState::Waiting)?;
         let mut slot = self.slots[i].take().expect("found above");
         if slot.sends > 1 {
             let until_ns = now_ns + quarantine_ns(slot.timeout);
@@ -347,7 +368,7 @@ impl MethodQueue {
             self.slots[i] = Some(slot);
             self.earliest_ns = self.earliest_ns.min(until_ns);
         } else {
-            self.release(slot);
+            self.release(i, slot);
         }
         Some(Answered {
             handle: slot.handle,
@@ -360,12 +381,16 @@ impl MethodQueue {
     pub fn cancel(&mut self, handle: CallHandle) {
         if let Some(i) = self.index(handle) {
             let slot = self.slots[i].take().expect("found above");
-            self.release(slot);
+            self.release(i, slot);
         }
     }
 
-    fn release(&mut self, slot: Slot) {
-        self.in_use[usize::from(slot.peer.0)] &= !(1 << slot.seq.get());
+    /// Frees slot `i`, which held `slot` (already taken out of the table).
+    fn release(&mut self, i: usize, slot: Slot) {
+        let p = usize::from(slot.peer.0);
+        self.in_use[p] &= !(1 << slot.seq.get());
+        self.by_seq[p][usize::from(slot.seq.get())] = NO_SLOT;
+        self.free.push(i as u8);
         self.len -= 1;
     }
 
@@ -419,7 +444,7 @@ impl MethodQueue {
                 }
                 SlotState::Quarantined { until_ns } if now_ns >= until_ns => {
                     self.slots[i] = None;
-                    self.release(slot);
+                    self.release(i, slot);
                 }
                 SlotState::Quarantined { until_ns } => earliest = earliest.min(until_ns),
             }
@@ -464,12 +489,12 @@ impl MethodQueue {
                 SlotState::Waiting if slot.wait_for_peer => {}
                 SlotState::Waiting => {
                     self.slots[i] = None;
-                    self.release(slot);
+                    self.release(i, slot);
                     on_failed(slot.expired());
                 }
                 SlotState::Quarantined { .. } => {
                     self.slots[i] = None;
-                    self.release(slot);
+                    self.release(i, slot);
                 }
             }
         }
@@ -492,10 +517,9 @@ impl MethodQueue {
 
     /// Whether `handle` still waits.
     pub fn is_waiting(&self, handle: CallHandle) -> bool {
-        self.slots
-            .iter()
-            .flatten()
-            .any(|s| s.handle == handle && s.state == SlotState::Waiting)
+        self.index(handle)
+            .and_then(|i| self.slots[i])
+            .is_some_and(|s| s.state == SlotState::Waiting)
     }
 }
 
@@ -711,6 +735,39 @@ mod tests {
                 .map(|a| (a.handle, a.first_sent_ns)),
             Some((never_sent, None))
         );
+    }
+
+    #[test]
+    fn a_full_queue_refuses_a_call_and_a_freed_slot_takes_the_next_without_reviving_old_handles() {
+        let mut sut = MethodQueue::default();
+        let mut calls = vec![];
+        for i in 0..MAX_OUTSTANDING {
+            let peer = Addr(1 + (i / 32) as u8);
+            calls.push((
+                peer,
+                sut.begin(peer, 0, one_second(), Purpose::User).unwrap(),
+            ));
+        }
+        assert_eq!(
+            sut.begin(Addr(100), 0, one_second(), Purpose::User),
+            Err(CallError::QueueFull(MAX_OUTSTANDING))
+        );
+        let (peer, (old, seq)) = calls[200];
+        assert_eq!(sut.complete(peer, seq, 0), Some((old, Purpose::User)));
+        let (new, _) = sut
+            .begin(Addr(100), 0, one_second(), Purpose::User)
+            .unwrap();
+        assert_ne!(new, old);
+        assert!(sut.is_waiting(new));
+        assert!(
+            !sut.is_waiting(old),
+            "a handle names one call, never a later one"
+        );
+        assert_eq!(sut.payload_buffer(old).map(|b| b.len()), None);
+        for &(peer, (h, seq)) in calls.iter().filter(|c| c.1 .0 != old) {
+            assert_eq!(sut.complete(peer, seq, 0), Some((h, Purpose::User)));
+        }
+        assert_eq!(sut.waiting(), 1);
     }
 
     #[test]

@@ -204,20 +204,21 @@ impl Ctx {
         let now = self.now_ns();
         let (handle, seq) = self.out.calls.begin(addr, now, opts, Purpose::User)?;
         match self.book.method_id(addr, method) {
-            Some(Ok(id)) => match self.send_exec(handle, addr, seq, id, args, opts.keeps_payload())
-            {
-                Ok(()) => Ok(handle),
-                Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
-                    if opts.wait_for_peer =>
-                {
-                    self.park(handle, addr, seq, method, args, opts)?;
-                    Ok(handle)
+            Some(Ok(id)) => {
+                match self.send_exec(handle, (addr, seq, id), args, opts.keeps_payload(), now) {
+                    Ok(()) => Ok(handle),
+                    Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
+                        if opts.wait_for_peer =>
+                    {
+                        self.park(handle, addr, seq, method, args, opts)?;
+                        Ok(handle)
+                    }
+                    Err(e) => {
+                        self.out.calls.cancel(handle);
+                        Err(self.explain(addr, e))
+                    }
                 }
-                Err(e) => {
-                    self.out.calls.cancel(handle);
-                    Err(self.explain(addr, e))
-                }
-            },
+            }
             Some(Err(e)) => {
                 self.out.calls.cancel(handle);
                 Err(e)
@@ -230,16 +231,16 @@ impl Ctx {
         }
     }
 
-    /// Sends call `handle` as an EXEC of method `id` with `args`. With `keep`, the payload is
-    /// encoded into the call's retransmission buffer first and sent from there.
+    /// Sends call `handle` to `addr` as an EXEC of method `id` with `args`, begun at `now`
+    /// (the clock is read once per call). With `keep`, the payload is encoded into the call's
+    /// retransmission buffer first and sent from there.
     fn send_exec(
         &mut self,
         handle: CallHandle,
-        addr: Addr,
-        seq: Seq,
-        id: u8,
+        (addr, seq, id): (Addr, Seq, u8),
         args: &[Value<'_>],
         keep: bool,
+        now: u64,
     ) -> Result<(), CallError> {
         let spec = FrameSpec {
             dst: addr,
@@ -266,7 +267,6 @@ impl Ctx {
         } else {
             self.send_values(Dest::Module(addr), spec, args)?;
         }
-        let now = self.now_ns();
         self.out.calls.sent(handle, id, now, keep);
         Ok(())
     }
@@ -330,7 +330,7 @@ impl Ctx {
         let Ok((handle, seq)) = self.out.calls.begin(addr, now, opts, Purpose::Describe) else {
             return;
         };
-        match self.send_exec(handle, addr, seq, sysmethod::DESCRIBE, &[], true) {
+        match self.send_exec(handle, (addr, seq, sysmethod::DESCRIBE), &[], true, now) {
             Ok(()) => self.out.describing[usize::from(addr.0)] = true,
             Err(e) => {
                 tracing::debug!("cannot ask module {addr} for its methods: {e}");

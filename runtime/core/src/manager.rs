@@ -100,7 +100,7 @@ pub(crate) fn dispatch<S>(
                 }
                 Purpose::User => {
                     if let Some(sent) = answered.first_sent_ns {
-                        let latency = ctx.now_ns().saturating_sub(sent);
+                        let latency = now.saturating_sub(sent);
                         ctx.stats.latency.record(latency);
                     }
                     match &result {
@@ -248,8 +248,10 @@ fn serve_request<S>(
         }
     };
     let buf = core::mem::take(&mut reply.buf);
-    ctx.serving.served.record(src, seq, method, kind, &buf);
     let sent = ctx.send_raw(Dest::Module(src), spec(kind), &buf);
+    // Recorded after the answer left: the copy is not on the caller's path, and no frame of
+    // the caller can come in between (this thread serves them one after the other).
+    ctx.serving.served.record(src, seq, method, kind, &buf);
     reply.buf = buf;
     if let Err(e) = sent {
         tracing::debug!("answer to {src} not delivered: {e}");

@@ -21,10 +21,12 @@
 //!   assigned without them: the supervisor's directory says who holds what);
 //! - `inbox.N`: publish-subscribe `[u8]`, module N's only subscriber; senders open a publisher
 //!   on first use. Full inboxes refuse new frames (no silent overwrite): the sender sees it;
-//! - `wake.N`: event, for modules in blocking mode;
 //! - `bcast` and `group.NAME`: publish-subscribe for broadcast and multicast, subscribed only
 //!   by the modules that listen (see [`Joins`]); a module opens its publisher on its first
 //!   broadcast;
+//! - not a service: the wake-up table `/dev/shm/modbot_<domain>.wake`, a futex word per
+//!   address and per bus; a module in blocking mode sleeps on its own word and its buses' at
+//!   once, and a sender wakes it with one system call only when it sleeps;
 //! - `bb.N`: module N's blackboard snapshots, history 1;
 //! - `heartbeat`: publish-subscribe, every module publishes its 48-byte heartbeat there and the
 //!   supervisor subscribes (one publisher per module, few subscribers: it stays small);

@@ -2,31 +2,30 @@
 //!
 //! - this file: endpoints (inbox, broadcast and groups, wake-ups, heartbeats, snapshots);
 //! - `directory`: who is in the domain (the supervisor's published directory, or a scan).
-//! - `relay`: calls of tools without a module address, made by the supervisor.
+//! - `relay`: calls of tools without a module address, made by the supervisor;
+//! - `wake`: the wake-ups of modules in blocking mode (futex words in shared memory).
 
 mod channels;
 mod directory;
 mod relay;
+mod wake;
 
 pub use channels::IpcChannels;
 pub use directory::DirectoryWriter;
 use directory::{PublishedDirectory, ScannedDirectory};
 pub use relay::{RelayClient, RelayRequest, RelayServer};
+use wake::{WakeTable, Word};
 
 use core::time::Duration;
 use std::collections::HashMap;
-use std::os::fd::BorrowedFd;
+use std::sync::Arc;
 
 use iceoryx2::config::Config;
-use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
-use iceoryx2::service::builder::event::EventOpenError;
 use modbot_ipc_schema::Addr;
-use nix::poll::{PollFd, PollFlags};
 
 use super::{
     check_name, Dest, Directory, Endpoint, Joins, ReceiveMode, Rx, SendError, Snapshots, Transport,
@@ -39,9 +38,6 @@ type Sub = Subscriber<ipc::Service, [u8], ()>;
 
 /// Most modules (and tools) a domain holds at once, plus room for stale ports.
 const MAX_NODES: usize = 300;
-/// Listeners of a module's own wake-up event: its own, and a restarted one's while the dead
-/// one's is not cleaned up yet. (A broadcast bus's has one per listening module.)
-const OWN_WAKE_LISTENERS: usize = 2;
 /// Frames an inbox holds before it refuses more.
 const INBOX_DEPTH: usize = 64;
 /// Largest broadcast or multicast frame.
@@ -284,22 +280,6 @@ fn shared_bus(
     )
 }
 
-fn wake_service(
-    node: &Node<ipc::Service>,
-    name: &str,
-    listeners: usize,
-) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, TransportError> {
-    ipc!(
-        "open wake-up event",
-        node.service_builder(&service_name(name)?)
-            .event()
-            .max_listeners(listeners)
-            .max_notifiers(MAX_NODES)
-            .max_nodes(MAX_NODES)
-            .open_or_create()
-    )
-}
-
 /// Refuses `addr` or `name` if the published directory lists another live process with it.
 fn refuse_taken(dir: &PublishedDirectory, addr: Addr, name: &str) -> Result<(), TransportError> {
     let mut taken = Ok(());
@@ -322,26 +302,6 @@ fn refuse_taken(dir: &PublishedDirectory, addr: Addr, name: &str) -> Result<(), 
         }
     })?;
     taken
-}
-
-/// A module's wake-up event `name` if it exists (the module, in blocking mode, created it).
-fn open_wake_service(
-    node: &Node<ipc::Service>,
-    name: &str,
-) -> Result<Option<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>, TransportError>
-{
-    match node
-        .service_builder(&service_name(name)?)
-        .event()
-        .max_listeners(OWN_WAKE_LISTENERS)
-        .max_notifiers(MAX_NODES)
-        .max_nodes(MAX_NODES)
-        .open()
-    {
-        Ok(f) => Ok(Some(f)),
-        Err(EventOpenError::DoesNotExist) => Ok(None),
-        Err(e) => Err(ipc_err("open wake-up event")(&e)),
-    }
 }
 
 /// The service every module publishes its heartbeat on.
@@ -406,31 +366,22 @@ impl Transport for IpcTransport {
             }
             self.claim(&node, addr, name)?
         };
-        // The wake-up listeners first: a sender opens a notifier only if `wake.N` exists when it
-        // opens the inbox, so it must exist before the inbox does.
         let bus_names: Vec<String> = joins
             .broadcast
             .then(|| "bcast".to_owned())
             .into_iter()
             .chain(joins.groups.iter().map(|g| format!("group.{g}")))
             .collect();
-        let mut listeners = Vec::new();
-        if mode == ReceiveMode::Blocking {
-            listeners.push(ipc!(
-                "wake listener",
-                wake_service(&node, &format!("wake.{}", addr.0), OWN_WAKE_LISTENERS)?
-                    .listener_builder()
-                    .create()
-            )?);
-            for bus in &bus_names {
-                listeners.push(ipc!(
-                    "bus listener",
-                    wake_service(&node, &format!("{bus}.wake"), MAX_NODES)?
-                        .listener_builder()
-                        .create()
-                )?);
+        let table = Arc::new(WakeTable::open(&self.domain)?);
+        // A sleeping module waits on its own word and its buses' (groups may share one).
+        let mut words = vec![Word::module(addr)];
+        for bus in &bus_names {
+            let w = Word::bus(bus);
+            if !words.contains(&w) {
+                words.push(w);
             }
         }
+        debug_assert!(words.len() <= wake::MAX_WAIT_WORDS);
         let inbox = ipc!(
             "inbox subscriber",
             inbox_service(&node, addr, self.domain.max_frame())?
@@ -458,20 +409,14 @@ impl Transport for IpcTransport {
                 .create()
         )?;
         let node = std::rc::Rc::new(node);
-        let polled = listeners
-            .iter()
-            .map(|l| {
-                // SAFETY: the descriptor is the listener's socket; `IpcRx` holds the listener
-                // for as long as it holds this borrow (it drops `polled` first), and the
-                // descriptor is only polled, never closed here.
-                let fd = unsafe { BorrowedFd::borrow_raw(l.file_descriptor().native_handle()) };
-                PollFd::new(fd, PollFlags::POLLIN)
-            })
-            .collect();
+        let sleeps = (mode == ReceiveMode::Blocking).then(|| Sleeper {
+            table: table.clone(),
+            waits: vec![rustix::thread::futex::Wait::new(); words.len()],
+            words,
+        });
         let rx = IpcRx {
-            polled,
             subs,
-            listeners,
+            sleeps,
             next: 0,
         };
         let tx = IpcTx {
@@ -483,9 +428,10 @@ impl Transport for IpcTransport {
             dropped: 0,
             heartbeat: PeerLink {
                 publisher: heartbeat,
-                notifier: None,
+                wake: None,
                 service: None,
             },
+            wake: table,
             _claims: claims,
         };
         let snapshots = IpcSnapshots {
@@ -534,12 +480,16 @@ impl Transport for IpcTransport {
             // A system may be starting: its first node is invisible to a listing for a
             // moment, and removing its files would cut it off. Dead nodes are reaped above
             // (iceoryx2 removes what they held); what stays after a clean exit is the
-            // prefix's global management file, removed when nothing else of the domain exists.
+            // prefix's global management file and the wake-up table, removed when nothing
+            // else of the domain exists.
             let files = self.domain.files();
+            let table = format!("{}{}", self.domain.prefix(), wake::FILE_SUFFIX);
             let only_management = !files.is_empty()
                 && files.iter().all(|f| {
-                    f.file_name()
-                        .is_some_and(|n| n.to_string_lossy().ends_with(".global_mgmt"))
+                    f.file_name().is_some_and(|n| {
+                        let n = n.to_string_lossy();
+                        n.ends_with(".global_mgmt") || n == table.as_str()
+                    })
                 });
             return only_management && self.domain.remove_files_older_than(before) > 0;
         }
@@ -560,20 +510,36 @@ impl Transport for IpcTransport {
     }
 }
 
+/// How a module in blocking mode sleeps: on its words of the domain's wake-up table.
+struct Sleeper {
+    table: Arc<WakeTable>,
+    /// Its own word, then its buses'.
+    words: Vec<Word>,
+    /// Scratch space for the wait, so that waiting allocates nothing.
+    waits: Vec<rustix::thread::futex::Wait>,
+}
+
 struct IpcRx {
-    /// The listeners' sockets, polled in place (no allocation per wait). Declared first, so it
-    /// is dropped before the listeners whose descriptors it borrows.
-    polled: Vec<PollFd<'static>>,
     /// The inbox first, then broadcast and the groups.
     subs: Vec<Sub>,
-    /// Wake-up listeners (blocking mode only): own, broadcast, groups.
-    listeners: Vec<Listener<ipc::Service>>,
+    /// Blocking mode only.
+    sleeps: Option<Sleeper>,
     /// Which bus to look at first next time, so broadcast cannot starve the inbox or back.
     next: usize,
 }
 
 impl Rx for IpcRx {
     fn try_receive(&mut self, on_frame: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
+        if let [inbox] = self.subs.as_slice() {
+            // Only an inbox (most modules): no turn to take.
+            return Ok(match ipc!("receive", inbox.receive())? {
+                Some(sample) => {
+                    on_frame(sample.payload());
+                    true
+                }
+                None => false,
+            });
+        }
         let n = self.subs.len();
         for i in 0..n {
             let idx = (self.next + i) % n;
@@ -587,37 +553,31 @@ impl Rx for IpcRx {
     }
 
     fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
-        if self.listeners.is_empty() {
+        let Some(sleeper) = &mut self.sleeps else {
             std::thread::sleep(timeout.min(Duration::from_micros(50)));
             return Ok(());
-        }
-        for sub in &self.subs {
-            if ipc!("has samples", sub.has_samples())? {
-                return Ok(());
-            }
-        }
-        // A nanosecond timeout: `poll`'s milliseconds would turn a wait of less than one into
-        // a busy loop until the deadline.
-        let timeout = nix::sys::time::TimeSpec::from(timeout.min(Duration::from_secs(60)));
-        match nix::poll::ppoll(&mut self.polled, Some(timeout), None) {
-            Ok(_) | Err(nix::errno::Errno::EINTR) => {}
-            Err(e) => return Err(ipc_err("poll")(&e)),
-        }
-        // Only a listener whose socket has a datagram was notified since it was last drained
-        // (a notifier sends one whenever the listener's state was clear): one read per
-        // wake-up, not one per listener.
-        for (l, fd) in self.listeners.iter().zip(&self.polled) {
-            if fd.revents().is_some_and(|r| !r.is_empty()) {
-                ipc!("drain wake-ups", l.try_wait(|_| {}))?;
-            }
-        }
-        Ok(())
+        };
+        let subs = &self.subs;
+        sleeper.table.wait(
+            &sleeper.words,
+            &mut sleeper.waits,
+            &mut || {
+                for sub in subs {
+                    if ipc!("has samples", sub.has_samples())? {
+                        return Ok(true);
+                    }
+                }
+                Ok(false)
+            },
+            timeout,
+        )
     }
 }
 
 struct PeerLink {
     publisher: Pub,
-    notifier: Option<Notifier<ipc::Service>>,
+    /// Whom to wake after a frame is delivered (a module's or a bus's word).
+    wake: Option<Word>,
     /// The inbox service this link reaches (modules only), to tell a full inbox from one that
     /// nobody reads any more.
     service: Option<
@@ -636,6 +596,8 @@ struct IpcTx {
     dropped: u64,
     /// The heartbeat publisher.
     heartbeat: PeerLink,
+    /// The domain's wake-up table.
+    wake: Arc<WakeTable>,
     /// Held for the endpoint's life: they make the address and the name ours.
     _claims: Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
 }
@@ -656,14 +618,9 @@ impl IpcTx {
                 .backpressure_strategy(BackpressureStrategy::DiscardData)
                 .create()
         )?;
-        // A module in blocking mode listens on `wake.N`; one that spins has no such service.
-        let notifier = match open_wake_service(&self.node, &format!("wake.{}", to.0))? {
-            Some(wake) => Some(ipc!("wake notifier", wake.notifier_builder().create())?),
-            None => None,
-        };
         self.peers[usize::from(to.0)] = Some(PeerLink {
             publisher,
-            notifier,
+            wake: Some(Word::module(to)),
             service: Some(service),
         });
         Ok(())
@@ -682,17 +639,11 @@ impl IpcTx {
                 .backpressure_strategy(BackpressureStrategy::DiscardData)
                 .create()
         )?;
-        let notifier = Some(ipc!(
-            "bus notifier",
-            wake_service(&self.node, &format!("{bus}.wake"), MAX_NODES)?
-                .notifier_builder()
-                .create()
-        )?);
         self.buses.insert(
             bus.to_owned(),
             PeerLink {
                 publisher,
-                notifier,
+                wake: Some(Word::bus(bus)),
                 service: None,
             },
         );
@@ -702,6 +653,7 @@ impl IpcTx {
 
 fn send_on(
     link: &PeerLink,
+    wake: Option<&WakeTable>,
     len: usize,
     fill: &mut dyn FnMut(&mut [u8]),
 ) -> Result<usize, TransportError> {
@@ -719,8 +671,8 @@ fn send_on(
     let sample = unsafe { sample.assume_init() };
     let delivered = ipc!("send", sample.send())?;
     if delivered > 0 {
-        if let Some(n) = &link.notifier {
-            ipc!("notify", n.notify())?;
+        if let (Some(table), Some(word)) = (wake, link.wake) {
+            table.notify(word);
         }
     }
     Ok(delivered)
@@ -746,7 +698,7 @@ impl Tx for IpcTx {
                 let link = self.peers[usize::from(addr.0)]
                     .as_ref()
                     .expect("opened above");
-                let delivered = send_on(link, len, fill)?;
+                let delivered = send_on(link, Some(&self.wake), len, fill)?;
                 if delivered == 0 {
                     self.dropped += 1;
                     let subscribers = link
@@ -778,7 +730,7 @@ impl Tx for IpcTx {
                 };
                 self.open_bus(&bus)?;
                 let link = &self.buses[&bus];
-                send_on(link, len, fill)?;
+                send_on(link, Some(&self.wake), len, fill)?;
                 Ok(())
             }
         }
@@ -800,7 +752,7 @@ impl Tx for IpcTx {
     }
 
     fn heartbeat(&mut self, beat: &[u8]) -> Result<(), TransportError> {
-        send_on(&self.heartbeat, beat.len(), &mut |buf| {
+        send_on(&self.heartbeat, None, beat.len(), &mut |buf| {
             buf.copy_from_slice(beat)
         })
         .map(|_| ())
@@ -897,10 +849,10 @@ impl Snapshots for IpcSnapshots {
         }
         let link = PeerLink {
             publisher: self.publisher.take().expect("created above"),
-            notifier: None,
+            wake: None,
             service: None,
         };
-        let result = send_on(&link, len, fill);
+        let result = send_on(&link, None, len, fill);
         self.publisher = Some(link.publisher);
         result.map(|_| ())
     }

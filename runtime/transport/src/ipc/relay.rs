@@ -7,7 +7,6 @@ use std::time::Instant;
 
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::client::Client;
-use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
 use iceoryx2::service::builder::request_response::RequestResponseOpenError;
@@ -15,7 +14,8 @@ use iceoryx2::service::port_factory::request_response::PortFactory;
 
 use modbot_ipc_schema::Addr;
 
-use super::{ipc_err, open_wake_service, service_name, IpcTransport};
+use super::wake::{WakeTable, Word};
+use super::{ipc_err, service_name, IpcTransport};
 use crate::TransportError;
 
 /// The relay service.
@@ -110,8 +110,8 @@ impl RelayServer {
 /// A tool's side.
 pub struct RelayClient {
     client: Client<ipc::Service, [u8], (), [u8], ()>,
-    /// Wakes the supervisor (it sleeps in blocking mode).
-    wake: Option<Notifier<ipc::Service>>,
+    /// Wakes the supervisor (it sleeps in blocking mode): the domain's table and its word.
+    wake: (WakeTable, Word),
     _service: Factory,
     _node: Node<ipc::Service>,
 }
@@ -134,14 +134,10 @@ impl RelayClient {
             .allocation_strategy(AllocationStrategy::Static)
             .create()
             .map_err(|e| ipc_err("relay client")(&e))?;
-        let wake = match open_wake_service(&node, &format!("wake.{}", supervisor.0))? {
-            Some(w) => Some(
-                w.notifier_builder()
-                    .create()
-                    .map_err(|e| ipc_err("relay wake-up")(&e))?,
-            ),
-            None => None,
-        };
+        let wake = (
+            WakeTable::open(transport.domain())?,
+            Word::module(supervisor),
+        );
         Ok(Some(RelayClient {
             client,
             wake,
@@ -189,9 +185,7 @@ impl RelayClient {
                 in_flight.push((next, pending, Instant::now() + timeout));
                 next += 1;
             }
-            if let Some(w) = &self.wake {
-                w.notify().map_err(|e| ipc_err("wake the supervisor")(&e))?;
-            }
+            self.wake.0.notify(self.wake.1);
             let mut progress = false;
             let mut i = 0;
             while i < in_flight.len() {

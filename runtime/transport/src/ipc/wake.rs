@@ -1,0 +1,266 @@
+//! Wake-ups of modules in blocking mode: futex words in one shared-memory table per domain.
+//!
+//! The table (`/dev/shm/modbot_<domain>.wake`, mode 0600, removed with the domain's other files)
+//! holds one 32-bit word per module address, one for the broadcast bus and one per group
+//! (a group's word is chosen by a hash of its name; two groups that share a word wake each
+//! other's listeners for nothing, which costs a look at an empty inbox). Each word has a cache
+//! line of its own.
+//!
+//! A module that sleeps waits on its own word and on the words of the buses it listens to, all
+//! at once (`futex_waitv`): one wake-up source for every reason it can be woken, and nothing to
+//! drain after a wake-up. A sender that delivered a frame looks at the receiver's word and
+//! pays for a system call (`FUTEX_WAKE`) only when the receiver said it is going to sleep; a
+//! spinning receiver never says so, and its senders never make the call.
+//!
+//! The words are event counts: bit 31 says "a waiter may sleep on this word", bits 0–30 count
+//! wake-ups. A waiter sets bit 31, looks at its inboxes once more, and sleeps only while the
+//! word still holds the value it set. A notifier, after its frame is in the inbox, reads the
+//! word; if bit 31 is set it writes the count plus one (bit 31 clear) and wakes every sleeper.
+//! Both sides order their two steps with sequentially consistent operations, so either the
+//! notifier sees the bit or the waiter sees the frame; and because the count changes, a waiter
+//! that has not slept yet returns at once even when another listener of a shared bus word has
+//! set the bit again meanwhile.
+
+use core::num::NonZeroUsize;
+use core::ptr::NonNull;
+use core::sync::atomic::{fence, AtomicU32, Ordering};
+use core::time::Duration;
+use std::io::ErrorKind;
+use std::os::unix::fs::OpenOptionsExt;
+use std::path::PathBuf;
+
+use modbot_ipc_schema::Addr;
+use nix::sys::mman::{mmap, munmap, MapFlags, ProtFlags};
+use rustix::thread::futex;
+
+use crate::domain::Domain;
+use crate::TransportError;
+
+/// Bit 31: a waiter may sleep on the word.
+const SLEEPING: u32 = 1 << 31;
+/// Bytes per word: a cache line each, so two modules' words never share one.
+const LINE: usize = 64;
+/// The broadcast bus's word, after the 256 addresses'.
+const BROADCAST: u16 = 256;
+/// Words for multicast groups, after the broadcast's.
+const GROUP_WORDS: u16 = 64;
+/// Words in the table.
+const WORDS: usize = (BROADCAST + 1 + GROUP_WORDS) as usize;
+/// The table's size in bytes.
+pub(crate) const TABLE_LEN: usize = WORDS * LINE;
+/// The most words one wait looks at (`futex_waitv` takes at most 128).
+pub(crate) const MAX_WAIT_WORDS: usize = 2 + GROUP_WORDS as usize;
+/// The table's file name after the domain's prefix.
+pub(crate) const FILE_SUFFIX: &str = "wake";
+
+/// One word of the table: whom it wakes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Word(u16);
+
+impl Word {
+    /// The word of the module at `addr`.
+    pub fn module(addr: Addr) -> Word {
+        Word(u16::from(addr.0))
+    }
+
+    /// The word of the listeners of bus `name` (`bcast` or `group.NAME`).
+    pub fn bus(name: &str) -> Word {
+        match name.strip_prefix("group.") {
+            None => Word(BROADCAST),
+            Some(group) => {
+                // FNV-1a: stable across processes and builds, unlike the std hasher.
+                let hash = group.bytes().fold(0x811c_9dc5_u32, |h, b| {
+                    (h ^ u32::from(b)).wrapping_mul(0x0100_0193)
+                });
+                Word(BROADCAST + 1 + (hash % u32::from(GROUP_WORDS)) as u16)
+            }
+        }
+    }
+}
+
+/// The wake-up table of one domain, mapped into this process.
+#[derive(Debug)]
+pub struct WakeTable {
+    base: NonNull<u8>,
+    path: PathBuf,
+}
+
+// SAFETY: the table is shared memory that is only accessed through atomics; the mapping stays
+// valid until `drop`, which only the last owner runs.
+unsafe impl Send for WakeTable {}
+// SAFETY: as above: every access is atomic.
+unsafe impl Sync for WakeTable {}
+
+impl WakeTable {
+    /// Maps the table of `domain`, creating it if no process of the domain has yet.
+    pub fn open(domain: &Domain) -> Result<WakeTable, TransportError> {
+        let path = PathBuf::from(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()));
+        let file = open_or_create(&path).map_err(|e| wake_err(&path, &e))?;
+        let len = file.metadata().map_err(|e| wake_err(&path, &e))?.len();
+        if len != TABLE_LEN as u64 {
+            return Err(TransportError::Ipc {
+                op: "wake-up table",
+                detail: format!(
+                    "{} has {len} bytes, not {TABLE_LEN}: it was left by another modbot version \
+                     (stop the domain with `modbot down`, or remove the file)",
+                    path.display()
+                ),
+            });
+        }
+        // SAFETY: a shared mapping of a file of exactly TABLE_LEN bytes that this process
+        // opened; nothing in this process maps it at a fixed address or truncates it.
+        let base = unsafe {
+            mmap(
+                None,
+                NonZeroUsize::new(TABLE_LEN).expect("not zero"),
+                ProtFlags::PROT_READ | ProtFlags::PROT_WRITE,
+                MapFlags::MAP_SHARED,
+                &file,
+                0,
+            )
+        }
+        .map_err(|e| wake_err(&path, &std::io::Error::from(e)))?;
+        Ok(WakeTable {
+            base: base.cast(),
+            path,
+        })
+    }
+
+    fn word(&self, w: Word) -> &AtomicU32 {
+        let offset = usize::from(w.0) * LINE;
+        debug_assert!(offset + 4 <= TABLE_LEN);
+        // SAFETY: every `Word` indexes a line inside the TABLE_LEN bytes mapped at `base`
+        // (addresses 0–255, the broadcast word, the group words), which is page aligned, so
+        // the word is aligned; the memory lives as long as `self`, and every process touches
+        // it only through atomics.
+        unsafe { &*self.base.as_ptr().add(offset).cast::<AtomicU32>() }
+    }
+
+    /// Wakes whoever sleeps on `w`. Call it after the frame is in the receiver's inbox.
+    pub fn notify(&self, w: Word) {
+        let word = self.word(w);
+        // Orders the frame's delivery before the look at the word (see the module docs).
+        fence(Ordering::SeqCst);
+        let seen = word.load(Ordering::Relaxed);
+        if seen & SLEEPING == 0 {
+            return;
+        }
+        word.store(seen.wrapping_add(1) & !SLEEPING, Ordering::SeqCst);
+        // Every listener of a bus word, the one module of an address's word.
+        if let Err(e) = futex::wake(word, futex::Flags::empty(), u32::MAX) {
+            tracing::debug!("futex wake of {}: {e}", self.path.display());
+        }
+    }
+
+    /// Sleeps on `words` until one is notified, `timeout` passes or a signal arrives, unless
+    /// `ready` (the look at the inboxes) finds something first. `waits` is scratch space of
+    /// at least `words.len()` entries, kept by the caller so that a wait allocates nothing.
+    pub fn wait(
+        &self,
+        words: &[Word],
+        waits: &mut [futex::Wait],
+        ready: &mut dyn FnMut() -> Result<bool, TransportError>,
+        timeout: Duration,
+    ) -> Result<(), TransportError> {
+        let n = words.len().min(waits.len());
+        for (w, wait) in words.iter().zip(waits.iter_mut()) {
+            let word = self.word(*w);
+            let value = word.fetch_or(SLEEPING, Ordering::SeqCst) | SLEEPING;
+            wait.val = u64::from(value);
+            wait.uaddr = futex::WaitPtr::new(core::ptr::from_ref(word).cast_mut().cast());
+            wait.flags = futex::WaitFlags::SIZE_U32;
+        }
+        if ready()? {
+            return Ok(());
+        }
+        let now = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
+        let timeout = timeout.min(Duration::from_secs(60));
+        let mut deadline = futex::Timespec {
+            tv_sec: now.tv_sec + timeout.as_secs() as i64,
+            tv_nsec: now.tv_nsec + i64::from(timeout.subsec_nanos()),
+        };
+        if deadline.tv_nsec >= 1_000_000_000 {
+            deadline.tv_sec += 1;
+            deadline.tv_nsec -= 1_000_000_000;
+        }
+        match futex::waitv(
+            &waits[..n],
+            futex::WaitvFlags::empty(),
+            Some(&deadline),
+            futex::ClockId::Monotonic,
+        ) {
+            // Woken, a word changed before the sleep, the time is up, or a signal came.
+            Ok(_)
+            | Err(rustix::io::Errno::AGAIN)
+            | Err(rustix::io::Errno::TIMEDOUT)
+            | Err(rustix::io::Errno::INTR) => Ok(()),
+            Err(e) => Err(TransportError::Ipc {
+                op: "wait for a wake-up",
+                detail: format!("futex_waitv: {e} (needs Linux 5.16 or later)"),
+            }),
+        }
+    }
+}
+
+impl Drop for WakeTable {
+    fn drop(&mut self) {
+        // SAFETY: the mapping made in `open`, of TABLE_LEN bytes; no reference into it outlives
+        // `self` (`word` borrows `self`).
+        if let Err(e) = unsafe { munmap(self.base.cast(), TABLE_LEN) } {
+            tracing::debug!("unmapping {}: {e}", self.path.display());
+        }
+    }
+}
+
+/// Opens the table's file, or creates it whole: written at a name of this process's own, sized,
+/// then linked to its real name, so no process ever maps a table that is not full size.
+fn open_or_create(path: &std::path::Path) -> std::io::Result<std::fs::File> {
+    let open = || {
+        std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(path)
+    };
+    match open() {
+        Err(e) if e.kind() == ErrorKind::NotFound => {}
+        other => return other,
+    }
+    let scratch = path.with_extension(format!("wake.{}.new", std::process::id()));
+    let made = (|| {
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create_new(true)
+            .mode(0o600)
+            .open(&scratch)?;
+        file.set_len(TABLE_LEN as u64)?;
+        match std::fs::hard_link(&scratch, path) {
+            Err(e) if e.kind() == ErrorKind::AlreadyExists => Ok(()),
+            other => other,
+        }
+    })();
+    let _ = std::fs::remove_file(&scratch);
+    made?;
+    open()
+}
+
+fn wake_err(path: &std::path::Path, e: &std::io::Error) -> TransportError {
+    TransportError::Ipc {
+        op: "wake-up table",
+        detail: format!("{}: {e}", path.display()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn group_words_are_stable_and_apart_from_modules_and_broadcast() {
+        assert_eq!(Word::bus("bcast"), Word(BROADCAST));
+        let g = Word::bus("group.arm");
+        assert_eq!(g, Word::bus("group.arm"));
+        assert!(g.0 > BROADCAST && usize::from(g.0) < WORDS);
+        assert_eq!(Word::module(Addr(254)), Word(254));
+    }
+}
