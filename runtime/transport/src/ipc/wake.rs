@@ -256,6 +256,72 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_table_is_laid_out_as_ipc_schema_readme_says() {
+        assert_eq!(TABLE_LEN, 20_544);
+        assert_eq!(WORDS, 321);
+        // FNV-1a of "arm" is 0x386f_27b5 ("group.arm" hashes the group's name only).
+        assert_eq!(
+            Word::bus("group.arm"),
+            Word(257 + (0x386f_27b5_u32 % 64) as u16)
+        );
+    }
+
+    #[test]
+    fn a_waiter_returns_when_woken_and_at_once_when_the_word_changed_before_it_slept() {
+        let domain = Domain::new(&format!("waketest{}", std::process::id())).unwrap();
+        /// Removes the test's table however the test ends.
+        struct Removed(String);
+        impl Drop for Removed {
+            fn drop(&mut self) {
+                let _ = std::fs::remove_file(&self.0);
+            }
+        }
+        let _file = Removed(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()));
+        let table = std::sync::Arc::new(WakeTable::open(&domain).unwrap());
+        let me = [Word::module(Addr(7))];
+        let mut waits = [futex::Wait::new(); 1];
+        // Notified between the announcement and the sleep: the wait does not sleep.
+        let t = table.clone();
+        let start = std::time::Instant::now();
+        table
+            .wait(
+                &me,
+                &mut waits,
+                &mut || {
+                    t.notify(Word::module(Addr(7)));
+                    Ok(false)
+                },
+                Duration::from_secs(60),
+            )
+            .unwrap();
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "a changed word ends the wait"
+        );
+        // Asleep, then woken by another thread (which notifies until the wait is over: a
+        // notification before the waiter announced itself is not one it waits for).
+        let t = table.clone();
+        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let over = done.clone();
+        let waker = std::thread::spawn(move || {
+            while !over.load(Ordering::SeqCst) {
+                std::thread::sleep(Duration::from_millis(10));
+                t.notify(Word::module(Addr(7)));
+            }
+        });
+        let start = std::time::Instant::now();
+        table
+            .wait(&me, &mut waits, &mut || Ok(false), Duration::from_secs(60))
+            .unwrap();
+        done.store(true, Ordering::SeqCst);
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the wake-up ended the wait"
+        );
+        waker.join().unwrap();
+    }
+
+    #[test]
     fn group_words_are_stable_and_apart_from_modules_and_broadcast() {
         assert_eq!(Word::bus("bcast"), Word(BROADCAST));
         let g = Word::bus("group.arm");
