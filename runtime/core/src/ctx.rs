@@ -183,6 +183,12 @@ impl Ctx {
         args: &[Value<'_>],
         opts: CallOptions,
     ) -> Result<CallHandle, CallError> {
+        if let Some((addr, id)) = self.book.resolved(module, method) {
+            // The same method as last time, and the book has not changed since.
+            let now = self.now_ns();
+            let (handle, seq) = self.out.calls.begin(addr, now, opts, Purpose::User)?;
+            return self.send_call(handle, (addr, seq, id), method, args, opts, now);
+        }
         let addr = match self.book.lookup(module) {
             Ok(e) => e.addr,
             Err(_) => {
@@ -205,19 +211,11 @@ impl Ctx {
         let (handle, seq) = self.out.calls.begin(addr, now, opts, Purpose::User)?;
         match self.book.method_id(addr, method) {
             Some(Ok(id)) => {
-                match self.send_exec(handle, (addr, seq, id), args, opts.keeps_payload(), now) {
-                    Ok(()) => Ok(handle),
-                    Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
-                        if opts.wait_for_peer =>
-                    {
-                        self.park(handle, addr, seq, method, args, opts)?;
-                        Ok(handle)
-                    }
-                    Err(e) => {
-                        self.out.calls.cancel(handle);
-                        Err(self.explain(addr, e))
-                    }
+                let sent = self.send_call(handle, (addr, seq, id), method, args, opts, now);
+                if sent.is_ok() && self.book.get(addr).is_some_and(|e| e.alive) {
+                    self.book.remember(module, method, addr, id);
                 }
+                sent
             }
             Some(Err(e)) => {
                 self.out.calls.cancel(handle);
@@ -227,6 +225,32 @@ impl Ctx {
                 self.park(handle, addr, seq, method, args, opts)?;
                 self.describe(addr);
                 Ok(handle)
+            }
+        }
+    }
+
+    /// Sends call `handle`; a peer that is down or full parks it if the caller waits for the
+    /// peer, any other failure ends it.
+    fn send_call(
+        &mut self,
+        handle: CallHandle,
+        (addr, seq, id): (Addr, Seq, u8),
+        method: &str,
+        args: &[Value<'_>],
+        opts: CallOptions,
+        now: u64,
+    ) -> Result<CallHandle, CallError> {
+        match self.send_exec(handle, (addr, seq, id), args, opts.keeps_payload(), now) {
+            Ok(()) => Ok(handle),
+            Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
+                if opts.wait_for_peer =>
+            {
+                self.park(handle, addr, seq, method, args, opts)?;
+                Ok(handle)
+            }
+            Err(e) => {
+                self.out.calls.cancel(handle);
+                Err(self.explain(addr, e))
             }
         }
     }

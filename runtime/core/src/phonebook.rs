@@ -36,6 +36,31 @@ pub struct PhoneBook {
     /// Name → the address of the live module of that name, else of a dead one: a call
     /// resolves its callee without comparing every name of a full domain.
     by_name: HashMap<String, u8>,
+    /// The last method resolved, so a module that calls one method again and again resolves
+    /// it with two string comparisons; forgotten whenever the book changes.
+    last: Resolved,
+}
+
+/// A method of a live module, resolved to its address and id.
+#[derive(Debug)]
+struct Resolved {
+    valid: bool,
+    module: String,
+    method: String,
+    addr: Addr,
+    id: u8,
+}
+
+impl Default for Resolved {
+    fn default() -> Self {
+        Resolved {
+            valid: false,
+            module: String::new(),
+            method: String::new(),
+            addr: Addr::NONE,
+            id: 0,
+        }
+    }
 }
 
 /// What a refresh saw change.
@@ -50,6 +75,7 @@ impl PhoneBook {
         PhoneBook {
             entries: vec![None; 256],
             by_name: HashMap::new(),
+            last: Resolved::default(),
         }
     }
 
@@ -121,7 +147,29 @@ impl PhoneBook {
         Ok(changes)
     }
 
+    /// The address and id of `module.method` if it was the last one resolved and the book has
+    /// not changed since.
+    pub fn resolved(&self, module: &str, method: &str) -> Option<(Addr, u8)> {
+        let last = &self.last;
+        (last.valid && last.method == method && last.module == module)
+            .then_some((last.addr, last.id))
+    }
+
+    /// Remembers `module.method` at `addr` with `id` (reusing the strings' room: resolving
+    /// another method allocates nothing once the names fit).
+    pub fn remember(&mut self, module: &str, method: &str, addr: Addr, id: u8) {
+        let last = &mut self.last;
+        last.module.clear();
+        last.module.push_str(module);
+        last.method.clear();
+        last.method.push_str(method);
+        last.addr = addr;
+        last.id = id;
+        last.valid = true;
+    }
+
     fn index_names(&mut self) {
+        self.last.valid = false;
         self.by_name.clear();
         for e in self.entries.iter().flatten() {
             let live = e.alive;
@@ -169,6 +217,7 @@ impl PhoneBook {
 
     /// Records a `describe` answer.
     pub fn learn(&mut self, addr: Addr, answer: &Args<'_>) -> Result<(), DescribeError> {
+        self.last.valid = false;
         let entry = self.entries[usize::from(addr.0)]
             .as_mut()
             .ok_or(DescribeError::UnknownModule(addr))?;
@@ -211,4 +260,53 @@ pub enum DescribeError {
     UnknownModule(Addr),
     #[error("describe answer: {0}")]
     Answer(#[from] modbot_ipc_schema::ArgError),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A directory of fixed peers.
+    struct Fixed(Vec<PeerInfo>);
+
+    impl Directory for Fixed {
+        fn list(&self, f: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+            self.0.iter().cloned().for_each(f);
+            Ok(())
+        }
+
+        fn reap_dead(&self) -> usize {
+            0
+        }
+    }
+
+    fn peer(addr: u8, name: &str, pid: u32, alive: bool) -> PeerInfo {
+        PeerInfo {
+            addr: Addr(addr),
+            name: name.into(),
+            pid,
+            mode: ReceiveMode::BusyPoll,
+            alive,
+            methods_digest: 0,
+        }
+    }
+
+    #[test]
+    fn a_remembered_method_resolves_until_the_book_changes() {
+        let mut sut = PhoneBook::new();
+        sut.refresh(&Fixed(vec![peer(5, "sonar", 10, true)]))
+            .unwrap();
+        assert_eq!(sut.resolved("sonar", "range"), None);
+        sut.remember("sonar", "range", Addr(5), 0);
+        assert_eq!(sut.resolved("sonar", "range"), Some((Addr(5), 0)));
+        assert_eq!(sut.resolved("sonar", "reset"), None, "another method");
+        assert_eq!(sut.resolved("base", "range"), None, "another module");
+        sut.refresh(&Fixed(vec![peer(5, "sonar", 10, false)]))
+            .unwrap();
+        assert_eq!(
+            sut.resolved("sonar", "range"),
+            None,
+            "the module died: the call must go the long way and learn it"
+        );
+    }
 }
