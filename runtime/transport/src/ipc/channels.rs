@@ -1,27 +1,26 @@
-//! [`Channels`] on iceoryx2: a channel is a publish-subscribe service of `[u8]` samples, a
-//! wake-up an event service, all opened through one node whose ports may move between threads
-//! (a coordinator opens an assembly's links off its tick thread and hands them over).
+//! [`Channels`] on iceoryx2: a channel is a publish-subscribe service of `[u8]` samples,
+//! opened through one node whose ports may move between threads (a coordinator opens an
+//! assembly's links off its tick thread and hands them over). A wake-up is a futex word of the
+//! domain's wake-up table ([`super::wake`]), found by its name.
 //!
 //! # Waiting to the microsecond
-//! `Listener::timed_wait` waits on its socket with a receive timeout of millisecond
-//! granularity; the grid needs better: the coordinator waits for a late done notice for a
-//! fraction of a tick, the bus bridge for its release until its watchdog's deadline. So a
-//! listener polls its file descriptor with `ppoll` (a nanosecond timeout), and draining it
-//! empties the socket, then resets iceoryx2's notification state (a notifier whose listener
-//! was not drained since its last notification pays no system call).
+//! The grid waits with deadlines finer than a millisecond: the coordinator for a late done
+//! notice for a fraction of a tick, the bus bridge for its release until its watchdog's
+//! deadline. A listener sleeps in `futex` with a nanosecond timeout; a notifier counts on the
+//! word and makes a system call only when a listener sleeps; a listener takes a notification
+//! by remembering the count (nothing to read or drain in the kernel). iceoryx2's own event, a
+//! Unix datagram socket, cost a `ppoll`, a `recv` and a `sendto` per wake-up.
 
+use core::sync::atomic::{AtomicU32, Ordering};
 use core::time::Duration;
-use std::os::fd::{AsRawFd, BorrowedFd};
+use std::sync::Arc;
 
-use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
-use nix::poll::{PollFd, PollFlags};
-use nix::sys::time::TimeSpec;
 
 use super::ipc_err;
+use super::wake::{WakeTable, Word};
 use crate::channels::{
     BytePublisher, ByteSubscriber, ChannelSpec, Channels, WakeListener, WakeNotifier,
 };
@@ -31,19 +30,19 @@ use crate::TransportError;
 type Service = ipc_threadsafe::Service;
 type Factory = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Service, [u8], ()>;
 
-/// Nodes (processes) a channel or wake-up serves at most.
+/// Nodes (processes) a channel serves at most.
 const MAX_NODES: usize = 256;
-/// Listeners a wake-up admits.
-const MAX_LISTENERS: usize = 4;
 
 /// The channels of one node.
 pub struct IpcChannels {
     node: Node<Service>,
+    /// The domain's wake-up table.
+    wake: Arc<WakeTable>,
 }
 
 impl IpcChannels {
-    pub(super) fn new(node: Node<Service>) -> IpcChannels {
-        IpcChannels { node }
+    pub(super) fn new(node: Node<Service>, wake: Arc<WakeTable>) -> IpcChannels {
+        IpcChannels { node, wake }
     }
 
     fn service(&self, name: &str, spec: &ChannelSpec) -> Result<Factory, TransportError> {
@@ -60,22 +59,6 @@ impl IpcChannels {
             .enable_safe_overflow(true)
             .open_or_create()
             .map_err(|e| ipc_err("open channel")(&e))
-    }
-
-    fn event(
-        &self,
-        name: &str,
-        notifiers: usize,
-    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<Service>, TransportError> {
-        let name = ServiceName::new(name).map_err(|e| ipc_err("wake-up name")(&e))?;
-        self.node
-            .service_builder(&name)
-            .event()
-            .max_nodes(MAX_NODES)
-            .max_notifiers(notifiers)
-            .max_listeners(MAX_LISTENERS)
-            .open_or_create()
-            .map_err(|e| ipc_err("open wake-up")(&e))
     }
 }
 
@@ -121,27 +104,27 @@ impl Channels for IpcChannels {
     fn notifier(
         &self,
         name: &str,
-        notifiers: usize,
+        _notifiers: usize,
     ) -> Result<Box<dyn WakeNotifier>, TransportError> {
-        let port = self
-            .event(name, notifiers)?
-            .notifier_builder()
-            .create()
-            .map_err(|e| ipc_err("wake-up notifier")(&e))?;
-        Ok(Box::new(IpcNotifier(port)))
+        Ok(Box::new(FutexNotifier {
+            table: self.wake.clone(),
+            word: Word::named(name),
+        }))
     }
 
     fn listener(
         &self,
         name: &str,
-        notifiers: usize,
+        _notifiers: usize,
     ) -> Result<Box<dyn WakeListener>, TransportError> {
-        let port = self
-            .event(name, notifiers)?
-            .listener_builder()
-            .create()
-            .map_err(|e| ipc_err("wake-up listener")(&e))?;
-        Ok(Box::new(IpcListener(port)))
+        let word = Word::named(name);
+        // A notification sent before the listener existed is not its to take.
+        let taken = AtomicU32::new(self.wake.count(word));
+        Ok(Box::new(FutexListener {
+            table: self.wake.clone(),
+            word,
+            taken,
+        }))
     }
 }
 
@@ -191,55 +174,35 @@ impl ByteSubscriber for IpcSubscriber {
     }
 }
 
-struct IpcNotifier(Notifier<Service>);
+struct FutexNotifier {
+    table: Arc<WakeTable>,
+    word: Word,
+}
 
-impl WakeNotifier for IpcNotifier {
+impl WakeNotifier for FutexNotifier {
     fn notify(&self) -> Result<(), TransportError> {
-        self.0
-            .notify()
-            .map(|_| ())
-            .map_err(|e| ipc_err("wake-up notify")(&e))
+        self.table.notify_counted(self.word);
+        Ok(())
     }
 }
 
-struct IpcListener(Listener<Service>);
-
-impl IpcListener {
-    /// The listener's socket.
-    fn fd(&self) -> BorrowedFd<'_> {
-        // SAFETY: the descriptor is the listener's socket, open for as long as the listener
-        // lives, which outlives the borrow; it is only polled and read, never closed here.
-        unsafe { BorrowedFd::borrow_raw(self.0.file_descriptor().native_handle()) }
-    }
+struct FutexListener {
+    table: Arc<WakeTable>,
+    word: Word,
+    /// The count of the word when notifications were last taken.
+    taken: AtomicU32,
 }
 
-impl WakeListener for IpcListener {
+impl WakeListener for FutexListener {
     fn wait(&self, timeout: Option<Duration>) -> bool {
-        let mut fds = [PollFd::new(self.fd(), PollFlags::POLLIN)];
-        match nix::poll::ppoll(&mut fds, timeout.map(TimeSpec::from), None) {
-            Ok(n) => n > 0,
-            Err(_) => false,
-        }
+        self.table
+            .wait_for_count(self.word, self.taken.load(Ordering::Relaxed), timeout)
     }
 
-    /// iceoryx2 reads one datagram per take, and a notifier whose listener counts as notified
-    /// sends none; datagrams of racing notifiers can pile up (the socket holds 10 here) or the
-    /// state can say "notified" with none left. So the socket is emptied first, then
-    /// iceoryx2's state is reset: whatever came in between is still seen by the look for work
-    /// that follows.
+    /// Whatever is counted after this wakes the next wait: the look for work that follows
+    /// sees what came before.
     fn drain(&self) {
-        let mut byte = [0u8; 32];
-        while let Ok(n) = nix::sys::socket::recv(
-            self.fd().as_raw_fd(),
-            &mut byte,
-            nix::sys::socket::MsgFlags::MSG_DONTWAIT,
-        ) {
-            if n == 0 {
-                break;
-            }
-        }
-        if let Err(e) = self.0.try_wait(|_| {}) {
-            tracing::debug!("wake-up not taken: {e:?}");
-        }
+        self.taken
+            .store(self.table.count(self.word), Ordering::Relaxed);
     }
 }

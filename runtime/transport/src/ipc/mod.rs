@@ -138,7 +138,10 @@ impl IpcTransport {
     /// The channels and wake-ups of this domain, through a node of its own named
     /// `node_name` (the grid's processes: see [`crate::channels`]).
     pub fn channels(&self, node_name: &str) -> Result<IpcChannels, TransportError> {
-        Ok(IpcChannels::new(self.node_of(node_name)?))
+        Ok(IpcChannels::new(
+            self.node_of(node_name)?,
+            Arc::new(WakeTable::open(&self.domain)?),
+        ))
     }
 
     /// A node of this domain that is not a module.

@@ -1,10 +1,10 @@
 //! Wake-ups of modules in blocking mode: futex words in one shared-memory table per domain.
 //!
 //! The table (`/dev/shm/modbot_<domain>.wake`, mode 0600, removed with the domain's other files)
-//! holds one 32-bit word per module address, one for the broadcast bus and one per group
-//! (a group's word is chosen by a hash of its name; two groups that share a word wake each
-//! other's listeners for nothing, which costs a look at an empty inbox). Each word has a cache
-//! line of its own.
+//! holds one 32-bit word per module address, one for the broadcast bus, one per group and one
+//! per named wake-up of the time grid (a group's or a name's word is chosen by a hash of its
+//! name; two that share a word wake each other's listeners for nothing, which costs a look for
+//! work that is not there). Each word has a cache line of its own.
 //!
 //! A module that sleeps waits on its own word and on the words of the buses it listens to, all
 //! at once (`futex_waitv`): one wake-up source for every reason it can be woken, and nothing to
@@ -20,6 +20,10 @@
 //! notifier sees the bit or the waiter sees the frame; and because the count changes, a waiter
 //! that has not slept yet returns at once even when another listener of a shared bus word has
 //! set the bit again meanwhile.
+//!
+//! The grid's wake-ups ([`crate::channels::WakeListener`]) must also keep a notification that
+//! came while nobody slept, until it is taken: their notifiers always count
+//! ([`WakeTable::notify_counted`]) and each listener remembers the count it last took.
 
 use core::num::NonZeroUsize;
 use core::ptr::NonNull;
@@ -44,8 +48,12 @@ const LINE: usize = 64;
 const BROADCAST: u16 = 256;
 /// Words for multicast groups, after the broadcast's.
 const GROUP_WORDS: u16 = 64;
+/// Words for the grid's named wake-ups, after the groups'.
+const NAMED_WORDS: u16 = 256;
 /// Words in the table.
-const WORDS: usize = (BROADCAST + 1 + GROUP_WORDS) as usize;
+const WORDS: usize = (BROADCAST + 1 + GROUP_WORDS + NAMED_WORDS) as usize;
+/// Bits 0–30: the count.
+const COUNT: u32 = !SLEEPING;
 /// The table's size in bytes.
 pub(crate) const TABLE_LEN: usize = WORDS * LINE;
 /// The most words one wait looks at (`futex_waitv` takes at most 128).
@@ -67,15 +75,21 @@ impl Word {
     pub fn bus(name: &str) -> Word {
         match name.strip_prefix("group.") {
             None => Word(BROADCAST),
-            Some(group) => {
-                // FNV-1a: stable across processes and builds, unlike the std hasher.
-                let hash = group.bytes().fold(0x811c_9dc5_u32, |h, b| {
-                    (h ^ u32::from(b)).wrapping_mul(0x0100_0193)
-                });
-                Word(BROADCAST + 1 + (hash % u32::from(GROUP_WORDS)) as u16)
-            }
+            Some(group) => Word(BROADCAST + 1 + (fnv1a(group) % u32::from(GROUP_WORDS)) as u16),
         }
     }
+
+    /// The word of the grid's wake-up `name`.
+    pub fn named(name: &str) -> Word {
+        Word(BROADCAST + 1 + GROUP_WORDS + (fnv1a(name) % u32::from(NAMED_WORDS)) as u16)
+    }
+}
+
+/// FNV-1a, 32 bits: stable across processes and builds, unlike the std hasher.
+fn fnv1a(name: &str) -> u32 {
+    name.bytes().fold(0x811c_9dc5_u32, |h, b| {
+        (h ^ u32::from(b)).wrapping_mul(0x0100_0193)
+    })
 }
 
 /// The wake-up table of one domain, mapped into this process.
@@ -150,6 +164,57 @@ impl WakeTable {
         if let Err(e) = futex::wake(word, futex::Flags::empty(), u32::MAX) {
             tracing::debug!("futex wake of {}: {e}", self.path.display());
         }
+    }
+
+    /// Counts a notification on `w` whether or not anyone sleeps (a listener takes it later),
+    /// and wakes whoever does.
+    pub fn notify_counted(&self, w: Word) {
+        let word = self.word(w);
+        let mut seen = word.load(Ordering::Relaxed);
+        loop {
+            let next = seen.wrapping_add(1) & COUNT;
+            match word.compare_exchange_weak(seen, next, Ordering::SeqCst, Ordering::Relaxed) {
+                Ok(_) => break,
+                Err(now) => seen = now,
+            }
+        }
+        if seen & SLEEPING != 0 {
+            if let Err(e) = futex::wake(word, futex::Flags::empty(), u32::MAX) {
+                tracing::debug!("futex wake of {}: {e}", self.path.display());
+            }
+        }
+    }
+
+    /// The count of `w` now (what a listener takes).
+    pub fn count(&self, w: Word) -> u32 {
+        self.word(w).load(Ordering::SeqCst) & COUNT
+    }
+
+    /// Sleeps on `w` until its count differs from `taken` or `timeout` passes (`None`: no
+    /// limit) or a signal arrives; whether it differs.
+    pub fn wait_for_count(&self, w: Word, taken: u32, timeout: Option<Duration>) -> bool {
+        let word = self.word(w);
+        let value = word.fetch_or(SLEEPING, Ordering::SeqCst) | SLEEPING;
+        if value & COUNT != taken {
+            return true;
+        }
+        let timeout = timeout.map(|t| {
+            let t = t.min(Duration::from_secs(3600));
+            futex::Timespec {
+                tv_sec: t.as_secs() as i64,
+                tv_nsec: i64::from(t.subsec_nanos()),
+            }
+        });
+        // Woken, changed before the sleep, timed out or interrupted: the count says which.
+        if let Err(e) = futex::wait(word, futex::Flags::empty(), value, timeout.as_ref()) {
+            if !matches!(
+                e,
+                rustix::io::Errno::AGAIN | rustix::io::Errno::TIMEDOUT | rustix::io::Errno::INTR
+            ) {
+                tracing::debug!("futex wait of {}: {e}", self.path.display());
+            }
+        }
+        self.count(w) != taken
     }
 
     /// Sleeps on `words` until one is notified, `timeout` passes or a signal arrives, unless
@@ -257,8 +322,12 @@ mod tests {
 
     #[test]
     fn the_table_is_laid_out_as_ipc_schema_readme_says() {
-        assert_eq!(TABLE_LEN, 20_544);
-        assert_eq!(WORDS, 321);
+        assert_eq!(TABLE_LEN, 36_928);
+        assert_eq!(WORDS, 577);
+        assert_eq!(
+            Word::named("grid.done.wake"),
+            Word(321 + (fnv1a("grid.done.wake") % 256) as u16)
+        );
         // FNV-1a of "arm" is 0x386f_27b5 ("group.arm" hashes the group's name only).
         assert_eq!(
             Word::bus("group.arm"),
