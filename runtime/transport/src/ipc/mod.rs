@@ -1,11 +1,13 @@
 //! The iceoryx2 backend: frames in shared memory between processes, without copies.
 //!
 //! - this file: endpoints (inbox, broadcast and groups, wake-ups, heartbeats, snapshots);
-//! - `directory`: who is in the domain (the supervisor's published directory, or a scan).
+//! - `directory`: who is in the domain (the supervisor's published directory, or a scan);
+//!   `directory_slots`: the services it lives in.
 //! - `relay`: calls of tools without a module address, made by the supervisor.
 
 mod channels;
 mod directory;
+mod directory_slots;
 mod relay;
 
 pub use channels::IpcChannels;
