@@ -651,3 +651,42 @@ fn a_refused_start_is_one_line_without_a_backtrace() {
     assert!(!log.contains("stack backtrace"), "{log}");
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }
+
+/// The command line and the benchmarks refuse what they cannot do in one line with its
+/// causes, without a backtrace even with RUST_BACKTRACE=1: a domain name that is not one, a
+/// call into a domain where nothing runs, and a benchmark child role that does not exist.
+#[test]
+fn the_cli_and_the_benchmarks_refuse_in_one_line_without_a_backtrace() {
+    let sut = TestDomain::new("onelinecli");
+    let cases: [(&str, Vec<&str>, &str); 3] = [
+        (
+            "modbot",
+            vec!["ls", "--domain", "Not-A-Domain"],
+            "invalid domain name 'Not-A-Domain'",
+        ),
+        (
+            "modbot",
+            vec!["call", "nobody.ping", "--domain", sut.name()],
+            "module 'nobody'",
+        ),
+        (
+            "modbot-benches",
+            vec!["child", "no-such-role"],
+            "unknown child role 'no-such-role'",
+        ),
+    ];
+    for (program, args, why) in cases {
+        let out = std::process::Command::new(common::bin(program))
+            .args(&args)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{program} {args:?}: {stderr}");
+        assert!(
+            stderr.contains(why) && stderr.trim_end().lines().count() == 1,
+            "{program} {args:?}: one line saying {why:?}, got:\n{stderr}"
+        );
+    }
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
