@@ -281,5 +281,18 @@ fn bad_calls_get_clear_errors() {
         "ok"
     );
     assert_eq!(sut.modbot_ok(&["bb", "sonar", "air_temp_c"]).trim(), "30.0");
+    // Options may follow a call's arguments: `--domain` and `--timeout-ms` are options here,
+    // not three more arguments (a negative number is an argument: `-1` above).
+    let out = sut.modbot(&[
+        "call",
+        "sonar.monitor",
+        "-1",
+        "--domain",
+        sut.name(),
+        "--timeout-ms",
+        "60000",
+    ]);
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(text.contains("threshold must be"), "{text}");
     sut.stop_all_cleanly();
 }
