@@ -137,3 +137,18 @@ fn relayed_calls_refuse_bad_names_values_statuses_and_reasons() {
     ));
     assert_eq!(Response::parse(&[1, 0xff]), Err(RelayError::Text));
 }
+
+#[test]
+fn a_directory_reader_ignores_its_reserved_bytes() {
+    use modbot_ipc_schema::directory::{View, IMAGE_LEN};
+    let mut image = golden("directory generation=5");
+    image.resize(IMAGE_LEN, 0);
+    let listing = View::parse(&image).unwrap().entries()[0].listing();
+    image[5] = 0xaa; // the header's
+    image[16 + 12..16 + 16].fill(0xbb); // the entry's
+    let view = View::parse(&image).unwrap();
+    assert_eq!(
+        (view.generation(), view.entries()[0].listing()),
+        (5, listing)
+    );
+}
