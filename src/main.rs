@@ -139,8 +139,9 @@ enum Command {
     Call {
         /// MODULE.METHOD
         target: String,
-        /// The method's arguments.
-        #[arg(allow_hyphen_values = true)]
+        /// The method's arguments (a negative number is one; text that starts with `-` is
+        /// written `text:-x`). Options may follow them.
+        #[arg(allow_negative_numbers = true)]
         args: Vec<String>,
         /// How long to wait for the answer, in milliseconds.
         #[arg(long, default_value_t = 2000)]

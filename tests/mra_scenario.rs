@@ -50,14 +50,19 @@ fn frames_have_the_sizes_of_the_paper_and_decode_back() {
 }
 
 /// `encode` prints only frames a receiver accepts: an operand or payload the kind does not
-/// carry, or a payload that is not a sequence of values, is refused with the reason (exit 2).
+/// carry, a missing operand, a sequence number beyond 5 bits, an address a receiver refuses, or
+/// a payload that is not a sequence of values, is refused with the reason (exit 2).
 #[test]
 fn the_encoder_refuses_what_the_kind_does_not_carry_and_payloads_a_receiver_rejects() {
     let sut = TestDomain::new("encode_refusals");
     let frame = |extra: &[&str]| {
         let mut args = vec!["rvmf", "encode"];
         args.extend_from_slice(extra);
-        args.extend_from_slice(&["--dst", "3", "--src", "1"]);
+        for (opt, default) in [("--dst", "3"), ("--src", "1")] {
+            if !extra.contains(&opt) {
+                args.extend_from_slice(&[opt, default]);
+            }
+        }
         sut.modbot(&args)
     };
     for (extra, why) in [
@@ -71,6 +76,16 @@ fn the_encoder_refuses_what_the_kind_does_not_carry_and_payloads_a_receiver_reje
         (
             &["exec", "--method", "2", "--payload", "92"][..],
             "not a sequence of values",
+        ),
+        (&["exec"][..], "--method is required for exec"),
+        (&["exec", "--method", "2", "--seq", "32"][..], "0..=31"),
+        (
+            &["exec", "--method", "2", "--src", "0"][..],
+            "source address 0 is not a module address",
+        ),
+        (
+            &["reply", "--dst", "0"][..],
+            "destination address 0 is reserved",
         ),
     ] {
         let out = frame(extra);
@@ -266,5 +281,18 @@ fn bad_calls_get_clear_errors() {
         "ok"
     );
     assert_eq!(sut.modbot_ok(&["bb", "sonar", "air_temp_c"]).trim(), "30.0");
+    // Options may follow a call's arguments: `--domain` and `--timeout-ms` are options here,
+    // not three more arguments (a negative number is an argument: `-1` above).
+    let out = sut.modbot(&[
+        "call",
+        "sonar.monitor",
+        "-1",
+        "--domain",
+        sut.name(),
+        "--timeout-ms",
+        "60000",
+    ]);
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(text.contains("threshold must be"), "{text}");
     sut.stop_all_cleanly();
 }

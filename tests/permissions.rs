@@ -1,6 +1,6 @@
-//! A domain is one user's: another user's tools and modules are refused with a line that says
-//! whose it is and what to do, leave nothing behind, and no file of a domain is open to
-//! other users. Needs root (to start a system and then act as `nobody`), as CI runs.
+//! A domain is one user's: another user's tools, modules and `modbot up` are refused with a
+//! line that says whose it is and what to do, leave nothing behind and take nothing away, and
+//! no file of a domain is open to other users. Needs root (to start a system and then act as `nobody`), as CI runs.
 
 mod common;
 
@@ -39,8 +39,11 @@ fn as_nobody(program: &Path, args: &[&str]) -> Option<Output> {
     }
 }
 
+/// `nobody` in root's running domain: `modbot ls`, `modbot call`, a module and `modbot up` are
+/// each refused in one line naming the owner, even with RUST_BACKTRACE=1; none leaves a file,
+/// the running system keeps answering, and no file of the domain is writable by others.
 #[test]
-fn another_users_tools_and_modules_are_refused_with_whose_domain_it_is_and_leave_nothing() {
+fn another_users_tools_modules_and_systems_are_refused_with_whose_domain_it_is_and_leave_nothing() {
     if !nix::unistd::geteuid().is_root() {
         eprintln!("skipped: needs root to start a system and act as another user");
         return;
@@ -63,10 +66,25 @@ fn another_users_tools_and_modules_are_refused_with_whose_domain_it_is_and_leave
         "permission denied: domain '{}' belongs to uid 0 (run as that user)",
         sut.name()
     );
+    // The same description, where `nobody` may read it.
+    let description = dir.join("counters.lua");
+    std::fs::copy(&file, &description).unwrap();
+    std::fs::set_permissions(&description, std::fs::Permissions::from_mode(0o644)).unwrap();
     let attempts = [
         (
             "modbot ls",
             as_nobody(&modbot, &["ls", "--domain", sut.name()]),
+        ),
+        (
+            "modbot call",
+            as_nobody(&modbot, &["call", "b.add", "1", "--domain", sut.name()]),
+        ),
+        (
+            "modbot up",
+            as_nobody(
+                &modbot,
+                &["up", description.to_str().unwrap(), "--var", &domain],
+            ),
         ),
         (
             "a module",
@@ -94,6 +112,12 @@ fn another_users_tools_and_modules_are_refused_with_whose_domain_it_is_and_leave
             "{what}: one line, no backtrace: {stderr}"
         );
     }
+    // The refused start of another system removed nothing of the running one.
+    assert!(
+        String::from_utf8_lossy(&sut.modbot(&["ls", "--tsv"]).stdout).contains("\tb\t"),
+        "the running system is still listed"
+    );
+    sut.modbot_ok(&["call", "b.add", "1"]);
     let files = sut.leftover_files();
     let nobodys: Vec<&PathBuf> = files
         .iter()

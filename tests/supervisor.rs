@@ -32,9 +32,10 @@ fn start_up_with(sut: &mut TestDomain, body: &str, modules: &[&str], more: &[&st
         .iter()
         .all(|m| sut.ls_field(m, "STATE").as_deref() == Some("running"))
     {
+        let ended = sut.exited(up);
         assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "the system did not come up; modbot up printed:\n{}\nfiles of the domain: {:?}\nmodbot ls:\n{}\nsupervisor.status: {}",
+            ended.is_none() && start.elapsed() < Duration::from_secs(60),
+            "the system did not come up ({ended:?}); modbot up printed:\n{}\nfiles of the domain: {:?}\nmodbot ls:\n{}\nsupervisor.status: {}",
             sut.output_of(up),
             sut.leftover_files(),
             String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout),
@@ -359,16 +360,11 @@ module "producer" { addr = 11, program = "modbot-faulty" }
     assert_eq!(code, 0, "{output}");
 }
 
-/// SIGKILL of the supervisor itself: every module dies with it (the kernel kills them when
-/// their parent dies: nothing waits for a timeout), and the next `modbot up` of the same
-/// domain starts clean.
-#[test]
-fn when_the_supervisor_is_killed_its_modules_die_and_the_next_up_starts_clean() {
-    let mut sut = TestDomain::new("supkill");
-    let first = start_up(&mut sut, MRA, &["sonar", "mobility"]);
-    let pids = [pid_of(&sut, "sonar"), pid_of(&sut, "mobility")];
-    sut.signal(first, Signal::SIGKILL);
-    sut.wait_exit(first, Duration::from_secs(30));
+/// SIGKILLs the supervisor `up` and waits until its `modules` died with it.
+fn kill_supervisor(sut: &mut TestDomain, up: u32, modules: &[&str]) {
+    let pids: Vec<u32> = modules.iter().map(|m| pid_of(sut, m)).collect();
+    sut.signal(up, Signal::SIGKILL);
+    sut.wait_exit(up, Duration::from_secs(30));
     let killed = Instant::now();
     sut.wait_for(
         "the modules to die with the supervisor",
@@ -376,36 +372,59 @@ fn when_the_supervisor_is_killed_its_modules_die_and_the_next_up_starts_clean() 
         || pids.iter().all(|&p| is_gone(p)),
     );
     println!("modules gone {:?} after the supervisor", killed.elapsed());
+}
 
-    // Watched through its log until its modules are up, not with `modbot ls` as `start_up`
-    // does: a tool that joins the domain while the killed supervisor's files are still there
-    // holds its directory open, and the new supervisor then fails to create its own
-    // ("create the directory failed: AlreadyExists"). That race of `modbot up` with a tool is
-    // a bug of its own, not what this test is about.
-    let file = sut.write_system(&format!("{FAST}{MRA}"));
-    let second = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
+/// SIGKILL of the supervisor itself: every module dies with it (the kernel kills them when
+/// their parent dies: nothing waits for a timeout), and the next `modbot up` of the same
+/// domain starts clean.
+#[test]
+fn when_the_supervisor_is_killed_its_modules_die_and_the_next_up_starts_clean() {
+    let mut sut = TestDomain::new("supkill");
+    let first = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    kill_supervisor(&mut sut, first, &["sonar", "mobility"]);
+
+    // `start_up` polls with `modbot ls`: a tool in the domain while the new supervisor sweeps
+    // what the killed one left.
+    let second = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    assert!(sut.modbot(&["call", "sonar.ranges"]).status.success());
+    let (code, output) = stop(&mut sut, second);
+    assert_eq!(code, 0, "{output}");
+}
+
+/// A tool in the domain while `modbot up` starts again after its supervisor was SIGKILLed —
+/// here a `modbot call --wait` started while the system was down, and `modbot ls` polling —
+/// holds the directory the dead supervisor published, which iceoryx2 cannot let anyone write
+/// again. The new supervisor cleans up after the dead and publishes its own beside it instead
+/// of failing to create it ("AlreadyExists"); the waiting call is served by the new system, and
+/// nothing is left once it stops.
+#[test]
+fn a_tool_in_the_domain_does_not_keep_the_next_up_from_starting_after_the_supervisor_was_killed() {
+    let mut sut = TestDomain::new("suptool");
+    let first = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    kill_supervisor(&mut sut, first, &["sonar", "mobility"]);
+
+    let call = sut.spawn_logged(
+        "modbot",
+        &["call", "sonar.ranges", "--wait", "--timeout-ms", "120000"],
+    );
+    // The tool says it is up once it has joined the domain, the directory opened.
     sut.wait_until(
-        "the next up to start its modules",
+        "the call to wait in the domain",
         Duration::from_secs(60),
         || {
-            let log = sut.output_of(second);
-            if log.contains("sonar is up") && log.contains("mobility is up") {
+            let log = sut.output_of(call);
+            if log.contains("module modbot-cli is up") {
                 Ok(())
             } else {
                 Err(log)
             }
         },
     );
-    sut.wait_for(
-        "modbot ls to show them running",
-        Duration::from_secs(60),
-        || {
-            ["sonar", "mobility"]
-                .iter()
-                .all(|m| sut.ls_field(m, "STATE").as_deref() == Some("running"))
-        },
-    );
-    assert!(sut.modbot(&["call", "sonar.ranges"]).status.success());
+
+    let second = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let status = sut.wait_exit(call, Duration::from_secs(120));
+    let answer = sut.output_of(call);
+    assert!(status.success(), "the waiting call was served: {answer}");
     let (code, output) = stop(&mut sut, second);
     assert_eq!(code, 0, "{output}");
 }
@@ -630,5 +649,44 @@ fn a_refused_start_is_one_line_without_a_backtrace() {
         "{log}"
     );
     assert!(!log.contains("stack backtrace"), "{log}");
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}
+
+/// The command line and the benchmarks refuse what they cannot do in one line with its
+/// causes, without a backtrace even with RUST_BACKTRACE=1: a domain name that is not one, a
+/// call into a domain where nothing runs, and a benchmark child role that does not exist.
+#[test]
+fn the_cli_and_the_benchmarks_refuse_in_one_line_without_a_backtrace() {
+    let sut = TestDomain::new("onelinecli");
+    let cases: [(&str, Vec<&str>, &str); 3] = [
+        (
+            "modbot",
+            vec!["ls", "--domain", "Not-A-Domain"],
+            "invalid domain name 'Not-A-Domain'",
+        ),
+        (
+            "modbot",
+            vec!["call", "nobody.ping", "--domain", sut.name()],
+            "module 'nobody'",
+        ),
+        (
+            "modbot-benches",
+            vec!["child", "no-such-role"],
+            "unknown child role 'no-such-role'",
+        ),
+    ];
+    for (program, args, why) in cases {
+        let out = std::process::Command::new(common::bin(program))
+            .args(&args)
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{program} {args:?}: {stderr}");
+        assert!(
+            stderr.contains(why) && stderr.trim_end().lines().count() == 1,
+            "{program} {args:?}: one line saying {why:?}, got:\n{stderr}"
+        );
+    }
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }

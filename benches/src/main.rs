@@ -360,7 +360,19 @@ fn bench(name: &str) -> &'static Bench {
         .expect("every subcommand names a benchmark")
 }
 
-fn main() -> anyhow::Result<()> {
+/// An error is one line on stderr with its causes and exit status 1, never a backtrace,
+/// whatever RUST_BACKTRACE says (a panic keeps its backtrace: that is a bug).
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("modbot-benches: {e:#}");
+            std::process::ExitCode::from(1)
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     match Cli::parse().command {
         Cmd::All(args) => run_benches(&args, &BENCHES.iter().collect::<Vec<_>>()),
         Cmd::Calls(args) => run_benches(&args, &[bench("calls")]),

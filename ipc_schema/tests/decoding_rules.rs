@@ -92,3 +92,63 @@ fn a_reader_of_the_bus_bridges_switches_ignores_its_reserved_bytes() {
     bytes[24 + 2..24 + 8].fill(0xbb); // the record's
     assert_eq!(modbot_ipc_schema::bus::decode(&bytes), Ok(golden));
 }
+
+#[test]
+fn a_grid_record_refuses_a_bool_that_is_neither_0_nor_1_and_a_wrong_length() {
+    use modbot_ipc_schema::grid::{read_record, GridWireError, PortValue};
+    let mut values = [PortValue::Bool(false), PortValue::I64(0)];
+    let mut bytes = golden("record bool=true");
+    assert_eq!(bytes.len(), 40);
+    bytes.truncate(16);
+    read_record(&bytes, &mut values).unwrap();
+    assert_eq!(values, [PortValue::Bool(true), PortValue::I64(-2)]);
+    bytes[0] = 2;
+    assert_eq!(
+        read_record(&bytes, &mut values),
+        Err(GridWireError::BadBool(2))
+    );
+    assert!(matches!(
+        read_record(&bytes[..15], &mut values),
+        Err(GridWireError::Length { .. })
+    ));
+}
+
+#[test]
+fn relayed_calls_refuse_bad_names_values_statuses_and_reasons() {
+    use modbot_ipc_schema::relay::{RelayError, Request, Response};
+    let request = golden("relay_request module=nav");
+    assert!(Request::parse(&request).is_ok());
+    let mut bad_name = request.clone();
+    bad_name[1] = b'/';
+    assert!(matches!(
+        Request::parse(&bad_name),
+        Err(RelayError::BadName { what: "module" })
+    ));
+    let mut bad_value = request.clone();
+    *bad_value.last_mut().unwrap() = 0xc1;
+    assert!(matches!(
+        Request::parse(&bad_value),
+        Err(RelayError::Values(_))
+    ));
+    assert_eq!(Response::parse(&[2]), Err(RelayError::Status(2)));
+    assert!(matches!(
+        Response::parse(&[0, 0xc1]),
+        Err(RelayError::Values(_))
+    ));
+    assert_eq!(Response::parse(&[1, 0xff]), Err(RelayError::Text));
+}
+
+#[test]
+fn a_directory_reader_ignores_its_reserved_bytes() {
+    use modbot_ipc_schema::directory::{View, IMAGE_LEN};
+    let mut image = golden("directory generation=5");
+    image.resize(IMAGE_LEN, 0);
+    let listing = View::parse(&image).unwrap().entries()[0].listing();
+    image[5] = 0xaa; // the header's
+    image[16 + 12..16 + 16].fill(0xbb); // the entry's
+    let view = View::parse(&image).unwrap();
+    assert_eq!(
+        (view.generation(), view.entries()[0].listing()),
+        (5, listing)
+    );
+}

@@ -62,6 +62,7 @@ fn values(desc: &str) -> Vec<OwnedValue> {
             "f64s" => Some(OwnedValue::F64s(
                 v.split(',').map(|x| x.parse().unwrap()).collect(),
             )),
+            "zeros" => Some(OwnedValue::Bytes(vec![0; v.parse().unwrap()])),
             _ => None,
         })
         .collect()
@@ -191,6 +192,59 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 };
                 let bytes = header.as_bytes().to_vec();
                 assert_eq!(bytes.len(), OUT_HEADER_LEN);
+                bytes
+            }
+            "record" => {
+                use modbot_ipc_schema::grid::{read_record, record_len, write_record, PortValue};
+                let written: Vec<PortValue> = values(&desc)
+                    .into_iter()
+                    .map(|v| match v {
+                        OwnedValue::Bool(b) => PortValue::Bool(b),
+                        OwnedValue::I64(i) => PortValue::I64(i),
+                        OwnedValue::F64(x) => PortValue::F64(x),
+                        OwnedValue::F64s(xs) => PortValue::F64s(xs),
+                        other => panic!("no port holds {other:?}"),
+                    })
+                    .collect();
+                let types: Vec<_> = written.iter().map(PortValue::port_type).collect();
+                let mut bytes = vec![0; record_len(&types)];
+                write_record(&written, &mut bytes).unwrap();
+                let mut read: Vec<PortValue> = types.iter().map(|t| t.zero()).collect();
+                read_record(&bytes, &mut read).unwrap();
+                assert_eq!(read, written);
+                bytes
+            }
+            "relay_request" => {
+                use modbot_ipc_schema::relay::{encode_request, Request};
+                let owned = values(&desc);
+                let args: Vec<Value<'_>> = owned.iter().map(OwnedValue::as_value).collect();
+                let (module, method) = (field(&desc, "module"), field(&desc, "method"));
+                let timeout = field(&desc, "timeout").parse().unwrap();
+                let bytes = encode_request(module, method, timeout, &args).unwrap();
+                let back = Request::parse(&bytes).unwrap();
+                assert_eq!(
+                    (back.module, back.method, back.timeout_ms),
+                    (module, method, timeout)
+                );
+                assert_eq!(back.values().unwrap().as_slice(), &args[..]);
+                bytes
+            }
+            "relay_answered" => {
+                use modbot_ipc_schema::relay::{encode_answered, Response};
+                let owned = values(&desc);
+                let answer: Vec<Value<'_>> = owned.iter().map(OwnedValue::as_value).collect();
+                let bytes = encode_answered(&answer).unwrap();
+                assert_eq!(
+                    Response::parse(&bytes).unwrap(),
+                    Response::Answered(&bytes[1..])
+                );
+                bytes
+            }
+            "relay_failed" => {
+                use modbot_ipc_schema::relay::{encode_failed, Response};
+                let why = field(&desc, "why");
+                let bytes = encode_failed(why);
+                assert_eq!(Response::parse(&bytes).unwrap(), Response::Failed(why));
                 bytes
             }
             "ledger" => {

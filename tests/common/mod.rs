@@ -160,6 +160,16 @@ impl TestDomain {
         }
     }
 
+    /// How the child `pid` ended, if it has (without waiting).
+    pub fn exited(&mut self, pid: u32) -> Option<std::process::ExitStatus> {
+        let (_, child) = self
+            .children
+            .iter_mut()
+            .find(|(_, c)| c.id() == pid)
+            .expect("a child of this test");
+        child.try_wait().unwrap()
+    }
+
     /// One field of `modbot ls` for `module`, by column title (`ADDR`, `NAME`, `PID`, `STATE`,
     /// `MODE`, `RESTARTS`, `LAST EXIT`, `DROPPED`, `REJECT`, `REPLAY`, `METHODS`).
     pub fn ls_field(&self, module: &str, column: &str) -> Option<String> {

@@ -18,30 +18,23 @@ use iceoryx2::node::NodeView;
 use iceoryx2::port::reader::{BlackboardValue, EntryHandle, Reader};
 use iceoryx2::port::writer::{EntryHandleMut, Writer};
 use iceoryx2::prelude::*;
-use iceoryx2::service::builder::blackboard::BlackboardOpenError;
-use iceoryx2::service::messaging_pattern::MessagingPattern;
+use iceoryx2::service::builder::blackboard::BlackboardCreateError;
 use iceoryx2::service::port_factory::blackboard::PortFactory;
-use iceoryx2::service::port_factory::PortFactory as _;
 use modbot_ipc_schema::directory::{self, Image, Listing, View, IMAGE_LEN};
 use modbot_ipc_schema::heartbeat::ModuleState;
-use nix::sys::signal::kill;
-use nix::unistd::Pid;
 
-use super::{ipc_err, parse_node_name, service_name, MAX_NODES};
+use super::directory_slots as slots;
+use super::{ipc_err, parse_node_name, MAX_NODES};
 use crate::{Directory, PeerInfo, ReceiveMode, TransportError};
 
-/// The blackboard service that holds the published directory.
-const SERVICE: &str = "directory";
-/// Its one key.
+/// The directory's one key.
 const KEY: u8 = 0;
 /// How often a reader looks whether the supervisor still lives.
 const WRITER_CHECK: Duration = Duration::from_millis(50);
 
 /// Whether a supervisor publishes the directory of the domain with `config`.
 pub(super) fn is_published(config: &Config) -> bool {
-    service_name(SERVICE).is_ok_and(|name| {
-        ipc::Service::does_exist(&name, config, MessagingPattern::Blackboard).unwrap_or(false)
-    })
+    slots::any_exists(config)
 }
 
 /// The supervisor's directory, read in place.
@@ -67,25 +60,10 @@ impl PublishedDirectory {
         node: &Node<ipc::Service>,
         config: &Config,
     ) -> Result<Option<PublishedDirectory>, TransportError> {
-        let name = service_name(SERVICE)?;
-        let service = match node
-            .service_builder(&name)
-            .blackboard_opener::<u8>()
-            .max_readers(MAX_NODES)
-            .max_nodes(MAX_NODES)
-            .open()
-        {
-            Ok(s) => s,
-            Err(BlackboardOpenError::DoesNotExist) => return Ok(None),
-            Err(e) => return Err(ipc_err("open the directory")(&e)),
+        let Some(service) = slots::open_current(node)? else {
+            return Ok(None);
         };
-        let reader = service
-            .reader_builder()
-            .create()
-            .map_err(|e| ipc_err("directory reader")(&e))?;
-        let entry = reader
-            .entry::<Image>(&KEY)
-            .map_err(|e| ipc_err("directory entry")(&e))?;
+        let (reader, entry) = read(&service)?;
         Ok(Some(PublishedDirectory {
             entry,
             _reader: reader,
@@ -130,14 +108,7 @@ impl PublishedDirectory {
                 return !alive;
             }
         }
-        let mut alive = false;
-        self._service.dynamic_config().list_writers(|w| {
-            alive |= w
-                .node_id
-                .pid::<ipc::Service>()
-                .is_ok_and(|pid| kill(Pid::from_raw(pid.value()), None).is_ok());
-            CallbackProgression::Continue
-        });
+        let alive = slots::live_writer(&self._service).is_some();
         self.writer_seen.set(Some((Instant::now(), alive)));
         !alive
     }
@@ -199,21 +170,69 @@ pub struct DirectoryWriter {
 }
 
 impl DirectoryWriter {
-    /// Creates the directory of the domain `node` belongs to, empty (generation 0).
+    /// Creates the directory of the domain `node` belongs to, empty (generation 0), in the
+    /// first free slot ([`slots`]). A slot another process still holds is taken over if its
+    /// writer stopped cleanly; one a dead supervisor wrote cannot be written again and is
+    /// passed by. Generations go on from the highest an earlier supervisor published, so a
+    /// reader that saw it sees the next one as new.
     pub fn create(node: &Node<ipc::Service>) -> Result<DirectoryWriter, TransportError> {
         let mut image: Box<Image> = vec![0u8; IMAGE_LEN]
             .into_boxed_slice()
             .try_into()
             .expect("IMAGE_LEN bytes");
         directory::write(&mut image[..], 0, &[]).map_err(|e| ipc_err("directory image")(&e))?;
-        let service = node
-            .service_builder(&service_name(SERVICE)?)
-            .blackboard_creator::<u8>()
-            .max_readers(MAX_NODES)
-            .max_nodes(MAX_NODES)
-            .add::<Image>(KEY, *image)
-            .create()
-            .map_err(|e| ipc_err("create the directory")(&e))?;
+        let mut generation = 0;
+        let mut slot = 0;
+        // The last process holding an earlier directory may leave between a refused create
+        // and the open: then the slot is tried again.
+        let mut vanished = 0;
+        while slot < slots::SLOTS {
+            let created = node
+                .service_builder(&slots::slot_name(slot)?)
+                .blackboard_creator::<u8>()
+                .max_readers(MAX_NODES)
+                .max_nodes(MAX_NODES)
+                .add::<Image>(KEY, *image)
+                .create();
+            match created {
+                Ok(service) => return DirectoryWriter::write_in(service, image, generation),
+                Err(BlackboardCreateError::AlreadyExists) => {}
+                Err(e) => return Err(ipc_err("create the directory")(&e)),
+            }
+            let Some(service) = slots::open_slot(node, slot)? else {
+                vanished += 1;
+                if vanished > 3 {
+                    return Err(ipc_err("create the directory")(
+                        &"created and removed by other processes meanwhile, again and again",
+                    ));
+                }
+                continue;
+            };
+            if let Some(pid) = slots::live_writer(&service) {
+                return Err(ipc_err("create the directory")(&format!(
+                    "the supervisor with pid {pid} publishes it"
+                )));
+            }
+            generation = generation.max(last_generation(&service)?);
+            match DirectoryWriter::write_in(service, image.clone(), generation) {
+                Ok(writer) => return Ok(writer),
+                Err(e) => tracing::debug!("directory slot {slot} taken by a dead writer: {e}"),
+            }
+            slot += 1;
+        }
+        Err(ipc_err("create the directory")(&format!(
+            "processes of the domain still hold the directories of {} supervisors that died: \
+             stop the domain's tools",
+            slots::SLOTS
+        )))
+    }
+
+    /// The writer of the directory `service`, starting at `generation`.
+    fn write_in(
+        service: PortFactory<ipc::Service, u8>,
+        image: Box<Image>,
+        generation: u64,
+    ) -> Result<DirectoryWriter, TransportError> {
         let writer = service
             .writer_builder()
             .create()
@@ -226,7 +245,7 @@ impl DirectoryWriter {
             _writer: writer,
             _service: service,
             image,
-            generation: 0,
+            generation,
         })
     }
 
@@ -247,6 +266,32 @@ impl DirectoryWriter {
     pub fn generation(&self) -> u64 {
         self.generation
     }
+}
+
+/// A directory's reader port and its entry.
+type ReadHandles = (
+    Reader<ipc::Service, u8>,
+    EntryHandle<ipc::Service, u8, Image>,
+);
+
+/// A reader of the directory `service` and its entry.
+fn read(service: &PortFactory<ipc::Service, u8>) -> Result<ReadHandles, TransportError> {
+    let reader = service
+        .reader_builder()
+        .create()
+        .map_err(|e| ipc_err("directory reader")(&e))?;
+    let entry = reader
+        .entry::<Image>(&KEY)
+        .map_err(|e| ipc_err("directory entry")(&e))?;
+    Ok((reader, entry))
+}
+
+/// The generation of the image `service` holds: 0 for a new directory, the last an earlier
+/// supervisor published for one taken over (a reader that saw it must see the next as new).
+fn last_generation(service: &PortFactory<ipc::Service, u8>) -> Result<u64, TransportError> {
+    let (_reader, entry) = read(service)?;
+    let value = Box::new(entry.get());
+    Ok(View::parse(&value[..]).map_or(0, |v| v.generation()))
 }
 
 /// Lists the nodes of the domain.

@@ -1,12 +1,15 @@
 //! The iceoryx2 backend: frames in shared memory between processes, without copies.
 //!
 //! - this file: endpoints (inbox, broadcast and groups, wake-ups, heartbeats, snapshots);
-//! - `directory`: who is in the domain (the supervisor's published directory, or a scan).
+//! - `directory`: who is in the domain (the supervisor's published directory, or a scan);
+//!   `directory_slots`: the services it lives in;
 //! - `relay`: calls of tools without a module address, made by the supervisor;
-//! - `wake`: the wake-ups of modules in blocking mode (futex words in shared memory).
+//! - `wake`: the wake-ups of modules in blocking mode and of the grid (futex words in shared
+//!   memory).
 
 mod channels;
 mod directory;
+mod directory_slots;
 mod relay;
 mod wake;
 

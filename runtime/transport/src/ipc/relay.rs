@@ -9,7 +9,9 @@ use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::client::Client;
 use iceoryx2::port::server::Server;
 use iceoryx2::prelude::*;
-use iceoryx2::service::builder::request_response::RequestResponseOpenError;
+use iceoryx2::service::builder::request_response::{
+    RequestResponseCreateError, RequestResponseOpenError,
+};
 use iceoryx2::service::port_factory::request_response::PortFactory;
 
 use modbot_ipc_schema::Addr;
@@ -30,26 +32,42 @@ const MAX_IN_FLIGHT: usize = 32;
 type Factory = PortFactory<ipc::Service, [u8], (), [u8], ()>;
 
 fn service(node: &Node<ipc::Service>, create: bool) -> Result<Option<Factory>, TransportError> {
-    let builder = node
-        .service_builder(&service_name(SERVICE)?)
-        .request_response::<[u8], [u8]>()
-        .max_servers(1)
-        .max_clients(MAX_CLIENTS)
-        .max_nodes(MAX_CLIENTS + 1)
-        .max_active_requests_per_client(MAX_IN_FLIGHT)
-        .max_response_buffer_size(1)
-        .max_borrowed_responses_per_pending_response(1);
-    if create {
-        return builder
-            .create()
-            .map(Some)
-            .map_err(|e| ipc_err("create the relay")(&e));
+    let name = service_name(SERVICE)?;
+    let builder = || {
+        node.service_builder(&name)
+            .request_response::<[u8], [u8]>()
+            .max_servers(1)
+            .max_clients(MAX_CLIENTS)
+            .max_nodes(MAX_CLIENTS + 1)
+            .max_active_requests_per_client(MAX_IN_FLIGHT)
+            .max_response_buffer_size(1)
+            .max_borrowed_responses_per_pending_response(1)
+    };
+    if !create {
+        return match builder().open() {
+            Ok(f) => Ok(Some(f)),
+            Err(RequestResponseOpenError::DoesNotExist) => Ok(None),
+            Err(e) => Err(ipc_err("open the relay")(&e)),
+        };
     }
-    match builder.open() {
-        Ok(f) => Ok(Some(f)),
-        Err(RequestResponseOpenError::DoesNotExist) => Ok(None),
-        Err(e) => Err(ipc_err("open the relay")(&e)),
+    // A tool may still hold the relay of an earlier supervisor (stopped, or dead and cleaned
+    // up): it is taken over. If the tool leaves between the refused create and the open, the
+    // relay is created after all.
+    for _ in 0..3 {
+        match builder().create() {
+            Ok(f) => return Ok(Some(f)),
+            Err(RequestResponseCreateError::AlreadyExists) => {}
+            Err(e) => return Err(ipc_err("create the relay")(&e)),
+        }
+        match builder().open() {
+            Ok(f) => return Ok(Some(f)),
+            Err(RequestResponseOpenError::DoesNotExist) => {}
+            Err(e) => return Err(ipc_err("take over the relay")(&e)),
+        }
     }
+    Err(ipc_err("create the relay")(
+        &"created and removed by other processes meanwhile, three times",
+    ))
 }
 
 /// A request waiting for its answer, held by the supervisor.
