@@ -3,6 +3,8 @@
 # skips what is there):
 # - libclang, for the `fmi` crate, which generates its FMI bindings with bindgen at build time
 #   (Debian/Ubuntu: libclang-dev, through apt-get; elsewhere install it and set LIBCLANG_PATH);
+# - the HDF5 C library and its headers, for the data recorder (`hdf5-metno`: Debian/Ubuntu
+#   libhdf5-dev, through apt-get; elsewhere install HDF5 1.10 or newer and set HDF5_DIR);
 # - with --tests, Python's h5py (the tests read the recordings with it) and FMPy (the tests
 #   validate and simulate the FMUs with it), through pip.
 set -euo pipefail
@@ -12,12 +14,20 @@ have_libclang() {
     compgen -G "/usr/lib/llvm-*/lib/libclang.so" > /dev/null
 }
 
-if ! have_libclang; then
-    echo "setup: installing libclang-dev (for the fmi crate's bindgen)"
+have_hdf5() {
+    [ -n "${HDF5_DIR:-}" ] && return 0
+    compgen -G "/usr/include/hdf5/serial/hdf5.h" > /dev/null || [ -e /usr/include/hdf5.h ]
+}
+
+missing=()
+have_libclang || missing+=(libclang-dev)
+have_hdf5 || missing+=(libhdf5-dev)
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "setup: installing ${missing[*]} (libclang for the fmi crate's bindgen, HDF5 for the recorder)"
     sudo=""
     [ "$(id -u)" -ne 0 ] && sudo="sudo"
     $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends libclang-dev > /dev/null
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" > /dev/null
 fi
 
 if [ "${1:-}" = "--tests" ] && ! python3 -c "import h5py, fmpy" 2> /dev/null; then

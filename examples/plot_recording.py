@@ -5,8 +5,8 @@
     python3 examples/plot_recording.py arm.h5           # writes arm.png beside it
     python3 examples/plot_recording.py arm.h5 --summary # numbers only (no matplotlib needed)
 
-The recording is modbot's HDF5 file (see the README's "Data recorder"): `time` (s), and per
-signal a dataset of rows x axes; the following error is the position the drives were
+The recording is modbot's HDF5 file (see the README's "The data recorder"): `time` (s), of
+shape (ticks,), and per signal a 2-D dataset of ticks x axes; the following error is the position the drives were
 commanded to (`robot.demand_position`) minus where the links are (`robot.link_position`).
 Needs h5py and numpy; the plot also matplotlib.
 """
@@ -23,7 +23,9 @@ DEMAND = "robot.demand_position"
 
 def load(path):
     """(time, link position, following error, generation), each trimmed to the complete rows."""
-    with h5py.File(path, "r") as f:
+    # As a SWMR reader: opens a recording while it is written, and one whose recorder was
+    # killed before its mark was taken off, as well as a finished one.
+    with h5py.File(path, "r", swmr=True) as f:
         rows = len(f["tick"])  # the count of rows every dataset holds
         time = f["time"][:rows]
         link = f[LINK][:rows]

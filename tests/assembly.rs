@@ -275,13 +275,20 @@ fn a_switch_to_an_unknown_assembly_fails_with_the_reason_and_the_robot_keeps_hol
 /// Runs the arm on the real-time clock (in lockstep the grid would wait for a killed host's
 /// restart instead), switches to `assembly`, SIGKILLs its host `host` (generation 2) and waits
 /// until every drive is in quick stop because the assembly faulted; returns `modbot up`'s pid.
-fn kill_host_until_the_drives_stop(sut: &mut TestDomain, assembly: &str, host: &str) -> u32 {
+/// `before_kill` looks at the host (its pid) just before.
+fn kill_host_until_the_drives_stop(
+    sut: &mut TestDomain,
+    assembly: &str,
+    host: &str,
+    before_kill: impl FnOnce(&TestDomain, u32),
+) -> u32 {
     let up = up_with(sut, &arm(), Clock::RealTime, &[]);
     sut.modbot_ok(&["assembly", "switch", assembly]);
     let pid: u32 = sut
         .ls_field(&format!("host_{host}_g2"), "PID")
         .and_then(|p| p.parse().ok())
         .unwrap_or_else(|| panic!("the host {host} of {assembly} runs"));
+    before_kill(sut, pid);
     sut.signal(pid, Signal::SIGKILL);
     sut.wait_for("every drive in quick stop", Duration::from_secs(20), || {
         all_axes(&bus_ledger(sut), "quick stop active")
@@ -297,21 +304,39 @@ fn kill_host_until_the_drives_stop(sut: &mut TestDomain, assembly: &str, host: &
 fn a_killed_host_of_a_fault_policy_assembly_quick_stops_every_drive() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("killhost");
-    let up = kill_host_until_the_drives_stop(&mut sut, "ptp", "ctrl");
+    let up = kill_host_until_the_drives_stop(&mut sut, "ptp", "ctrl", |_, _| {});
     down(&mut sut, up);
 }
 
 /// SIGKILL of the host of `ptp_fmu`'s feed-forward FMU (`modbot-fmu-host`, the `fault`
 /// policy): the grid faults the assembly and the bus bridge quick-stops every drive; the
-/// assembly's other host is left alone.
+/// assembly's other host is left alone; and the directory the host had unpacked the FMU in
+/// (a temporary directory of the domain, named after its pid) is gone after `modbot down`.
 #[test]
-fn a_killed_fmu_host_faults_its_assembly_and_the_drives_stop() {
+fn a_killed_fmu_host_faults_its_assembly_the_drives_stop_and_its_unpacked_fmu_goes() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("killfmu");
-    let up = kill_host_until_the_drives_stop(&mut sut, "ptp_fmu", "ff");
+    let mut unpacked = Vec::new();
+    let up = kill_host_until_the_drives_stop(&mut sut, "ptp_fmu", "ff", |sut, pid| {
+        unpacked = temp_entries(&sut.domain.temp_prefix(pid));
+        assert_eq!(unpacked.len(), 1, "the host unpacked its FMU: {unpacked:?}");
+        assert!(unpacked[0].join("modelDescription.xml").exists());
+    });
     let other = sut.ls_field("host_ctrl_g2", "PID");
     assert!(other.is_some_and(|p| p != "-"), "the other host runs on");
     down(&mut sut, up);
+    assert!(!unpacked[0].exists(), "{} is left", unpacked[0].display());
+    assert_eq!(temp_entries(&sut.domain.prefix()), Vec::<PathBuf>::new());
+}
+
+/// The entries of the temporary directory whose names start with `prefix`.
+fn temp_entries(prefix: &str) -> Vec<PathBuf> {
+    let entries = std::fs::read_dir(std::env::temp_dir()).expect("the temporary directory");
+    entries
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+        .map(|e| e.path())
+        .collect()
 }
 
 /// The arm in lockstep switches from `hold` to `ptp_fmu` (the feed-forward an FMU in a host of

@@ -40,7 +40,8 @@ impl Drop for Recording {
 
 /// 10 s of the arm (10 000 ticks of 1 ms, in lockstep), holding and then moving (`ptp` from
 /// tick 300), recorded with `--record`: h5py opens the file and finds the tick, time and
-/// generation of every tick, each recorded signal as ticks × 6 with its unit, the base
+/// generation of every tick as (ticks,), each recorded signal as a 2-D dataset of ticks × 6
+/// f64 (chunked, growing along the ticks) with its unit, the base
 /// period and the description's text; the robot moved, within the monitor's following error;
 /// and the plot script's numbers come from it.
 #[test]
@@ -80,9 +81,13 @@ tick = f["tick"][:]
 assert (tick == np.arange(10000)).all(), (tick[:3], tick[-3:], len(tick))
 assert np.allclose(f["time"][:], tick * 0.001, rtol=0, atol=1e-12)
 assert f["time"].attrs["unit"] == "s"
+for name in ["tick", "time", "generation"]:
+    assert f[name].shape == (10000,) and f[name].maxshape == (None,), (name, f[name].shape)
 for s in signals:
-    assert f[s][:].shape == (10000, 6), (s, f[s][:].shape)
-    assert f[s].attrs["type"] == "f64[6]"
+    d = f[s]
+    assert d.shape == (10000, 6) and d.dtype == np.float64, (s, d.shape, d.dtype)
+    assert d.maxshape == (None, 6) and d.chunks[1] == 6, (s, d.maxshape, d.chunks)
+    assert d.attrs["type"] == "f64[6]"
 assert f["robot.link_position"].attrs["unit"] == "rad"
 assert f["robot.motor_velocity"].attrs["unit"] == "rad/s"
 assert "unit" not in f["robot.statusword"].attrs
@@ -118,9 +123,10 @@ print("switch", switch)
 /// A grid in lockstep recording two signals, whose recorder is SIGKILLed mid-run: the
 /// coordinator waits for the release the dead recorder took (in lockstep nothing moves on
 /// without it), so the last tick the recorder was given is the one before; the file it left
-/// opens in h5py, every dataset holds at least the rows `tick` counts, in order, and it misses
-/// at most the last 100 ms (100 ticks of 1 ms) of what the recorder was given. The restarted
-/// recorder writes a file of its own beside it.
+/// opens in h5py — as a SWMR reader while it carries the dead writer's mark, then as any file
+/// once the restarted recorder took the mark off — every dataset holds at least the rows
+/// `tick` counts, in order, and it misses at most the last 100 ms (100 ticks of 1 ms) of what
+/// the recorder was given. The restarted recorder writes a file of its own beside it.
 #[test]
 fn a_sigkilled_recorder_leaves_a_file_h5py_opens_missing_at_most_100_ms() {
     let mut sut = TestDomain::new("reckill");
@@ -164,6 +170,10 @@ record {{ signals = {{ "A.y", "B.y" }}, file = "{}" }}
     sut.wait_exit(up, Duration::from_secs(60));
     assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
     let output = sut.output_of(up);
+    assert!(
+        output.contains("took off the writer mark a recorder that died left"),
+        "the restarted recorder unmarks the file: {output}"
+    );
     let given: i64 = output
         .split(stuck)
         .nth(1)
@@ -195,13 +205,12 @@ print(tick[-1])
     );
 }
 
-/// The rows of the recording at `path` so far, as h5py counts them (0 while there is none, or
-/// while its writer holds the file: hdf5-pure locks it as the C library does).
+/// The rows of the recording at `path` so far, as h5py counts them reading it as a SWMR
+/// reader, while it is written (0 while there is none).
 fn rows(path: &Path) -> u64 {
-    let script = "import sys, h5py; print(len(h5py.File(sys.argv[1], 'r')['tick']))";
+    let script = "import sys, h5py; print(len(h5py.File(sys.argv[1], 'r', swmr=True)['tick']))";
     std::process::Command::new("python3")
         .args(["-c", script, path.to_str().unwrap()])
-        .env("HDF5_USE_FILE_LOCKING", "FALSE")
         .output()
         .ok()
         .and_then(|out| String::from_utf8_lossy(&out.stdout).trim().parse().ok())

@@ -19,7 +19,8 @@
 //! - [`archive`]: the .fmu archive — its modelDescription.xml, its binary for this platform.
 //! - [`error`]: [`FmuError`], naming the file and what is wrong with it.
 //! - with `import`: `component` (the running component; `register`), `running` (an FMU
-//!   instance of either version), `values` (the values of a release, laid out once).
+//!   instance of either version), `unpack` (where it is unpacked: a temporary directory of
+//!   the domain), `values` (the values of a release, laid out once).
 
 pub mod archive;
 #[cfg(feature = "import")]
@@ -29,6 +30,8 @@ pub mod error;
 pub mod interface;
 #[cfg(feature = "import")]
 mod running;
+#[cfg(feature = "import")]
+mod unpack;
 #[cfg(feature = "import")]
 pub mod values;
 

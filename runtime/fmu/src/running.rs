@@ -1,5 +1,5 @@
-//! A running FMU, through the `fmi` crate (which unpacks the archive, loads its binary and
-//! binds the FMI C API): instantiated for co-simulation, its parameters set, initialised, then
+//! A running FMU, through the `fmi` crate (which loads its binary, unpacked by
+//! [`super::unpack`], and binds the FMI C API): instantiated for co-simulation, its parameters set, initialised, then
 //! stepped — values set, `doStep`, values got — FMI 2.0 and 3.0 alike.
 
 use fmi::fmi2::import::Fmi2Import;
@@ -28,8 +28,8 @@ pub enum Running {
 }
 
 impl Running {
-    /// Unpacks and instantiates the FMU at `path` (whose interface is `interface`), sets
-    /// `params` (the FMU's among them) and initialises it at time 0.
+    /// Unpacks and instantiates the FMU at `path` (whose interface is `interface`) and sets
+    /// `params` (the FMU's among them); [`Running::initialise`] comes next.
     pub fn start(
         path: &str,
         interface: &Interface,
@@ -39,8 +39,7 @@ impl Running {
         let failed = |why: String| FmuError::new(path, FmuErrorKind::Import(why));
         let mut running = match interface.version {
             Version::Fmi2 => {
-                let import: Fmi2Import =
-                    fmi::import::from_path(path).map_err(|e| failed(e.to_string()))?;
+                let import: Fmi2Import = super::unpack::import(path).map_err(failed)?;
                 let instance = import
                     .instantiate_cs(name, false, false)
                     .map_err(|e| failed(format!("cannot instantiate: {e}")))?;
@@ -50,8 +49,7 @@ impl Running {
                 }
             }
             Version::Fmi3 => {
-                let import: Fmi3Import =
-                    fmi::import::from_path(path).map_err(|e| failed(e.to_string()))?;
+                let import: Fmi3Import = super::unpack::import(path).map_err(failed)?;
                 let instance = import
                     .instantiate_cs(name, false, false, false, false, &[])
                     .map_err(|e| failed(format!("cannot instantiate: {e}")))?;
@@ -68,18 +66,17 @@ impl Running {
                 })?;
             }
         }
-        running
-            .initialise()
-            .map_err(|call| failed(format!("{call} failed")))?;
         Ok(running)
     }
 
-    fn initialise(&mut self) -> Result<(), CallError> {
+    /// Initialises the FMU for a co-simulation that starts at `start_time` (s): its first
+    /// `doStep` is from there.
+    pub fn initialise(&mut self, start_time: f64) -> Result<(), CallError> {
         match self {
             Running::V2 { instance, .. } => {
                 use fmi::fmi2::instance::Common;
                 instance
-                    .setup_experiment(None, 0.0, None)
+                    .setup_experiment(None, start_time, None)
                     .map_err(|_| "fmi2SetupExperiment")?;
                 instance
                     .enter_initialization_mode()
@@ -91,7 +88,7 @@ impl Running {
             Running::V3 { instance, .. } => {
                 use fmi::fmi3::Common;
                 instance
-                    .enter_initialization_mode(None, 0.0, None)
+                    .enter_initialization_mode(None, start_time, None)
                     .map_err(|_| "fmi3EnterInitializationMode")?;
                 instance
                     .exit_initialization_mode()

@@ -15,6 +15,7 @@ use modbot_grid::component::{
 use modbot_grid::record_type::{self, Signal};
 
 use super::file::{Header, RecordFile};
+use super::mark::Unmarked;
 use super::rows::{Rows, HEAD_WORDS};
 use super::writer::{Flush, Writer};
 
@@ -61,7 +62,9 @@ pub fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     let width = HEAD_WORDS + signals.iter().map(|s| s.ty.wire_len() / 8).sum::<usize>();
     let per_second = 1.0 / period_s;
     let flush_rows = ((FLUSH_INTERVAL.as_secs_f64() * per_second) as usize).clamp(1, 4096);
-    let path = super::path::choose(Path::new(p.text(record_type::FILE)?));
+    let wanted = Path::new(p.text(record_type::FILE)?);
+    let path = super::path::choose(wanted);
+    unmark_earlier(wanted, &path);
     let file = RecordFile::create(&path, &signals, &header, flush_rows as u64)
         .map_err(|e| ComponentError::param_refused(record_type::FILE, e))?;
     let capacity = if lossless {
@@ -92,6 +95,21 @@ pub fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
         lossless,
         dropped: 0,
     }))
+}
+
+/// Takes the writer mark off the files of this run written before `path` (for a declaration
+/// naming `wanted`) whose writers are gone: a recorder that was killed left its mark there.
+fn unmark_earlier(wanted: &Path, path: &Path) {
+    for earlier in super::path::candidates(wanted).take_while(|p| p != path) {
+        match super::mark::unmark(&earlier) {
+            Ok(Unmarked::Cleared) => tracing::info!(
+                "{}: took off the writer mark a recorder that died left",
+                earlier.display()
+            ),
+            Ok(Unmarked::Clean | Unmarked::WriterAlive) => {}
+            Err(e) => tracing::warn!("{e}"),
+        }
+    }
 }
 
 struct Recorder {

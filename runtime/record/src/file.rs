@@ -6,27 +6,30 @@
 //!                   names in order), description and description_file (the system
 //!                   description's text and path), assembly and assembly_file (with an
 //!                   assembly's recorder), writer ("modbot-record <version>")
-//! /tick             i64 (rows,)   the tick each row was recorded at: the count of complete rows
-//! /time             f64 (rows,)   tick · base_period, in seconds
-//! /generation       i64 (rows,)   the assembly generation of the release (0 without assemblies)
-//! /<comp>.<port>    per signal, (rows,) of f64 or i64 (a bool as 0 or 1), or of the array
-//!                   type f64[N] for an f64[N] port — h5py reads it as rows × N; attributes:
-//!                   type (the port type, "f64[6]"), unit (where the description says)
+//! /tick             i64 (ticks,)     the tick each row was recorded at: the count of complete rows
+//! /time             f64 (ticks,)     tick · base_period, in seconds
+//! /generation       i64 (ticks,)     the assembly generation of the release (0 without assemblies)
+//! /<comp>.<port>    per signal: f64 or i64 (a bool as 0 or 1) of shape (ticks,) for a
+//!                   scalar port, f64 (ticks, N) for an f64[N] port; attributes: type (the
+//!                   port type, "f64[6]"), unit (where the description says)
 //! ```
-//! Every dataset is chunked with an unlimited first dimension and grows in place
-//! ([`RecordFile::append`]); each append is crash-atomic (hdf5-pure publishes the new length
-//! last and raises no in-use mark), so a writer killed at any moment leaves a file that h5py
-//! opens, holding every batch appended before. The signals are appended first and `tick`
-//! last, so `tick`'s length is the number of rows every dataset holds.
+//! Every dataset is chunked (`chunk_rows` rows, whole rows) with an unlimited first dimension
+//! and grows along it ([`RecordFile::append`]). The file is written by the HDF5 C library
+//! (`hdf5-metno`) in its single-writer/multiple-reader mode (SWMR): every append writes the
+//! new chunks, then the chunk index, then the dataset's new extent, in an order that keeps the
+//! file consistent on the disk at every moment, so a writer killed at any moment leaves a file
+//! holding every batch it had flushed. The signals are appended first and `tick` last, so
+//! `tick`'s length is the number of rows every dataset holds. How such a file is opened, and
+//! how its writer mark goes, is [`crate::mark`]'s.
 
 use std::path::{Path, PathBuf};
 
-use hdf5_pure::{
-    make_f64_type, make_i64_type, AttrValue, Datatype, FileAccessProperties, FileBuilder,
-    MaxExtent, SyncPolicy,
-};
+use hdf5::types::VarLenUnicode;
 use modbot_grid::component::PortType;
 use modbot_grid::record_type::Signal;
+use ndarray::{s, ArrayView1, ArrayView2};
+
+use super::mark::WriterMark;
 
 /// Why the recording cannot be written.
 #[derive(Debug, thiserror::Error)]
@@ -34,7 +37,7 @@ use modbot_grid::record_type::Signal;
 pub struct FileError {
     pub path: PathBuf,
     #[source]
-    pub source: hdf5_pure::Error,
+    pub source: hdf5::Error,
 }
 
 /// What the file says about the run beside its signals.
@@ -48,24 +51,42 @@ pub struct Header {
     pub sources: Vec<(String, String)>,
 }
 
-/// The datasets, in the order a batch is appended (the signals, then generation, time, tick).
-fn datasets(signals: &[Signal]) -> Vec<String> {
-    let mut names: Vec<String> = signals.iter().map(|s| s.name.clone()).collect();
-    names.extend(["generation", "time", "tick"].map(String::from));
-    names
+/// How a dataset's words are stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Element {
+    F64,
+    I64,
+}
+
+/// A dataset of the file and its shape per row.
+struct Column {
+    dataset: hdf5::Dataset,
+    element: Element,
+    /// Values per row: `None` for a scalar dataset (ticks,), `Some(n)` for (ticks, n).
+    width: Option<usize>,
+}
+
+impl Column {
+    fn words_per_row(&self) -> usize {
+        self.width.unwrap_or(1)
+    }
 }
 
 /// A recording file, open for appending.
 pub struct RecordFile {
     path: PathBuf,
-    file: hdf5_pure::File,
-    /// Per dataset (in [`datasets`] order), its handle.
-    handles: Vec<hdf5_pure::Dataset>,
+    file: hdf5::File,
+    /// Per dataset, in the order a batch is appended: the signals, then generation, time, tick.
+    columns: Vec<Column>,
+    /// Complete rows in the file.
+    rows: usize,
+    /// Held while the file is written: says its writer lives ([`crate::mark`]).
+    _mark: WriterMark,
 }
 
 impl RecordFile {
     /// Creates (or replaces) the file at `path` for `signals`, with no rows, in chunks of
-    /// `chunk_rows` rows (a batch of whole chunks is appended without rewriting anything).
+    /// `chunk_rows` rows, and starts writing it (SWMR).
     pub fn create(
         path: &Path,
         signals: &[Signal],
@@ -76,45 +97,49 @@ impl RecordFile {
             path: path.to_path_buf(),
             source,
         };
-        let mut b = FileBuilder::new();
-        b.set_attr("base_period", AttrValue::F64(header.base_period_s));
-        b.set_attr("period", AttrValue::F64(header.period_s));
-        let names: Vec<&str> = signals.iter().map(|s| s.name.as_str()).collect();
-        b.set_attr("signals", AttrValue::VarLenString(names.join(",")));
-        b.set_attr(
-            "writer",
-            AttrValue::VarLenString(format!("modbot-record {}", env!("CARGO_PKG_VERSION"))),
-        );
-        for ((path, text), what) in header.sources.iter().zip(["description", "assembly"]) {
-            b.set_attr(
-                &format!("{what}_file"),
-                AttrValue::VarLenString(path.clone()),
-            );
-            b.set_attr(what, AttrValue::VarLenString(text.clone()));
-        }
-        for s in signals {
-            let d = empty(&mut b, chunk_rows, &s.name, s.ty);
-            d.set_attr("type", AttrValue::VarLenString(s.ty.to_string()));
-            if let Some((_, unit)) = header.units.iter().find(|(n, _)| *n == s.name) {
-                d.set_attr("unit", AttrValue::VarLenString(unit.clone()));
-            }
-        }
-        empty(&mut b, chunk_rows, "generation", PortType::I64);
-        empty(&mut b, chunk_rows, "time", PortType::F64)
-            .set_attr("unit", AttrValue::VarLenString("s".into()));
-        empty(&mut b, chunk_rows, "tick", PortType::I64);
-        b.write(path).map_err(failed)?;
-        let access = FileAccessProperties::new().with_sync_policy(SyncPolicy::OnClose);
-        let file = hdf5_pure::File::open_rw_with_options(path, access).map_err(failed)?;
-        let handles = datasets(signals)
-            .iter()
-            .map(|name| file.dataset(name))
-            .collect::<Result<Vec<_>, _>>()
+        let file = hdf5::File::with_options()
+            .with_fapl(|p| p.libver_latest())
+            .create(path)
             .map_err(failed)?;
+        let mut columns = Vec::with_capacity(signals.len() + 3);
+        let chunk = usize::try_from(chunk_rows.max(1)).unwrap_or(usize::MAX);
+        let built = (|| {
+            text_attr(&file, "signals", &names(signals))?;
+            text_attr(
+                &file,
+                "writer",
+                &format!("modbot-record {}", env!("CARGO_PKG_VERSION")),
+            )?;
+            f64_attr(&file, "base_period", header.base_period_s)?;
+            f64_attr(&file, "period", header.period_s)?;
+            for ((path, text), what) in header.sources.iter().zip(["description", "assembly"]) {
+                text_attr(&file, &format!("{what}_file"), path)?;
+                text_attr(&file, what, text)?;
+            }
+            for s in signals {
+                let column = empty(&file, &s.name, s.ty, chunk)?;
+                text_attr(&column.dataset, "type", &s.ty.to_string())?;
+                if let Some((_, unit)) = header.units.iter().find(|(n, _)| *n == s.name) {
+                    text_attr(&column.dataset, "unit", unit)?;
+                }
+                columns.push(column);
+            }
+            columns.push(empty(&file, "generation", PortType::I64, chunk)?);
+            let time = empty(&file, "time", PortType::F64, chunk)?;
+            text_attr(&time.dataset, "unit", "s")?;
+            columns.push(time);
+            columns.push(empty(&file, "tick", PortType::I64, chunk)?);
+            // Every object is there: from now on the file only grows, readers may look.
+            file.start_swmr()
+        })();
+        built.map_err(failed)?;
+        let mark = WriterMark::take(path).map_err(|e| failed(e.to_string().into()))?;
         Ok(RecordFile {
             path: path.to_path_buf(),
             file,
-            handles,
+            columns,
+            rows: 0,
+            _mark: mark,
         })
     }
 
@@ -123,47 +148,131 @@ impl RecordFile {
         &self.path
     }
 
-    /// Appends one batch: per dataset (in [`datasets`] order: the signals, then generation,
-    /// time, tick), the rows' little-endian bytes.
-    pub fn append(&mut self, columns: &[Vec<u8>]) -> Result<(), FileError> {
-        for (handle, bytes) in self.handles.iter_mut().zip(columns) {
-            handle.append_raw(bytes).map_err(|source| FileError {
-                path: self.path.clone(),
-                source,
-            })?;
+    /// Appends one batch of `rows` rows: per dataset (the signals, then generation, time,
+    /// tick), its words row after row (an f64 as its bits), and flushes it to the file.
+    pub fn append(&mut self, rows: usize, columns: &[Vec<u64>]) -> Result<(), FileError> {
+        if rows == 0 {
+            return Ok(());
         }
+        let (from, to) = (self.rows, self.rows + rows);
+        let written = (|| {
+            for (column, words) in self.columns.iter().zip(columns) {
+                let words = &words[..rows * column.words_per_row()];
+                match column.width {
+                    None => {
+                        column.dataset.resize(to)?;
+                        write_1d(column, words, s![from..to])?;
+                    }
+                    Some(n) => {
+                        column.dataset.resize((to, n))?;
+                        write_2d(column, words, (rows, n), s![from..to, ..])?;
+                    }
+                }
+            }
+            self.file.flush()
+        })();
+        written.map_err(|source| FileError {
+            path: self.path.clone(),
+            source,
+        })?;
+        self.rows = to;
         Ok(())
     }
 
-    /// Closes the file (and syncs it to the disk).
+    /// Closes the file: the writer mark goes, the file opens like any other.
     pub fn close(self) -> Result<(), FileError> {
-        let path = self.path;
-        drop(self.handles);
-        self.file
-            .close()
-            .map_err(|source| FileError { path, source })
+        let RecordFile {
+            path,
+            file,
+            columns,
+            _mark,
+            ..
+        } = self;
+        drop(columns);
+        file.close().map_err(|source| FileError { path, source })
     }
 }
 
+fn write_1d(
+    column: &Column,
+    words: &[u64],
+    at: ndarray::SliceInfo<[ndarray::SliceInfoElem; 1], ndarray::Ix1, ndarray::Ix1>,
+) -> hdf5::Result<()> {
+    match column.element {
+        Element::F64 => {
+            let values: &[f64] = bytemuck::cast_slice(words);
+            column.dataset.write_slice(ArrayView1::from(values), at)
+        }
+        Element::I64 => {
+            let values: &[i64] = bytemuck::cast_slice(words);
+            column.dataset.write_slice(ArrayView1::from(values), at)
+        }
+    }
+}
+
+fn write_2d(
+    column: &Column,
+    words: &[u64],
+    shape: (usize, usize),
+    at: ndarray::SliceInfo<[ndarray::SliceInfoElem; 2], ndarray::Ix2, ndarray::Ix2>,
+) -> hdf5::Result<()> {
+    let bad = |e: ndarray::ShapeError| hdf5::Error::from(e.to_string());
+    match column.element {
+        Element::F64 => {
+            let values: &[f64] = bytemuck::cast_slice(words);
+            let view = ArrayView2::from_shape(shape, values).map_err(bad)?;
+            column.dataset.write_slice(view, at)
+        }
+        Element::I64 => {
+            let values: &[i64] = bytemuck::cast_slice(words);
+            let view = ArrayView2::from_shape(shape, values).map_err(bad)?;
+            column.dataset.write_slice(view, at)
+        }
+    }
+}
+
+/// The signals' names, comma-separated.
+fn names(signals: &[Signal]) -> String {
+    let names: Vec<&str> = signals.iter().map(|s| s.name.as_str()).collect();
+    names.join(",")
+}
+
 /// Adds the empty, growable dataset `name` for values of type `ty`.
-fn empty<'b>(
-    b: &'b mut FileBuilder,
-    chunk_rows: u64,
-    name: &str,
-    ty: PortType,
-) -> &'b mut hdf5_pure::DatasetBuilder {
-    let d = b.create_dataset(name);
-    match ty {
-        PortType::F64 => d.with_dtype(make_f64_type()),
-        PortType::I64 | PortType::Bool => d.with_dtype(make_i64_type()),
-        PortType::F64s(n) => d.with_dtype(Datatype::Array {
-            base_type: Box::new(make_f64_type()),
-            dimensions: vec![u32::try_from(n).unwrap_or(u32::MAX)],
-        }),
+fn empty(file: &hdf5::File, name: &str, ty: PortType, chunk: usize) -> hdf5::Result<Column> {
+    let (element, width) = match ty {
+        PortType::F64 => (Element::F64, None),
+        PortType::I64 | PortType::Bool => (Element::I64, None),
+        PortType::F64s(n) => (Element::F64, Some(n)),
     };
-    d.with_shape(&[0])
-        .with_maxshape(&[MaxExtent::Unlimited])
-        .with_chunks(&[chunk_rows.max(1)])
+    let builder = match element {
+        Element::F64 => file.new_dataset::<f64>(),
+        Element::I64 => file.new_dataset::<i64>(),
+    };
+    let dataset = match width {
+        None => builder.chunk(chunk).shape(0..).create(name)?,
+        Some(n) => builder
+            .chunk((chunk, n.max(1)))
+            .shape((0.., n))
+            .create(name)?,
+    };
+    Ok(Column {
+        dataset,
+        element,
+        width,
+    })
+}
+
+fn text_attr(at: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
+    let value: VarLenUnicode = value
+        .parse()
+        .map_err(|e: hdf5::types::StringError| hdf5::Error::from(e.to_string()))?;
+    at.new_attr::<VarLenUnicode>()
+        .create(name)?
+        .write_scalar(&value)
+}
+
+fn f64_attr(at: &hdf5::Location, name: &str, value: f64) -> hdf5::Result<()> {
+    at.new_attr::<f64>().create(name)?.write_scalar(&value)
 }
 
 #[cfg(test)]
@@ -178,7 +287,7 @@ mod tests {
     }
 
     #[test]
-    fn appended_batches_read_back_with_their_attributes() {
+    fn appended_batches_read_back_as_ticks_by_width_with_their_attributes() {
         let dir = std::env::temp_dir().join(format!("modbot-record-file-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("run.h5");
@@ -193,14 +302,9 @@ mod tests {
             sources: vec![("/x/arm.lua".into(), "domain \"arm\"\n".into())],
         };
         let mut sut = RecordFile::create(&path, &signals, &header, 50).unwrap();
-        let le = |words: &[u64]| {
-            words
-                .iter()
-                .flat_map(|w| w.to_le_bytes())
-                .collect::<Vec<u8>>()
-        };
         for batch in 0..3u64 {
-            let ticks: Vec<u64> = (batch * 50..batch * 50 + 50).collect();
+            // Batches of 40 rows in chunks of 50: appends end inside chunks too.
+            let ticks: Vec<u64> = (batch * 40..batch * 40 + 40).collect();
             let q: Vec<u64> = ticks
                 .iter()
                 .flat_map(|&t| [(t as f64).to_bits(), (-(t as f64)).to_bits()])
@@ -209,32 +313,31 @@ mod tests {
                 .iter()
                 .map(|&t| (t as f64 * 0.001).to_bits())
                 .collect();
-            let columns = [le(&q), le(&ticks), le(&vec![0; 50]), le(&time), le(&ticks)];
-            sut.append(&columns).unwrap();
+            let columns = [q, ticks.clone(), vec![0; 40], time, ticks];
+            sut.append(40, &columns).unwrap();
         }
         sut.close().unwrap();
-        let file = hdf5_pure::File::open(&path).unwrap();
-        assert_eq!(
-            file.dataset("tick").unwrap().read_i64().unwrap(),
-            (0..150).collect::<Vec<i64>>()
-        );
-        let q = file.dataset("a.q").unwrap().read_raw().unwrap();
-        let q: Vec<f64> = q
-            .chunks(8)
-            .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
-            .collect();
-        assert_eq!((q.len(), q[2], q[3]), (300, 1.0, -1.0));
-        let attrs = file.dataset("a.q").unwrap().attrs().unwrap();
-        assert_eq!(
-            attrs.get("unit"),
-            Some(&AttrValue::VarLenString("rad".into()))
-        );
-        let root = file.root().attrs().unwrap();
-        assert_eq!(root.get("base_period"), Some(&AttrValue::F64(0.001)));
-        assert_eq!(
-            root.get("description"),
-            Some(&AttrValue::VarLenString("domain \"arm\"\n".into()))
-        );
+        let file = hdf5::File::open(&path).unwrap();
+        let tick: Vec<i64> = file.dataset("tick").unwrap().read_raw().unwrap();
+        assert_eq!(tick, (0..120).collect::<Vec<i64>>());
+        let q = file.dataset("a.q").unwrap();
+        assert_eq!(q.shape(), vec![120, 2]);
+        let q: ndarray::Array2<f64> = q.read_2d().unwrap();
+        assert_eq!((q[[1, 0]], q[[1, 1]], q[[119, 1]]), (1.0, -1.0, -119.0));
+        assert_eq!(file.dataset("b.n").unwrap().shape(), vec![120]);
+        let unit: VarLenUnicode = file
+            .dataset("a.q")
+            .unwrap()
+            .attr("unit")
+            .unwrap()
+            .read_scalar()
+            .unwrap();
+        assert_eq!(unit.as_str(), "rad");
+        let base: f64 = file.attr("base_period").unwrap().read_scalar().unwrap();
+        assert_eq!(base, 0.001);
+        let text: VarLenUnicode = file.attr("description").unwrap().read_scalar().unwrap();
+        assert_eq!(text.as_str(), "domain \"arm\"\n");
+        drop(file);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -1,7 +1,7 @@
 //! modbot-record: the data recorder (MoRC's Data Recorder) — the `record` component, which
 //! writes the signals of a run to an HDF5 file that h5py, MATLAB or HDFView open, off the
 //! real-time path. Uses `modbot-grid` (whose [`modbot_grid::record_type`] is the recorder's
-//! interface, known to every process) and the pure-Rust `hdf5-pure` (no C library).
+//! interface, known to every process) and the HDF5 C library (`hdf5-metno`).
 //!
 //! A description says `record { signals = { "ptp.q", "robot.link_position" }, file = "run.h5" }`;
 //! the grid makes that a component on a host of its own, which the program `modbot-recorder`
@@ -12,12 +12,15 @@
 //!   an allocation or a wait; [`register`].
 //! - [`rows`]: the pool of rows passed between the real-time thread and the writer.
 //! - [`writer`]: the writer thread, which appends batches to the file (when full, and at least
-//!   every 50 ms).
-//! - [`file`]: the file's layout (datasets, attributes) and the crash-atomic appends.
+//!   every 40 ms).
+//! - [`file`]: the file's layout (datasets, attributes) and its appends (SWMR: consistent on
+//!   the disk at every moment).
+//! - [`mark`]: the writer mark a killed writer leaves, and taking it off.
 //! - [`path`]: which file a recorder writes (a restarted one does not replace its own).
 
 pub mod component;
 pub mod file;
+pub mod mark;
 pub mod path;
 pub mod rows;
 pub mod writer;

@@ -26,23 +26,26 @@ pub fn choose_since(wanted: &Path, start: Option<SystemTime>) -> PathBuf {
             .and_then(|m| m.modified())
             .is_ok_and(|t| t >= start)
     };
-    if !ours(wanted) {
-        return wanted.to_path_buf();
-    }
+    candidates(wanted)
+        .find(|p| !ours(p))
+        .unwrap_or_else(|| wanted.to_path_buf())
+}
+
+/// The files a declaration naming `wanted` may write, in the order they are taken: `wanted`,
+/// then `NAME.1.EXT`, `NAME.2.EXT`, ...
+pub fn candidates(wanted: &Path) -> impl Iterator<Item = PathBuf> + '_ {
     let stem = wanted
         .file_stem()
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
     let ext = wanted.extension().map(|e| e.to_string_lossy().into_owned());
-    (1..)
-        .map(|n| {
-            let name = match &ext {
-                Some(ext) => format!("{stem}.{n}.{ext}"),
-                None => format!("{stem}.{n}"),
-            };
-            wanted.with_file_name(name)
-        })
-        .find(|p| !ours(p))
-        .unwrap_or_else(|| wanted.to_path_buf())
+    let numbered = (1..).map(move |n| {
+        let name = match &ext {
+            Some(ext) => format!("{stem}.{n}.{ext}"),
+            None => format!("{stem}.{n}"),
+        };
+        wanted.with_file_name(name)
+    });
+    std::iter::once(wanted.to_path_buf()).chain(numbered)
 }
 
 /// The run's start on the wall clock, from `MODBOT_EPOCH_NS` (`None` without a supervisor).

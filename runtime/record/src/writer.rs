@@ -32,13 +32,13 @@ pub struct Writer {
     alive: Arc<AtomicBool>,
 }
 
-/// The batch being gathered: per dataset, its bytes.
+/// The batch being gathered: per dataset, its words (an f64 as its bits).
 struct Batch {
     /// Words per signal.
     widths: Vec<usize>,
     base_period_s: f64,
     /// Per dataset: the signals, then generation, time, tick.
-    columns: Vec<Vec<u8>>,
+    columns: Vec<Vec<u64>>,
     rows: usize,
 }
 
@@ -58,16 +58,17 @@ impl Batch {
         let n = self.widths.len();
         let mut at = HEAD_WORDS;
         for (column, &width) in self.columns.iter_mut().zip(&self.widths) {
-            for w in row.get(at..at + width).unwrap_or(&[]) {
-                column.extend_from_slice(&w.to_le_bytes());
+            match row.get(at..at + width) {
+                Some(words) => column.extend_from_slice(words),
+                None => column.resize(column.len() + width, 0),
             }
             at += width;
         }
         let (tick, generation) = (row[0], row[1]);
-        self.columns[n].extend_from_slice(&generation.to_le_bytes());
+        self.columns[n].push(generation);
         let time = tick as f64 * self.base_period_s;
-        self.columns[n + 1].extend_from_slice(&time.to_le_bytes());
-        self.columns[n + 2].extend_from_slice(&tick.to_le_bytes());
+        self.columns[n + 1].push(time.to_bits());
+        self.columns[n + 2].push(tick);
         self.rows += 1;
     }
 
@@ -163,7 +164,7 @@ fn write_all(
         let due = batch.rows >= flush.rows
             || (batch.rows > 0 && (stopping || last.elapsed() >= flush.interval));
         if due {
-            file.append(&batch.columns)?;
+            file.append(batch.rows, &batch.columns)?;
             written += batch.rows as u64;
             batch.clear();
             last = Instant::now();

@@ -608,10 +608,12 @@ impl Supervisor {
         };
         slot.child = None;
         let reason = slot.killed_for.take().unwrap_or_else(|| reason_of(status));
+        let pid = slot.pid;
         self.flush_output_of(i);
         // The dead process's ports would keep "receiving" until cleaned: clean them now, and
-        // tell its peers it is gone.
+        // tell its peers it is gone. What it unpacked in the temporary directory (an FMU) goes.
         self.roster.reap();
+        self.domain.remove_temp_of(pid);
         self.publish_directory();
         if self.slots[i].retiring {
             self.slots[i].state = RunState::Retired;
@@ -778,6 +780,7 @@ impl Supervisor {
                 }
             };
             self.flush_output_of(i);
+            self.domain.remove_temp_of(self.slots[i].pid);
             let slot = &mut self.slots[i];
             slot.state = RunState::Stopped;
             if let Some(status) = status {

@@ -95,14 +95,32 @@ impl Domain {
     }
 
     /// The domain's files in `/dev/shm` (shared memory, and iceoryx2's node and service
-    /// files under [`ICEORYX2_ROOT`]) and in iceoryx2's default `/tmp/iceoryx2`, whoever left
-    /// them.
+    /// files under [`ICEORYX2_ROOT`]), in iceoryx2's default `/tmp/iceoryx2`, and in the
+    /// temporary directory (what its processes unpacked there: [`Domain::temp_prefix`]),
+    /// whoever left them.
     pub fn files(&self) -> Vec<std::path::PathBuf> {
         let prefix = self.prefix();
         let mut found = Vec::new();
         collect_with_prefix(Path::new("/dev/shm"), &prefix, &mut found);
         collect_with_prefix(Path::new("/tmp/iceoryx2"), &prefix, &mut found);
+        collect_top_level(&std::env::temp_dir(), &prefix, &mut found);
         found
+    }
+
+    /// The name prefix of what process `pid` of the domain keeps in the temporary directory
+    /// (`std::env::temp_dir()`), such as an FMU's unpacked archive:
+    /// `modbot_<domain>.tmp.<pid>.`. It is among the domain's [`files`](Domain::files), so it
+    /// goes with them, and [`Domain::remove_temp_of`] removes a dead process's at once.
+    pub fn temp_prefix(&self, pid: u32) -> String {
+        format!("{}tmp.{pid}.", self.prefix())
+    }
+
+    /// Removes what process `pid` kept in the temporary directory (call it once the process
+    /// is gone); how many entries went.
+    pub fn remove_temp_of(&self, pid: u32) -> usize {
+        let mut found = Vec::new();
+        collect_top_level(&std::env::temp_dir(), &self.temp_prefix(pid), &mut found);
+        self.remove(found)
     }
 
     /// Whether this process may use the domain: `Err` names the user it belongs to when
@@ -236,8 +254,10 @@ impl Domain {
                 }
             }
         }
+        let temp = std::env::temp_dir();
         for dir in parents {
             let is_root = dir == Path::new("/dev/shm")
+                || dir == temp
                 || dir == Path::new(ICEORYX2_ROOT.trim_end_matches('/'))
                 || dir.parent() == Some(Path::new("/tmp"));
             let shared = dir.ends_with("nodes") || dir.ends_with("services");
@@ -265,6 +285,20 @@ fn collect_with_prefix(dir: &Path, prefix: &str, out: &mut Vec<std::path::PathBu
     }
 }
 
+/// The entries directly in `dir` whose names start with `prefix` (not below: the temporary
+/// directory holds everyone's trees).
+fn collect_top_level(dir: &Path, prefix: &str, out: &mut Vec<std::path::PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    out.extend(
+        entries
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
+            .map(|e| e.path()),
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -276,5 +310,25 @@ mod tests {
         assert!(Domain::new("Robot").is_err());
         assert!(Domain::new("a.b").is_err());
         assert_eq!(Domain::new("arm").unwrap().prefix(), "modbot_arm.");
+    }
+
+    #[test]
+    fn a_dead_process_temporary_directory_goes_and_another_ones_stays() {
+        let sut = Domain::new(&format!("tmpdirs{}", std::process::id())).unwrap();
+        let dead = std::env::temp_dir().join(format!("{}fmu", sut.temp_prefix(7)));
+        let live = std::env::temp_dir().join(format!("{}fmu", sut.temp_prefix(77)));
+        for dir in [&dead, &live] {
+            std::fs::create_dir_all(dir.join("binaries")).unwrap();
+            std::fs::write(dir.join("binaries/x.so"), b"x").unwrap();
+        }
+        assert_eq!(sut.remove_temp_of(7), 1);
+        assert!(!dead.exists() && live.exists());
+        assert_eq!(
+            sut.files(),
+            vec![live.clone()],
+            "the domain's files include it"
+        );
+        assert_eq!(sut.remove_files(), 1);
+        assert!(!live.exists() && std::env::temp_dir().exists());
     }
 }
