@@ -41,3 +41,14 @@ component "robot" { type = "bus", host = "bus", period = 1,
                                viscous_friction = { 80, 70, 30, 1, 1, 1 },
                                coulomb_friction = { 40, 40, 20, 3, 3, 3 },
                                torque_limit     = { 3000, 3000, 1200, 200, 200, 200 } } }
+
+-- The data recorder, on demand: a robot program records what the drives do between its
+-- record { } and stop_record { } (examples/kr16_ff.lua records both feed-forward runs);
+-- `modbot up --record FILE` records from the start.
+record {
+  signals = { "robot.link_position", "robot.demand_position", "robot.motor_position",
+              "robot.motor_torque" },
+  units = { ["robot.link_position"] = "rad", ["robot.demand_position"] = "rad",
+            ["robot.motor_position"] = "rad", ["robot.motor_torque"] = "N m" },
+  on_demand = true,
+}

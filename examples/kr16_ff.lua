@@ -7,6 +7,10 @@
 --   modbot up examples/kr16.lua --lockstep &
 --   modbot program run examples/kr16_ff.lua --domain kr16
 --   modbot data ls --domain kr16                       -- both runs and their results
+--
+-- It records the whole experiment (the drives: link, demand and motor positions, motor torque)
+-- to kr16_ff.h5 in the directory it runs in, and plots both residuals after arrival next to it
+-- (kr16_ff.svg).
 
 -- The joint model the feed-forward uses (identified; here: the simulation's, see kr16.lua).
 local model = {
@@ -46,12 +50,14 @@ command "move" {
       settling_s = read("settle.settling_s"),
       peak_following = read("settle.peak_following"),
       arrival_tick = arrival,
+      end_tick = r.end_tick,
       move_s = (arrival - r.start_tick) / 1000,
     }
   end,
 }
 
 -- Each move starts from rest at home: the links' last oscillation has 2 s to die away.
+record { file = "kr16_ff.h5" }
 move { ff = "elastic", q = home }
 wait { s = 2 }
 local rigid = move { ff = "rigid", q = away }
@@ -59,6 +65,7 @@ move { ff = "rigid", q = home }
 wait { s = 2 }
 local elastic = move { ff = "elastic", q = away }
 move { ff = "elastic", q = home }
+local recording = stop_record {}
 hold {}
 
 local function show(name, r)
@@ -67,6 +74,29 @@ local function show(name, r)
 end
 show("rigid", rigid)
 show("elastic", elastic)
+-- The residuals over time, from the recording: how far the links of axes 1-3 are from the goal
+-- (the largest of the three), from arrival until the links had settled.
+local function residual(r)
+  local rows = recorded(recording.file, "robot.link_position", r.arrival_tick, r.end_tick)
+  local x, y = {}, {}
+  for i, q in ipairs(rows.values) do
+    local worst = 0
+    for axis = 1, 3 do worst = math.max(worst, math.abs(q[axis] - away[axis])) end
+    x[i] = (rows.ticks[i] - r.arrival_tick) / 1000
+    y[i] = worst * 1e3
+  end
+  return x, y
+end
+local rx, ry = residual(rigid)
+local ex, ey = residual(elastic)
+local svg = plot {
+  file = recording.file:sub(1, -4) .. ".svg",
+  title = "KR 16, 5° move on axes 1-3: residual link oscillation after arrival",
+  x = "time after arrival (s)", y = "largest link deviation from the goal, axes 1-3 (mrad)",
+  lines = { { name = "rigid feed-forward", x = rx, y = ry },
+            { name = "elastic feed-forward", x = ex, y = ey } },
+}
+print(("recorded %d rows to %s; residuals plotted in %s"):format(recording.rows, recording.file, svg))
 local ratio = rigid.residual / elastic.residual
 data("kr16.ratio", ratio)
 print(("ratio rigid/elastic %.1f"):format(ratio))

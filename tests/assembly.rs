@@ -382,6 +382,7 @@ fn switching_to_the_fmu_assembly_and_back_misses_no_bus_cycle() {
         );
     }
     assert!(record.max_step > 1e-4, "the robot moved:\n{switches}");
+    println!("{switches}");
     down(&mut sut, up);
 }
 

@@ -13,6 +13,7 @@ use modbot_testkit::TempDir;
 use std::time::Duration;
 
 use common::arm::{arm, one_arm_at_a_time, wait_enabled};
+use common::python::python;
 use common::TestDomain;
 
 /// The arm of one test: its domain, a directory for its programs and assembly data (one arm
@@ -298,14 +299,44 @@ fn ctrl_c_stops_the_program_and_leaves_the_robot_holding() {
 /// joints on axes 1-3, 16 kg load): the same Bessel-filtered 5° move once with the rigid and
 /// once with the elastic feed-forward, each its own assembly in one program; the elastic one
 /// cuts the residual link oscillation after arrival at least six-fold (the program fails
-/// otherwise) and settles sooner, and both runs are kept in assembly data.
+/// otherwise) and settles sooner, and both runs are kept in assembly data. The program
+/// records the experiment (`record { }` .. `stop_record { }`) to `kr16_ff.h5` in the directory
+/// it runs in, which h5py opens, and writes beside it `kr16_ff.svg`: an SVG of two lines, the
+/// residuals of both runs.
 #[test]
 fn the_kr16_program_shows_the_elastic_feed_forward_cutting_the_residual_oscillation_six_fold() {
     let (_arm, mut sut, dir) = arm_test("program_kr16");
     let examples = arm().parent().unwrap().to_path_buf();
     let up = up_system(&mut sut, &dir, &examples.join("kr16.lua"));
-    let (code, out, err) = run(&sut, &examples.join("kr16_ff.lua"));
-    assert_eq!(code, 0, "{out}{err}");
+    let program = examples.join("kr16_ff.lua");
+    let ran = sut.modbot_in(dir.path(), &["program", "run", program.to_str().unwrap()]);
+    let (out, err) = (
+        String::from_utf8_lossy(&ran.stdout),
+        String::from_utf8_lossy(&ran.stderr),
+    );
+    assert_eq!(ran.status.code(), Some(0), "{out}{err}");
+    let (h5, svg) = (
+        dir.path().join("kr16_ff.h5"),
+        dir.path().join("kr16_ff.svg"),
+    );
+    let said = format!(
+        "residuals plotted in {}",
+        std::path::absolute(&svg).unwrap().display()
+    );
+    assert!(out.contains(&said), "{out}");
+    let text = std::fs::read_to_string(&svg).expect("the plot");
+    assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));
+    assert_eq!(long_polylines(&text), 2, "two lines: {svg:?}");
+    assert!(text.contains("rigid feed-forward") && text.contains("elastic feed-forward"));
+    let rows = python(
+        "import sys, h5py\nf = h5py.File(sys.argv[1], 'r')\nq = f['robot.link_position']\n\
+         assert q.shape[1] == 6 and len(f['tick']) == q.shape[0]\nprint(q.shape[0])",
+        &[h5.to_str().unwrap()],
+    );
+    assert!(
+        out.contains(&format!("recorded {} rows", rows.trim())),
+        "{out}"
+    );
     let value = |prefix: &str, after: &str| -> f64 {
         let line = out
             .lines()
@@ -335,5 +366,79 @@ fn the_kr16_program_shows_the_elastic_feed_forward_cutting_the_residual_oscillat
     assert!(ratio >= 6.0, "{ratio}");
     let data = sut.modbot_ok(&["data", "ls"]);
     assert!(data.contains("ptp_ff.model = \"elastic\""), "{data}");
+    down(&mut sut, up);
+}
+
+/// The polylines of the SVG `svg` with 10 points or more: its data lines (the axes and the
+/// legend's marks have fewer).
+fn long_polylines(svg: &str) -> usize {
+    svg.split("<polyline")
+        .skip(1)
+        .filter_map(|e| e.split("points=\"").nth(1)?.split('"').next())
+        .filter(|points| points.split_whitespace().count() >= 10)
+        .count()
+}
+
+/// `record { file, signals }` and `stop_record { }` on the KR 16 (whose recorder is on demand):
+/// a signal the recorder does not have stops the program at the line of `record`, exit 1;
+/// then a program records two signals for 0.5 s of grid time to a file in the directory it
+/// runs in, which h5py opens with those two signals as ticks × 6 and the rows `stop_record`
+/// reported, tick after tick; the file is kept in assembly data (`record.file`).
+#[test]
+fn record_and_stop_record_write_the_chosen_signals_and_an_unknown_one_stops_the_program() {
+    let (_arm, mut sut, dir) = arm_test("program_record");
+    let examples = arm().parent().unwrap().to_path_buf();
+    let up = up_system(&mut sut, &dir, &examples.join("kr16.lua"));
+    let bad = dir.write(
+        "bad.lua",
+        "hold {}\nrecord { file = \"x.h5\", signals = { \"robot.nope\" } }\n",
+    );
+    let ran = sut.modbot_in(dir.path(), &["program", "run", bad.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&ran.stderr);
+    assert_eq!(ran.status.code(), Some(1), "{err}");
+    let first = err.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with(&format!("{}:2: record: ", bad.display()))
+            && first.contains(
+                "signal 'robot.nope' is not the recorder's: it records robot.link_position"
+            ),
+        "{err}"
+    );
+    let good = dir.write(
+        "good.lua",
+        "record { file = \"rec.h5\", signals = { \"robot.link_position\", \"robot.motor_torque\" } }\n\
+         wait { s = 0.5 }\nlocal r = stop_record {}\nprint(r.file, r.rows)\n",
+    );
+    let ran = sut.modbot_in(dir.path(), &["program", "run", good.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&ran.stdout);
+    assert_eq!(
+        ran.status.code(),
+        Some(0),
+        "{out}{}",
+        String::from_utf8_lossy(&ran.stderr)
+    );
+    let file = std::path::absolute(dir.path().join("rec.h5")).unwrap();
+    let last = out.lines().last().unwrap_or_default();
+    let rows: u64 = last
+        .strip_prefix(&format!("{}\t", file.display()))
+        .and_then(|r| r.trim().parse().ok())
+        .unwrap_or_else(|| panic!("file and rows: {out}"));
+    assert!(rows >= 500, "0.5 s of 1 ms ticks at least: {rows}");
+    let checked = python(
+        r#"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], "r")
+assert sorted(f.keys()) == ["generation", "robot.link_position", "robot.motor_torque", "tick", "time"], list(f.keys())
+tick = f["tick"][:]
+assert len(tick) == int(sys.argv[2]) and (np.diff(tick) == 1).all(), (len(tick), sys.argv[2])
+for s in ["robot.link_position", "robot.motor_torque"]:
+    assert f[s].shape == (len(tick), 6), (s, f[s].shape)
+print("ok")
+"#,
+        &[file.to_str().unwrap(), &rows.to_string()],
+    );
+    assert_eq!(checked.trim(), "ok");
+    let kept = sut.modbot_ok(&["data", "get", "record.file"]);
+    assert!(kept.contains(file.to_str().unwrap()), "{kept}");
     down(&mut sut, up);
 }

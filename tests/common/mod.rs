@@ -208,8 +208,22 @@ impl TestDomain {
 
     /// Runs `modbot ARGS` in this domain with `input` on its standard input.
     pub fn modbot_with_input(&self, args: &[&str], input: &str) -> Output {
+        self.modbot_at(None, args, input)
+    }
+
+    /// Runs `modbot ARGS` in this domain in the directory `dir` (what it writes to relative
+    /// paths goes there).
+    pub fn modbot_in(&self, dir: &std::path::Path, args: &[&str]) -> Output {
+        self.modbot_at(Some(dir), args, "")
+    }
+
+    fn modbot_at(&self, dir: Option<&std::path::Path>, args: &[&str], input: &str) -> Output {
         use std::io::Write;
-        let mut child = Command::new(bin("modbot"))
+        let mut command = Command::new(bin("modbot"));
+        if let Some(dir) = dir {
+            command.current_dir(dir);
+        }
+        let mut child = command
             .args(args)
             .args(generous_wait(args))
             .env("MODBOT_DOMAIN", self.name())

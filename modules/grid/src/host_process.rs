@@ -158,10 +158,20 @@ struct HostCli {
 /// `component_type "T" { program = ... }`). Steps the components the description puts on
 /// `--host` whenever the coordinator releases them.
 pub fn host_main(program: &str, registry: Registry) -> std::process::ExitCode {
+    host_main_with(program, registry, |module| module)
+}
+
+/// [`host_main`] for a host program whose module has methods of its own: `declare` adds them
+/// (the data recorder's `start` and `stop`).
+pub fn host_main_with(
+    program: &str,
+    registry: Registry,
+    declare: impl FnOnce(ModuleBuilder<()>) -> ModuleBuilder<()> + Send + 'static,
+) -> std::process::ExitCode {
     modbot_modules::common::main(program, |cli: HostCli| {
         let mut p = HostProcess::start_with(cli.host, &registry)?;
         let name = p.grid.host_module(p.host_name());
-        let service = p.serve(name, 200, |module| module, ())?;
+        let service = p.serve(name, 200, declare, ())?;
         let now = || modbot_runtime::clock::Clock::now_ns(&modbot_runtime::clock::MonotonicClock);
         while HostProcess::running(&service) {
             // Wakes up for its releases; every 5 ms also to look at the termination flag.

@@ -33,7 +33,9 @@ use super::ProgramError;
 /// The fields of a command's definition.
 const FIELDS: &[&str] = &["doc", "params", "pre", "run", "done", "eval"];
 /// Names a command may not take: the program's own functions.
-const RESERVED: &[&str] = &["command", "read", "call", "data", "require", "help"];
+const RESERVED: &[&str] = &[
+    "command", "read", "call", "data", "require", "help", "absolute", "recorded", "plot",
+];
 /// How long a command may run when its `run` does not say, s of grid time.
 const DEFAULT_TIMEOUT_S: f64 = 60.0;
 /// How often the finish condition is asked.

@@ -21,7 +21,10 @@
 //! - [`interpreter`]: [`Interpreter`] — a file, or a REPL line; what a failure leaves.
 //! - `command`: `command "name" { doc, params, pre, run, done, eval }` and a command's run.
 //! - `lua_env`: the sandbox with the program's functions (`read`, `call`, `data`, `require`).
-//! - `library.lua`: the command library (`ptp`, `hold`, `wait`), written as a program's own.
+//! - `recordings`: `absolute`, `recorded` (a signal read back from a recording) and `plot`
+//!   (an SVG, drawn by `plot`).
+//! - `library.lua`: the command library (`ptp`, `hold`, `wait`, `record`, `stop_record`),
+//!   written as a program's own.
 //! - `session`: what the Lua functions share (robot, store, commands, the first failure).
 //! - [`robot`]: [`Robot`], what a program needs of a running system; [`system_robot`]: the
 //!   real one, a tool endpoint in the system's domain.
@@ -33,6 +36,8 @@ mod error;
 pub mod interpreter;
 pub mod interrupt;
 mod lua_env;
+mod plot;
+mod recordings;
 pub mod robot;
 mod session;
 pub mod system_robot;

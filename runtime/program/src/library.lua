@@ -92,3 +92,49 @@ command "wait" {
     return r.elapsed >= p.s
   end,
 }
+
+-- Recordings: the system's recorder (record { signals = { ... }, on_demand = true } in its
+-- description, on host `record` unless it says) writes from record { } to stop_record { }.
+local function recorder(p)
+  return (p.recorder or "host_record")
+end
+
+command "record" {
+  doc = "records signals of the system (its recorder's) to an HDF5 file, from now until stop_record",
+  params = {
+    file = "the HDF5 file (required; relative: to the directory the program runs in)",
+    signals = "the signals to record, { \"comp.port\", ... } (default: every one the recorder has)",
+    recorder = "the recorder's host module (default host_record)",
+  },
+  pre = function(p)
+    if type(p.file) ~= "string" or p.file == "" then
+      return false, "file is required: the HDF5 file to write (file = \"run.h5\")"
+    end
+    if p.signals ~= nil and type(p.signals) ~= "table" then
+      return false, "signals must be a table of \"comp.port\" names"
+    end
+    for i, s in ipairs(p.signals or {}) do
+      if type(s) ~= "string" then
+        return false, ("signals[%d] is %s, not a \"comp.port\" name"):format(i, tostring(s))
+      end
+    end
+    return true
+  end,
+  run = function(p)
+    p.written = call(recorder(p) .. ".start", absolute(p.file), table.unpack(p.signals or {}))
+  end,
+  eval = function(p, r)
+    return { file = p.written, start_tick = r.start_tick }
+  end,
+}
+
+command "stop_record" {
+  doc = "ends the recording record { } started; results: its file and rows",
+  params = { recorder = "the recorder's host module (default host_record)" },
+  run = function(p)
+    p.file, p.rows = call(recorder(p) .. ".stop")
+  end,
+  eval = function(p, r)
+    return { file = p.file, rows = p.rows }
+  end,
+}

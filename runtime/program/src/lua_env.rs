@@ -10,6 +10,7 @@
 //! | `call("module.method", ...)` | calls a method; returns its answer's values |
 //! | `data("key")`, `data("key", value)` | reads (nil when unset) or writes assembly data |
 //! | `require "name"` | runs the library `name.lua` next to the program once; returns what it returned |
+//! | `absolute`, `recorded`, `plot` | a program's recordings and plots (see `recordings`) |
 //!
 //! A failure in any of them (an unknown module, a bad argument) stops the program with
 //! `file:line: why`, as a failed command does.
@@ -32,6 +33,7 @@ pub(crate) fn open(shared: &Shared) -> mlua::Result<Lua> {
     globals.raw_set("data", data_fn(&lua, shared)?)?;
     globals.raw_set("require", require_fn(&lua, shared)?)?;
     globals.raw_set("command", super::command::command_fn(&lua, shared)?)?;
+    super::recordings::register(&lua, &globals, shared)?;
     Ok(lua)
 }
 

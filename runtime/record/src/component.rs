@@ -17,7 +17,7 @@ use modbot_grid::record_type::{self, Signal};
 use super::file::{Header, RecordFile};
 use super::mark::Unmarked;
 use super::rows::{Rows, HEAD_WORDS};
-use super::writer::{Flush, Writer};
+use super::writer::{Flush, Recording, Writer};
 
 /// A batch is appended at least this often, and holds at most this much of the run (a chunk
 /// of the file): what a SIGKILL loses, with the rows in the pool.
@@ -62,11 +62,24 @@ pub fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     let width = HEAD_WORDS + signals.iter().map(|s| s.ty.wire_len() / 8).sum::<usize>();
     let per_second = 1.0 / period_s;
     let flush_rows = ((FLUSH_INTERVAL.as_secs_f64() * per_second) as usize).clamp(1, 4096);
-    let wanted = Path::new(p.text(record_type::FILE)?);
-    let path = super::path::choose(wanted);
-    unmark_earlier(wanted, &path);
-    let file = RecordFile::create(&path, &signals, &header, flush_rows as u64)
-        .map_err(|e| ComponentError::param_refused(record_type::FILE, e))?;
+    let flush = Flush {
+        rows: flush_rows,
+        interval: FLUSH_INTERVAL,
+    };
+    // Without a file, it records only when a program starts a recording.
+    let wanted = p.text(record_type::FILE)?;
+    let file = match wanted {
+        "" => None,
+        wanted => {
+            let wanted = Path::new(wanted);
+            let path = super::path::choose(wanted);
+            unmark_earlier(wanted, &path);
+            let file = RecordFile::create(&path, &signals, &header, flush_rows as u64)
+                .map_err(|e| ComponentError::param_refused(record_type::FILE, e))?;
+            Some(file)
+        }
+    };
+    let path = file.as_ref().map(|f| f.path().to_path_buf());
     let capacity = if lossless {
         flush_rows
     } else {
@@ -74,19 +87,25 @@ pub fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
         rows.clamp(64, (POOL_BYTES / (8 * width)).max(64))
     };
     let rows = Arc::new(Rows::new(capacity, width));
-    let types: Vec<_> = signals.iter().map(|s| s.ty).collect();
-    let flush = Flush {
-        rows: flush_rows,
-        interval: FLUSH_INTERVAL,
+    let recording = Recording {
+        signals: signals.clone(),
+        header,
+        base_period_s,
     };
-    let writer = Writer::spawn(rows.clone(), file, &types, base_period_s, flush)
-        .map_err(ComponentError::other)?;
-    tracing::info!(
-        "recording {} signal(s) to {} ({})",
-        signals.len(),
-        path.display(),
-        if lossless { "lossless" } else { "never waits" }
-    );
+    let writer =
+        Writer::spawn(rows.clone(), file, recording, flush).map_err(ComponentError::other)?;
+    let mode = if lossless { "lossless" } else { "never waits" };
+    match path {
+        Some(path) => tracing::info!(
+            "recording {} signal(s) to {} ({mode})",
+            signals.len(),
+            path.display()
+        ),
+        None => tracing::info!(
+            "{} signal(s) to record when a program starts a recording ({mode})",
+            signals.len()
+        ),
+    }
     Ok(Box::new(Recorder {
         signals,
         rows,

@@ -12,16 +12,21 @@
 //!   an allocation or a wait; [`register`].
 //! - [`rows`]: the pool of rows passed between the real-time thread and the writer.
 //! - [`writer`]: the writer thread, which appends batches to the file (when full, and at least
-//!   every 40 ms).
+//!   every 40 ms); [`batch`]: a batch of rows, per dataset.
+//! - [`control`]: a program starting and stopping recordings while the recorder runs.
 //! - [`file`]: the file's layout (datasets, attributes) and its appends (SWMR: consistent on
 //!   the disk at every moment).
 //! - [`mark`]: the writer mark a killed writer leaves, and taking it off.
 //! - [`path`]: which file a recorder writes (a restarted one does not replace its own).
+//! - [`read`]: a signal read back from a recording.
 
+pub mod batch;
 pub mod component;
+pub mod control;
 pub mod file;
 pub mod mark;
 pub mod path;
+pub mod read;
 pub mod rows;
 pub mod writer;
 

@@ -6,6 +6,9 @@
 //!   signals = { "ptp.q", "robot.link_position" },   -- outputs, comp.port, in this order
 //!   file = "run.h5",                                 -- relative to the current directory;
 //!                                                    -- without it, only with --record FILE
+//!   on_demand = true,                                -- a system's recorder without a file:
+//!                                                    -- runs anyway, and records when a robot
+//!                                                    -- program says (record { }, stop_record { })
 //!   units = { ["robot.link_position"] = "rad" },     -- optional: the datasets' unit attributes
 //!   name = "record", host = "record", period = 1,    -- optional: these are the defaults
 //! }
@@ -31,7 +34,14 @@ use modbot_grid::GridSpec;
 pub const RECORD_VAR: &str = "modbot.record";
 
 const FIELDS: &[&str] = &[
-    "signals", "file", "units", "name", "host", "period", "period_s",
+    "signals",
+    "file",
+    "units",
+    "name",
+    "host",
+    "period",
+    "period_s",
+    "on_demand",
 ];
 /// The recorder's component and host name unless the declaration says.
 const DEFAULT_NAME: &str = "record";
@@ -70,7 +80,8 @@ fn read(lua: &Lua, line: u32, v: &Value) -> Result<RecordDecl, DeclError> {
             ))
         }
     };
-    // Without a file, the recorder runs only when `modbot up --record FILE` names one.
+    // Without a file, the recorder runs only when `modbot up --record FILE` names one, or
+    // `on_demand` (a system's, for robot programs).
     let file = match fields.take("file") {
         Some(v) => absolute(&string(what, "file", &v)?),
         None => String::new(),
@@ -80,6 +91,18 @@ fn read(lua: &Lua, line: u32, v: &Value) -> Result<RecordDecl, DeclError> {
         None => Ok(DEFAULT_NAME.to_owned()),
     };
     let (name, host) = (name("name")?, name("host")?);
+    let on_demand = match fields.take("on_demand") {
+        Some(Value::Boolean(b)) => b,
+        Some(v) => {
+            return Err(DeclError::field(
+                what,
+                "on_demand",
+                "true or false",
+                show(&v),
+            ))
+        }
+        None => false,
+    };
     let units = match fields.take("units") {
         Some(v) => units(&v)?,
         None => Vec::new(),
@@ -89,6 +112,7 @@ fn read(lua: &Lua, line: u32, v: &Value) -> Result<RecordDecl, DeclError> {
         host,
         signals: Signals::Listed(signals),
         file,
+        on_demand,
         period: period(what, &mut fields)?,
         units,
         sources: Vec::new(),

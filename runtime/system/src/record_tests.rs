@@ -98,10 +98,17 @@ fn a_record_of_what_is_not_an_output_is_refused_at_its_line() {
 }
 
 #[test]
-fn a_record_without_a_file_runs_only_when_modbot_up_names_one() {
+fn a_record_without_a_file_runs_only_when_modbot_up_names_one_or_on_demand() {
     let source = format!("{GRID}record {{ signals = {{ \"A.y\" }} }}\n");
     let spec = load_vars(&source, &[]).unwrap();
     assert!(spec.grid.unwrap().component("record").is_none());
+    let on_demand = format!("{GRID}record {{ signals = {{ \"A.y\" }}, on_demand = true }}\n");
+    let spec = load_vars(&on_demand, &[]).unwrap();
+    assert_eq!(
+        text(recorder(&spec), "file"),
+        "",
+        "records when a program says"
+    );
     let asked = [(RECORD_VAR.to_owned(), "/data/asked.h5".to_owned())];
     let spec = load_vars(&source, &asked).unwrap();
     assert_eq!(text(recorder(&spec), "file"), "/data/asked.h5");

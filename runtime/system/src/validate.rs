@@ -344,7 +344,8 @@ fn runtime_programs(
 
 /// The description's recorders, with `modbot up --record FILE` applied ([`RECORD_VAR`]): the
 /// declared one writes FILE, or, without one, FILE records every output of the system's own
-/// components.
+/// components. A declared one without a file and without FILE runs only `on_demand`, writing
+/// between a program's `record { }` and `stop_record { }` (an empty `file`).
 fn records(
     file: &str,
     mut records: Vec<RecordDecl>,
@@ -356,12 +357,14 @@ fn records(
     for r in &mut records {
         r.sources = vec![source.clone()];
     }
+    // Without a file, the system's recorder runs if it is on demand (it records when a
+    // program starts a recording), else not.
     records.retain_mut(|r| match record_decl::file_of(&r.file, vars, None) {
         Some(f) => {
             r.file = f;
             true
         }
-        None => false,
+        None => r.on_demand,
     });
     let asked = record_decl::file_of("", vars, None);
     if let (Some(path), true, Some(g)) = (asked, records.is_empty(), grid) {
@@ -370,6 +373,7 @@ fn records(
             host: "record".into(),
             signals: Signals::AllOf(components.iter().map(|c| c.name.clone()).collect()),
             file: path,
+            on_demand: false,
             period: Period::Ticks(1.0),
             units: Vec::new(),
             sources: vec![source],

@@ -22,8 +22,12 @@ pub struct RecordDecl {
     /// Its host (`record` unless the declaration says): a process of its own.
     pub host: String,
     pub signals: Signals,
-    /// The HDF5 file, an absolute path.
+    /// The HDF5 file, an absolute path; empty: none until a robot program starts a recording
+    /// (`modbot_record::control`).
     pub file: String,
+    /// A system's recorder without a file that runs anyway, for robot programs to start and
+    /// stop recordings with (`on_demand = true`).
+    pub on_demand: bool,
     /// Its period (every base tick unless the declaration says).
     pub period: Period,
     /// The units the declaration knows: (signal, unit).
