@@ -232,7 +232,6 @@ pub struct MethodQueue {
     next_handle: u64,
     /// Earliest deadline of any slot, so the expiry scan runs only when one is due.
     earliest_ns: u64,
-    len: usize,
 }
 
 impl Default for MethodQueue {
@@ -248,7 +247,6 @@ impl Default for MethodQueue {
             free: (0..MAX_OUTSTANDING as u8).rev().collect(),
             next_handle: 1,
             earliest_ns: u64::MAX,
-            len: 0,
         }
     }
 }
@@ -267,7 +265,12 @@ impl MethodQueue {
         if self.in_use[p] == u32::MAX {
             return Err(CallError::TooManyOutstanding(peer));
         }
-        let free_slot = usize::from(*self.free.last().ok_or(CallError::QueueFull(self.len))?);
+        let free_slot = usize::from(
+            *self
+                .free
+                .last()
+                .ok_or(CallError::QueueFull(MAX_OUTSTANDING))?,
+        );
         let mut n = self.next_seq[p];
         while self.in_use[p] & (1 << n) != 0 {
             n = (n + 1) & Seq::MAX;
@@ -305,7 +308,6 @@ impl MethodQueue {
         });
         self.payloads[free_slot].clear();
         self.earliest_ns = self.earliest_ns.min(deadline_ns);
-        self.len += 1;
         Ok((handle, seq))
     }
 
@@ -391,7 +393,6 @@ impl MethodQueue {
         self.in_use[p] &= !(1 << slot.seq.get());
         self.by_seq[p][usize::from(slot.seq.get())] = NO_SLOT;
         self.free.push(i as u8);
-        self.len -= 1;
     }
 
     /// Moves calls past their deadline to quarantine and reports them through `on_expired`;
