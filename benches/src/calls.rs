@@ -33,6 +33,7 @@ use crate::raw::{RawPorts, Wait};
 use crate::report::{Report, Row};
 use crate::sample::{self, size_label, Plan};
 use crate::uds;
+use modbot_runtime::transport::launch::inbox_senders_for;
 
 /// The payloads, in bytes.
 pub const SIZES: [usize; 5] = [8, 64, 4096, 64 * 1024, 1 << 20];
@@ -100,7 +101,9 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
          with SIGSTOP), so the machine's changes hit both alike; a row's ratio is the median of \
          the blocks' ratios of medians, with their range. The modbot rows use \
          CallOptions::default() (2 s timeout, 2 retransmissions, so the request payload is also \
-         kept for retransmission); every path copies the payload in and out on both sides; {}",
+         kept for retransmission) and inboxes with the {} sender slots a supervisor gives a \
+         system of two modules (MODBOT_INBOX_SENDERS); every path copies the payload in and out on both sides; {}",
+        inbox_senders_for(2),
         if opts.pin {
             "client pinned to core 0, servers to core 1"
         } else {
@@ -258,7 +261,7 @@ impl ModbotPath {
         )?;
         let mut tool = ModuleBuilder::new("bench", 0)
             .mode(mode)
-            .open_tool(IpcTransport::new(&domain)?, ())
+            .open_tool(two_module_system(&domain)?, ())
             .context("opening the benchmark's module")?;
         wait_for_echo(&mut tool, &mut child)?;
         Ok(ModbotPath {
@@ -330,6 +333,12 @@ impl Path for ModbotPath {
     fn server(&mut self) -> &mut Proc {
         &mut self.child
     }
+}
+
+/// The transport of either side: inboxes with the sender slots a supervisor gives a system of
+/// two modules, as `modbot up` would run them.
+fn two_module_system(domain: &Domain) -> anyhow::Result<IpcTransport> {
+    Ok(IpcTransport::new(domain)?.with_inbox_senders(inbox_senders_for(2)))
 }
 
 /// Calls until the echo module answers (it is starting, and the tool must learn its methods).
@@ -537,7 +546,7 @@ fn echo_module(args: &[String]) -> anyhow::Result<()> {
     let module = ModuleBuilder::new("echo", 1)
         .mode(mode)
         .method("echo", echo)
-        .open(IpcTransport::new(&domain)?, ())?;
+        .open(two_module_system(&domain)?, ())?;
     module.run()?;
     Ok(())
 }

@@ -13,6 +13,26 @@ use super::env;
 use modbot_core::domain::Domain;
 use modbot_system::{ModuleSpec, Supervision};
 
+/// What every module of one system gets alike, whenever it starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SystemEnv {
+    /// When the system started ([`env::EPOCH_NS`]): the same for every module and every
+    /// restart.
+    pub epoch_ns: u64,
+    /// The sender slots of every inbox ([`env::INBOX_SENDERS`]).
+    pub inbox_senders: usize,
+}
+
+impl SystemEnv {
+    /// The system of `modules` modules, started at `epoch_ns`.
+    pub fn new(epoch_ns: u64, modules: usize) -> SystemEnv {
+        SystemEnv {
+            epoch_ns,
+            inbox_senders: env::inbox_senders_for(modules),
+        }
+    }
+}
+
 /// A line a module printed, tagged with the module's index in the system description.
 #[derive(Debug)]
 pub struct LogLine {
@@ -23,14 +43,11 @@ pub struct LogLine {
 /// The environment variables a module process gets on top of the supervisor's own: the
 /// description's `env`, then the supervisor's settings (see [`env`]), which win over a
 /// description that sets the same names.
-///
-/// `epoch_ns` is the system's start ([`env::EPOCH_NS`]): the same for every module and every
-/// restart.
 pub(super) fn environment(
     spec: &ModuleSpec,
     domain: &Domain,
     supervision: &Supervision,
-    epoch_ns: u64,
+    system: &SystemEnv,
 ) -> BTreeMap<String, String> {
     let mut vars: BTreeMap<String, String> = spec.env.iter().cloned().collect();
     let ours = [
@@ -41,7 +58,8 @@ pub(super) fn environment(
             supervision.heartbeat_period.as_millis().max(1).to_string(),
         ),
         (env::MLOCKALL, if spec.mlock { "1" } else { "0" }.to_owned()),
-        (env::EPOCH_NS, epoch_ns.to_string()),
+        (env::EPOCH_NS, system.epoch_ns.to_string()),
+        (env::INBOX_SENDERS, system.inbox_senders.to_string()),
         (env::ASSIGNED, format!("{}.{}", spec.addr, spec.name)),
     ];
     for (name, value) in ours {
@@ -51,7 +69,7 @@ pub(super) fn environment(
 }
 
 /// Starts the module process of `spec`, with its output sent line by line to `logs`, and the
-/// [`environment`] for the system started at `epoch_ns`.
+/// [`environment`] of its system.
 ///
 /// The child is in a process group of its own (a Ctrl-C at the terminal reaches only the
 /// supervisor, which stops the modules in order) and gets SIGKILL when the supervisor dies,
@@ -61,7 +79,7 @@ pub fn spawn(
     spec: &ModuleSpec,
     domain: &Domain,
     supervision: &Supervision,
-    epoch_ns: u64,
+    system: &SystemEnv,
     logs: &Sender<LogLine>,
 ) -> std::io::Result<(Child, Vec<JoinHandle<()>>)> {
     let mut cmd = Command::new(&spec.program);
@@ -77,7 +95,7 @@ pub fn spawn(
             modbot_core::ReceiveMode::Blocking => "blocking",
         })
         .args(&spec.args)
-        .envs(environment(spec, domain, supervision, epoch_ns))
+        .envs(environment(spec, domain, supervision, system))
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -180,9 +198,14 @@ mod tests {
             &module("sonar", &[("MODBOT_SIM_SPEED", "2")]),
             &domain,
             &supervision,
-            123_456_789,
+            &SystemEnv::new(123_456_789, 2),
         );
-        let mobility = environment(&module("mobility", &[]), &domain, &supervision, 123_456_789);
+        let mobility = environment(
+            &module("mobility", &[]),
+            &domain,
+            &supervision,
+            &SystemEnv::new(123_456_789, 2),
+        );
         assert_eq!(sonar[env::EPOCH_NS], "123456789");
         assert_eq!(mobility[env::EPOCH_NS], sonar[env::EPOCH_NS]);
         assert_eq!(
@@ -194,6 +217,11 @@ mod tests {
         assert_eq!(sonar[env::GROUPS], "sensors,all");
         assert_eq!(sonar[env::HEARTBEAT_MS], "100");
         assert_eq!(sonar[env::MLOCKALL], "0");
+        assert_eq!(
+            sonar[env::INBOX_SENDERS],
+            env::inbox_senders_for(2).to_string(),
+            "inboxes are sized to the system"
+        );
     }
 
     #[test]
@@ -203,7 +231,7 @@ mod tests {
             &module("sonar", &[(env::EPOCH_NS, "1"), (env::DOMAIN, "other")]),
             &domain,
             &Supervision::default(),
-            99,
+            &SystemEnv::new(99, 1),
         );
         assert_eq!(sut[env::EPOCH_NS], "99");
         assert_eq!(sut[env::DOMAIN], "envtest");

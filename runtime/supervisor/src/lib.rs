@@ -63,7 +63,7 @@ use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 use thiserror::Error;
 
-use child::LogLine;
+use child::{LogLine, SystemEnv};
 use endpoint::open_endpoint;
 use modbot_core::clock::{Clock, MonotonicClock};
 use modbot_core::domain::Domain;
@@ -187,8 +187,9 @@ pub struct Supervisor {
     logs_tx: Sender<LogLine>,
     logs: Receiver<LogLine>,
     epoch: Instant,
-    /// The same instant on CLOCK_MONOTONIC, which every module gets as `MODBOT_EPOCH_NS`.
-    epoch_ns: u64,
+    /// The same instant on CLOCK_MONOTONIC, which every module gets as `MODBOT_EPOCH_NS`, and
+    /// the other settings every module gets alike.
+    system: SystemEnv,
     name_width: usize,
     problems: Vec<String>,
     stop_failed: bool,
@@ -215,7 +216,13 @@ impl Supervisor {
     /// ([`Shutdown::on_signals`]: on SIGINT/SIGTERM).
     pub fn start(spec: SystemSpec, shutdown: Shutdown) -> Result<Supervisor, SupervisorError> {
         let domain = Domain::new(&spec.domain)?;
-        let transport = IpcTransport::for_supervisor(&domain)?;
+        let (epoch, system) = (
+            Instant::now(),
+            SystemEnv::new(MonotonicClock.now_ns(), spec.modules.len()),
+        );
+        // The supervisor's own inbox is sized like its modules'.
+        let transport =
+            IpcTransport::for_supervisor(&domain)?.with_inbox_senders(system.inbox_senders);
         let directory = transport.scanned_directory();
         let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
         sweep(&domain, directory.as_ref(), &used)?;
@@ -247,8 +254,8 @@ impl Supervisor {
             heartbeats,
             logs_tx,
             logs,
-            epoch: Instant::now(),
-            epoch_ns: MonotonicClock.now_ns(),
+            epoch,
+            system,
             name_width,
             problems: Vec::new(),
             stop_failed: false,
@@ -398,7 +405,7 @@ impl Supervisor {
             m,
             &self.domain,
             &self.spec.supervision,
-            self.epoch_ns,
+            &self.system,
             &self.logs_tx,
         )
         .map_err(|source| SupervisorError::Spawn {

@@ -26,6 +26,18 @@ pub const ASSIGNED: &str = "MODBOT_ASSIGNED";
 /// Read by `modbot_core::sim::SimTime::from_env`.
 pub const SIM_SPEED: &str = "MODBOT_SIM_SPEED";
 
+/// How many processes may send to one module's inbox at once: the inbox's sender slots. A
+/// supervisor sets it from its system (its modules, itself, and room for tools and for the
+/// senders of dead processes until they are cleaned up); without it an inbox takes
+/// [`DEFAULT_INBOX_SENDERS`]. Every receive looks at every slot, so a system's inboxes are
+/// sized to it.
+pub const INBOX_SENDERS: &str = "MODBOT_INBOX_SENDERS";
+
+/// An inbox's sender slots without a supervisor's setting: every process a domain can hold.
+pub const DEFAULT_INBOX_SENDERS: usize = 300;
+/// The fewest sender slots an inbox gets, whatever it is told.
+pub const MIN_INBOX_SENDERS: usize = 4;
+
 /// The heartbeat period without a supervisor's setting.
 pub const DEFAULT_HEARTBEAT: Duration = Duration::from_millis(100);
 
@@ -36,6 +48,27 @@ pub fn heartbeat_period() -> Duration {
         .and_then(|v| v.parse::<u64>().ok())
         .map(|ms| Duration::from_millis(ms.clamp(1, 10_000)))
         .unwrap_or(DEFAULT_HEARTBEAT)
+}
+
+/// The inbox sender slots a supervisor gives a system of `modules` modules: each may send to
+/// an inbox, and once more while a restarted module's dead sender waits for its cleanup (or a
+/// host of a new assembly runs beside the old one), plus the supervisor and 16 tools.
+pub fn inbox_senders_for(modules: usize) -> usize {
+    (2 * modules + 17).clamp(MIN_INBOX_SENDERS, DEFAULT_INBOX_SENDERS)
+}
+
+/// The inbox sender slots this process was given ([`INBOX_SENDERS`]), or the default; a value
+/// that is not a number is the default, and the result lies in
+/// [`MIN_INBOX_SENDERS`]`..=`[`DEFAULT_INBOX_SENDERS`].
+pub fn inbox_senders() -> usize {
+    parse_inbox_senders(std::env::var(INBOX_SENDERS).ok().as_deref())
+}
+
+fn parse_inbox_senders(value: Option<&str>) -> usize {
+    value
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .unwrap_or(DEFAULT_INBOX_SENDERS)
+        .clamp(MIN_INBOX_SENDERS, DEFAULT_INBOX_SENDERS)
 }
 
 /// Applies `MODBOT_MLOCKALL` to this process; a refusal is a warning, not a failure.
@@ -49,5 +82,27 @@ pub fn apply_mlockall() {
         Err(e) => tracing::warn!(
             "mlockall refused ({e}): running without locked memory; page faults may add latency"
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inbox_senders_default_to_the_whole_domain_and_stay_in_range() {
+        assert_eq!(parse_inbox_senders(None), DEFAULT_INBOX_SENDERS);
+        assert_eq!(parse_inbox_senders(Some("many")), DEFAULT_INBOX_SENDERS);
+        assert_eq!(parse_inbox_senders(Some("40")), 40);
+        assert_eq!(parse_inbox_senders(Some(" 40\n")), 40);
+        assert_eq!(parse_inbox_senders(Some("0")), MIN_INBOX_SENDERS);
+        assert_eq!(parse_inbox_senders(Some("100000")), DEFAULT_INBOX_SENDERS);
+    }
+
+    #[test]
+    fn a_system_gets_two_slots_per_module_and_room_for_the_supervisor_and_tools() {
+        assert_eq!(inbox_senders_for(2), 21);
+        assert_eq!(inbox_senders_for(10), 37);
+        assert_eq!(inbox_senders_for(254), DEFAULT_INBOX_SENDERS);
     }
 }

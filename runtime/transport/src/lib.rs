@@ -122,6 +122,14 @@ pub enum TransportError {
     NoFreeAddress,
     #[error("frame of {len} bytes exceeds the domain's maximum of {max} bytes")]
     FrameTooLarge { len: usize, max: usize },
+    /// Every sender slot of the inbox is held by a live process or by one that died and was
+    /// not cleaned up yet; the inbox's creator chose how many there are.
+    #[error(
+        "module {addr}'s inbox takes {slots} senders at once and all are taken (a supervisor \
+         sizes inboxes to its system with MODBOT_INBOX_SENDERS; dead senders' slots free when \
+         they are cleaned up)"
+    )]
+    InboxSendersTaken { addr: Addr, slots: usize },
     #[error("iceoryx2 {op} failed: {detail}")]
     Ipc { op: &'static str, detail: String },
     #[error(transparent)]

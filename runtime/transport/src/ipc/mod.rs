@@ -24,7 +24,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use iceoryx2::config::Config;
-use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::publisher::{Publisher, PublisherCreateError};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
@@ -95,6 +95,8 @@ impl IpcTransport {
             .defaults
             .publish_subscribe
             .subscriber_expired_connection_buffer = 4;
+        // An inbox this process creates has this many sender slots (`inbox_service`).
+        config.defaults.publish_subscribe.max_publishers = crate::launch::inbox_senders();
         let supervised = directory::is_published(&config);
         if supervised {
             // Each of these scans every node of the domain; the supervisor cleans instead.
@@ -109,6 +111,18 @@ impl IpcTransport {
             supervised,
             closed: std::cell::Cell::new(false),
         })
+    }
+
+    /// Sets the sender slots of the inboxes this process creates (see
+    /// [`launch::INBOX_SENDERS`](crate::launch::INBOX_SENDERS), which sets them by default),
+    /// within [`launch::MIN_INBOX_SENDERS`](crate::launch::MIN_INBOX_SENDERS)`..=`
+    /// [`launch::DEFAULT_INBOX_SENDERS`](crate::launch::DEFAULT_INBOX_SENDERS).
+    pub fn with_inbox_senders(mut self, senders: usize) -> IpcTransport {
+        self.config.defaults.publish_subscribe.max_publishers = senders.clamp(
+            crate::launch::MIN_INBOX_SENDERS,
+            crate::launch::DEFAULT_INBOX_SENDERS,
+        );
+        self
     }
 
     /// The transport of the supervisor itself: it scans and cleans, whatever an earlier
@@ -243,17 +257,18 @@ impl IpcTransport {
 fn inbox_service(
     node: &Node<ipc::Service>,
     addr: Addr,
-    max_frame: usize,
 ) -> Result<
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
     TransportError,
 > {
-    let _ = max_frame;
+    // No `max_publishers`: whoever creates the inbox gives it the sender slots of its
+    // configuration (`launch::INBOX_SENDERS`), and an opener takes what the inbox has instead
+    // of requiring a number of its own. Fewer slots make every receive cheaper (iceoryx2 looks
+    // at each one); a sender finds out at once if they are all taken (`InboxSendersTaken`).
     ipc!(
         "open inbox",
         node.service_builder(&service_name(&format!("inbox.{}", addr.0))?)
             .publish_subscribe::<[u8]>()
-            .max_publishers(MAX_NODES)
             .max_subscribers(2)
             .max_nodes(MAX_NODES)
             .subscriber_max_buffer_size(INBOX_DEPTH)
@@ -390,7 +405,7 @@ impl Transport for IpcTransport {
         debug_assert!(words.len() <= wake::MAX_WAIT_WORDS);
         let inbox = ipc!(
             "inbox subscriber",
-            inbox_service(&node, addr, self.domain.max_frame())?
+            inbox_service(&node, addr)?
                 .subscriber_builder()
                 .buffer_size(INBOX_DEPTH)
                 .create()
@@ -613,17 +628,23 @@ impl IpcTx {
         if self.peers[usize::from(to.0)].is_some() {
             return Ok(());
         }
-        let service = inbox_service(&self.node, to, self.max_frame)?;
-        let publisher = ipc!(
-            "inbox publisher",
-            service
-                .publisher_builder()
-                .initial_max_slice_len(self.max_frame)
-                .allocation_strategy(AllocationStrategy::Static)
-                .max_loaned_samples(2)
-                .backpressure_strategy(BackpressureStrategy::DiscardData)
-                .create()
-        )?;
+        let service = inbox_service(&self.node, to)?;
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(self.max_frame)
+            .allocation_strategy(AllocationStrategy::Static)
+            .max_loaned_samples(2)
+            .backpressure_strategy(BackpressureStrategy::DiscardData)
+            .create()
+            .map_err(|e| match e {
+                PublisherCreateError::ExceedsMaxSupportedPublishers => {
+                    TransportError::InboxSendersTaken {
+                        addr: to,
+                        slots: service.static_config().max_publishers(),
+                    }
+                }
+                e => ipc_err("inbox publisher")(&e),
+            })?;
         self.peers[usize::from(to.0)] = Some(PeerLink {
             publisher,
             wake: Some(Word::module(to)),
