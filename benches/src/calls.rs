@@ -101,8 +101,12 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
          with SIGSTOP), so the machine's changes hit both alike; a row's ratio is the median of \
          the blocks' ratios of medians, with their range. The modbot rows use \
          CallOptions::default() (2 s timeout, 2 retransmissions, so the request payload is also \
-         kept for retransmission) and inboxes with the {} sender slots a supervisor gives a \
-         system of two modules (MODBOT_INBOX_SENDERS); every path copies the payload in and out on both sides; {}",
+         kept for retransmission; a blocking caller looks for its answer {} µs before it \
+         sleeps, where the Unix-socket client sleeps at once, as the _no_spin rows do; the _paced \
+         rows pause 200 µs before each call, so that both sides sleep when it starts) and \
+         inboxes with the {} sender slots a supervisor gives a system of two modules \
+         (MODBOT_INBOX_SENDERS); every path copies the payload in and out on both sides; {}",
+        CallOptions::default().spin.as_micros(),
         inbox_senders_for(2),
         if opts.pin {
             "client pinned to core 0, servers to core 1"
@@ -139,7 +143,7 @@ fn busy_pair(
     let mut modbot = ModbotPath::open(opts, ReceiveMode::BusyPoll, max_frame, None)?;
     let mut raw = RawPath::open(opts, Wait::Busy, max_frame, sizes, None)?;
     let rows = ("calls.modbot_busy", "calls.raw_iceoryx2_busy");
-    let result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut raw);
+    let result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut raw, None);
     modbot.close(report, sizes)?;
     raw.close()?;
     result
@@ -157,7 +161,45 @@ fn blocking_pair(
     let mut uds = UdsPath::open(opts, sizes, fifo)?;
     let _fifo = procs::set_fifo(fifo)?;
     let rows = ("calls.modbot_blocking", "calls.uds_blocking");
-    let result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut uds);
+    let mut result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut uds, None);
+    // The sizes of the targets again: each call after a pause, so that both sides sleep when
+    // it starts (calls back to back find a server that has not gone to sleep yet); then back
+    // to back without the caller's look before sleeping, the wake-ups alone.
+    let target_sizes: Vec<usize> = sizes
+        .iter()
+        .copied()
+        .filter(|s| [8, 4096].contains(s))
+        .collect();
+    let extra = [
+        (
+            ("calls.modbot_blocking_paced", "calls.uds_blocking_paced"),
+            Some(PACE),
+            CallOptions::default().spin,
+        ),
+        (
+            (
+                "calls.modbot_blocking_no_spin",
+                "calls.uds_blocking_beside_no_spin",
+            ),
+            None,
+            Duration::ZERO,
+        ),
+    ];
+    for (rows, pace, spin) in extra {
+        if result.is_err() || target_sizes.is_empty() {
+            break;
+        }
+        modbot.spin = spin;
+        result = pair_sizes(
+            opts,
+            report,
+            &target_sizes,
+            rows,
+            &mut modbot,
+            &mut uds,
+            pace,
+        );
+    }
     modbot.close(report, sizes)?;
     uds.close()?;
     result
@@ -170,8 +212,12 @@ pub(crate) trait Path {
     fn server(&mut self) -> &mut Proc;
 }
 
+/// The pause before each call of the paced rows: long enough for both sides to sleep.
+const PACE: Duration = Duration::from_micros(200);
+
 /// Every size of `sizes` with `subject` interleaved with `baseline`: rows `names.0` (ratio over
-/// the blocks) and `names.1` (the baseline, its own).
+/// the blocks) and `names.1` (the baseline, its own). With `pace`, each round trip follows a
+/// pause of that long (not measured), with a tenth of the samples.
 fn pair_sizes(
     opts: &Opts,
     report: &mut Report,
@@ -179,13 +225,28 @@ fn pair_sizes(
     names: (&str, &str),
     subject: &mut dyn Path,
     baseline: &mut dyn Path,
+    pace: Option<Duration>,
 ) -> anyhow::Result<()> {
     for &size in sizes {
         let payload = vec![0x5a_u8; size];
-        let plan = Plan::for_bytes(opts, size);
+        let plan = match pace {
+            None => Plan::for_bytes(opts, size),
+            Some(_) => Plan::new(opts, Plan::for_bytes(opts, size).n / 10),
+        };
         let servers = (subject.server().pid(), baseline.server().pid());
-        let mut a = || subject.one(&payload);
-        let mut b = || baseline.one(&payload);
+        let pause = || {
+            if let Some(p) = pace {
+                std::thread::sleep(p);
+            }
+        };
+        let mut a = || {
+            pause();
+            subject.one(&payload)
+        };
+        let mut b = || {
+            pause();
+            baseline.one(&payload)
+        };
         let measured = interleave(
             &plan,
             Side {
@@ -232,6 +293,8 @@ struct ModbotPath {
     tool: Module<()>,
     child: Proc,
     mode: ReceiveMode,
+    /// How long a blocking call looks for its answer before sleeping ([`CallOptions::spin`]).
+    spin: Duration,
     /// The answer, copied out of shared memory.
     sink: Vec<u8>,
     // Declared last, dropped last: after the processes, nothing of the run stays behind.
@@ -268,6 +331,7 @@ impl ModbotPath {
             tool,
             child,
             mode,
+            spin: CallOptions::default().spin,
             sink: Vec::new(),
             scratch,
         })
@@ -309,7 +373,7 @@ impl Path for ModbotPath {
             "echo",
             "echo",
             &[Value::Bytes(payload)],
-            CallOptions::default(),
+            CallOptions::default().with_spin(self.spin),
             |r| match r {
                 Ok(args) => match args.as_slice().first() {
                     Some(Value::Bytes(b)) => {

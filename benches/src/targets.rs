@@ -25,6 +25,13 @@ pub fn evaluate(report: &mut Report) {
             ("calls.modbot_blocking", "calls.uds_blocking"),
             1.0,
         ),
+        per_payload(
+            report,
+            "blocking-mode call, both sides asleep when it starts",
+            "p50 ≤ the Unix-socket blocking p50",
+            ("calls.modbot_blocking_paced", "calls.uds_blocking_paced"),
+            1.0,
+        ),
         absolute(
             report,
             "grid tick error at 1 kHz with SCHED_FIFO",

@@ -329,6 +329,12 @@ impl<S> Module<S> {
         // at the inbox reads the clock only twice (sent, answered).
         let mut deadline = None;
         let mut spins = 0u32;
+        // A blocking module looks without sleeping until `opts.spin` after its first
+        // housekeeping, then sleeps between looks.
+        let blocking = self.ctx.mode == ReceiveMode::Blocking;
+        let mut spin_until = None;
+        // Not under a real-time policy: there the callee may wait for this very core.
+        let mut sleeping = blocking && (opts.spin.is_zero() || realtime_thread());
         loop {
             match self.poll_with(&mut waiter) {
                 Ok(true) => {
@@ -351,7 +357,7 @@ impl<S> Module<S> {
                 }
             }
             spins += 1;
-            if spins.is_multiple_of(64) || self.ctx.mode == ReceiveMode::Blocking {
+            if spins.is_multiple_of(64) || sleeping {
                 self.housekeeping_with(&mut waiter);
                 if !self.ctx.out.calls.is_waiting(handle)
                     && !self.ctx.out.pending.iter().any(|p| p.handle == handle)
@@ -363,8 +369,11 @@ impl<S> Module<S> {
                 {
                     break;
                 }
+                if blocking && now >= *spin_until.get_or_insert(now + opts.spin.as_nanos() as u64) {
+                    sleeping = true;
+                }
             }
-            if self.ctx.mode == ReceiveMode::Blocking {
+            if sleeping {
                 let _ = self.rx.wait(Duration::from_millis(5));
             } else {
                 core::hint::spin_loop();
@@ -482,6 +491,15 @@ impl<S> Module<S> {
     pub fn wait(&mut self, timeout: Duration) -> Result<(), TransportError> {
         self.rx.wait(timeout)
     }
+}
+
+/// Whether the calling thread runs under SCHED_FIFO or SCHED_RR: a real-time thread that
+/// spins keeps every lower-priority thread of its core away, the module it waits for included.
+fn realtime_thread() -> bool {
+    // SAFETY: sched_getscheduler reads the policy of the calling thread (pid 0); it takes no
+    // pointers and cannot fail for the calling thread.
+    let policy = unsafe { libc::sched_getscheduler(0) };
+    policy == libc::SCHED_FIFO || policy == libc::SCHED_RR
 }
 
 impl<S> Drop for Module<S> {
