@@ -64,7 +64,9 @@ pub struct CallOptions {
     /// ([`Module::call_blocking`](crate::module::Module::call_blocking)) before it sleeps:
     /// an answer that comes within it is taken without a wake-up, which costs tens of µs where
     /// idle cores halt (virtual machines); the caller's core is busy meanwhile. Zero sleeps at
-    /// once. A busy-mode module always looks without sleeping.
+    /// once. After a look that missed (the callee may share this core, or the machine is
+    /// loaded), the module's next 16 blocking calls sleep at once; a thread under SCHED_FIFO or
+    /// SCHED_RR never looks. A busy-mode module always looks without sleeping.
     pub spin: Duration,
 }
 

@@ -45,7 +45,14 @@ pub struct Module<S> {
     methods_digest: u32,
     /// The generation of the published directory the phone book last took in.
     book_generation: u64,
+    /// Blocking calls left that sleep at once: after a look for an answer that did not
+    /// come in time ([`CallOptions::spin`]), the next [`SKIPS_AFTER_MISSED_LOOK`] do not look.
+    looks_skipped: u32,
 }
+
+/// Blocking calls that sleep at once after a look for an answer that came too late: where the
+/// callee shares the caller's core (or the machine is loaded), looking only keeps it away.
+const SKIPS_AFTER_MISSED_LOOK: u32 = 16;
 
 /// The longest a module in blocking mode sleeps without a frame or a due deadline.
 const MAX_IDLE_NS: u64 = 1_000_000_000;
@@ -333,8 +340,14 @@ impl<S> Module<S> {
         // housekeeping, then sleeps between looks.
         let blocking = self.ctx.mode == ReceiveMode::Blocking;
         let mut spin_until = None;
-        // Not under a real-time policy: there the callee may wait for this very core.
-        let mut sleeping = blocking && (opts.spin.is_zero() || realtime_thread());
+        // Not under a real-time policy (there the callee may wait for this very core), and not
+        // right after a look that missed.
+        let look = blocking && !opts.spin.is_zero() && self.looks_skipped == 0;
+        let look = look && !realtime_thread();
+        if blocking && self.looks_skipped > 0 {
+            self.looks_skipped -= 1;
+        }
+        let mut sleeping = blocking && !look;
         loop {
             match self.poll_with(&mut waiter) {
                 Ok(true) => {
@@ -369,8 +382,12 @@ impl<S> Module<S> {
                 {
                     break;
                 }
-                if blocking && now >= *spin_until.get_or_insert(now + opts.spin.as_nanos() as u64) {
+                if !sleeping
+                    && blocking
+                    && now >= *spin_until.get_or_insert(now + opts.spin.as_nanos() as u64)
+                {
                     sleeping = true;
+                    self.looks_skipped = SKIPS_AFTER_MISSED_LOOK;
                 }
             }
             if sleeping {

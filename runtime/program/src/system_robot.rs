@@ -19,8 +19,10 @@ use modbot_ipc_schema::{OwnedValue, Value};
 
 use super::{Robot, RobotError};
 
-/// How long one read or call may take.
-const CALL_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long one read or call may take: generous, since a method may do real work (the
+/// recorder's `stop` closes its file) and a loaded machine stretches it to seconds; a module
+/// that is not running fails a call at once, whatever this says.
+const CALL_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long a switch may take (preparing a new assembly takes a fraction of a second here).
 const SWITCH_TIMEOUT: Duration = Duration::from_secs(60);
 /// How long a component is looked for among the hosts before it is said not to exist.

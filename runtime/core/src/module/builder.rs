@@ -221,6 +221,7 @@ impl<S> ModuleBuilder<S> {
         let methods_digest =
             modbot_ipc_schema::directory::methods_digest(b.methods.iter().map(|(n, _)| n.as_str()));
         let mut module = Module {
+            looks_skipped: 0,
             methods_digest,
             book_generation: 0,
             beat_period_ns,
