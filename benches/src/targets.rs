@@ -481,7 +481,7 @@ mod tests {
             t.measured,
             "no grid.tick_error row with fifo=true hogs=0 in this run"
         );
-        assert_eq!(sut.targets.len(), 14);
+        assert_eq!(sut.targets.len(), 15);
         assert!(sut.targets.iter().all(|t| t.met.is_none()));
     }
 
