@@ -126,7 +126,7 @@ fn sleeper_grid(policy: &str) -> String {
 fn sleeper_grid_ms(policy: &str, period: u64, sleep_at: i64, sleep_ms: i64) -> String {
     format!(
         r#"
-supervision {{ heartbeat_timeout = 10 }}
+supervision {{ heartbeat_timeout = 10, stop_grace = 30 }}
 grid {{ base_period = 0.001 }}
 component "A" {{ type = "ramp", host = "h1", period = 1 }}
 component "S" {{ type = "sleeper", host = "hs", period = {period}, policy = "{policy}",
