@@ -54,7 +54,12 @@ pub fn heartbeat_period() -> Duration {
 /// an inbox, and once more while a restarted module's dead sender waits for its cleanup (or a
 /// host of a new assembly runs beside the old one), plus the supervisor and 16 tools.
 pub fn inbox_senders_for(modules: usize) -> usize {
-    (2 * modules + 17).clamp(MIN_INBOX_SENDERS, DEFAULT_INBOX_SENDERS)
+    inbox_senders_within(2 * modules + 17)
+}
+
+/// `senders` brought into [`MIN_INBOX_SENDERS`]`..=`[`DEFAULT_INBOX_SENDERS`].
+pub fn inbox_senders_within(senders: usize) -> usize {
+    senders.clamp(MIN_INBOX_SENDERS, DEFAULT_INBOX_SENDERS)
 }
 
 /// The inbox sender slots this process was given ([`INBOX_SENDERS`]), or the default; a value
@@ -67,8 +72,7 @@ pub fn inbox_senders() -> usize {
 fn parse_inbox_senders(value: Option<&str>) -> usize {
     value
         .and_then(|v| v.trim().parse::<usize>().ok())
-        .unwrap_or(DEFAULT_INBOX_SENDERS)
-        .clamp(MIN_INBOX_SENDERS, DEFAULT_INBOX_SENDERS)
+        .map_or(DEFAULT_INBOX_SENDERS, inbox_senders_within)
 }
 
 /// Applies `MODBOT_MLOCKALL` to this process; a refusal is a warning, not a failure.

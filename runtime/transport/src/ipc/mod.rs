@@ -118,10 +118,8 @@ impl IpcTransport {
     /// within [`launch::MIN_INBOX_SENDERS`](crate::launch::MIN_INBOX_SENDERS)`..=`
     /// [`launch::DEFAULT_INBOX_SENDERS`](crate::launch::DEFAULT_INBOX_SENDERS).
     pub fn with_inbox_senders(mut self, senders: usize) -> IpcTransport {
-        self.config.defaults.publish_subscribe.max_publishers = senders.clamp(
-            crate::launch::MIN_INBOX_SENDERS,
-            crate::launch::DEFAULT_INBOX_SENDERS,
-        );
+        self.config.defaults.publish_subscribe.max_publishers =
+            crate::launch::inbox_senders_within(senders);
         self
     }
 
