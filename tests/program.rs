@@ -414,8 +414,9 @@ fn record_and_stop_record_write_the_chosen_signals_and_an_unknown_one_stops_the_
     assert_eq!(
         ran.status.code(),
         Some(0),
-        "{out}{}",
-        String::from_utf8_lossy(&ran.stderr)
+        "{out}{}\nmodbot up:\n{}",
+        String::from_utf8_lossy(&ran.stderr),
+        sut.output_of(up)
     );
     let file = std::path::absolute(dir.path().join("rec.h5")).unwrap();
     let last = out.lines().last().unwrap_or_default();

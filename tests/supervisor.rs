@@ -189,6 +189,23 @@ fn a_stopped_module_is_detected_as_hung_killed_and_restarted() {
     assert_eq!(code, 0, "{output}");
 }
 
+/// A method that works longer than the heartbeat timeout and beats meanwhile
+/// (`Ctx::keep_alive`, as the recorder's `stop` while its file closes) is not a hang: it
+/// answers, and its module is neither killed nor restarted.
+#[test]
+fn a_method_that_keeps_alive_while_it_works_past_the_heartbeat_timeout_is_not_judged_hung() {
+    let mut sut = TestDomain::new("keep_alive");
+    let body = r#"module "worker" { addr = 10, program = "modbot-faulty" }"#;
+    let up = start_up_with(&mut sut, body, &["worker"], &["--var", "hb=1"]);
+    let worker = pid_of(&sut, "worker");
+    let out = sut.modbot_ok(&["call", "worker.work", "3000", "--timeout-ms", "60000"]);
+    assert_eq!(out.trim(), "3000", "{out}");
+    assert_eq!(restarts_of(&sut, "worker"), 0, "{}", sut.output_of(up));
+    assert_eq!(pid_of(&sut, "worker"), worker);
+    let (code, output) = stop(&mut sut, up);
+    assert_eq!(code, 0, "{output}");
+}
+
 /// A panic and an exit(1) are restarted under `on-failure`; under `never` the module stays
 /// down, and `modbot up` reports it and exits non-zero.
 #[test]

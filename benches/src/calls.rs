@@ -16,7 +16,8 @@
 //! larger maximum frame ([`modbot_runtime::Domain::with_max_frame`]): every size class runs in
 //! a domain sized for it, so small calls are not measured in a 1 MiB system.
 //!
-//! Child role `calls-echo DOMAIN MAX_FRAME MODE CORE PRIO`: the echo module.
+//! Child role `calls-echo DOMAIN MAX_FRAME MODE CORE PRIO LOOK_US`: the echo module (LOOK_US:
+//! how long it lingers after a frame in blocking mode).
 
 use std::time::{Duration, Instant};
 
@@ -101,12 +102,14 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
          with SIGSTOP), so the machine's changes hit both alike; a row's ratio is the median of \
          the blocks' ratios of medians, with their range. The modbot rows use \
          CallOptions::default() (2 s timeout, 2 retransmissions, so the request payload is also \
-         kept for retransmission; a blocking caller looks for its answer {} µs before it \
-         sleeps, where the Unix-socket client sleeps at once, as the _no_spin rows do; the _paced \
-         rows pause 200 µs before each call, so that both sides sleep when it starts) and \
+         kept for retransmission; in blocking mode the caller looks for its answer and the echo \
+         module for the next call {} µs before sleeping, adaptively (ModuleBuilder::linger), \
+         where the Unix-socket sides sleep at once, as both modbot sides of the _no_spin rows \
+         do; the _paced rows pause 200 µs before each call, so that both sides sleep when it \
+         starts) and \
          inboxes with the {} sender slots a supervisor gives a system of two modules \
          (MODBOT_INBOX_SENDERS); every path copies the payload in and out on both sides; {}",
-        CallOptions::default().spin.as_micros(),
+        LOOK.as_micros(),
         inbox_senders_for(2),
         if opts.pin {
             "client pinned to core 0, servers to core 1"
@@ -140,7 +143,7 @@ fn busy_pair(
     max_frame: usize,
     sizes: &[usize],
 ) -> anyhow::Result<()> {
-    let mut modbot = ModbotPath::open(opts, ReceiveMode::BusyPoll, max_frame, None)?;
+    let mut modbot = ModbotPath::open(opts, ReceiveMode::BusyPoll, max_frame, None, LOOK)?;
     let mut raw = RawPath::open(opts, Wait::Busy, max_frame, sizes, None)?;
     let rows = ("calls.modbot_busy", "calls.raw_iceoryx2_busy");
     let result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut raw, None);
@@ -157,7 +160,7 @@ fn blocking_pair(
     sizes: &[usize],
     fifo: Option<u8>,
 ) -> anyhow::Result<()> {
-    let mut modbot = ModbotPath::open(opts, ReceiveMode::Blocking, max_frame, fifo)?;
+    let mut modbot = ModbotPath::open(opts, ReceiveMode::Blocking, max_frame, fifo, LOOK)?;
     let mut uds = UdsPath::open(opts, sizes, fifo)?;
     let _fifo = procs::set_fifo(fifo)?;
     let rows = ("calls.modbot_blocking", "calls.uds_blocking");
@@ -170,26 +173,9 @@ fn blocking_pair(
         .copied()
         .filter(|s| [8, 4096].contains(s))
         .collect();
-    let extra = [
-        (
-            ("calls.modbot_blocking_paced", "calls.uds_blocking_paced"),
-            Some(PACE),
-            CallOptions::default().spin,
-        ),
-        (
-            (
-                "calls.modbot_blocking_no_spin",
-                "calls.uds_blocking_beside_no_spin",
-            ),
-            None,
-            Duration::ZERO,
-        ),
-    ];
-    for (rows, pace, spin) in extra {
-        if result.is_err() || target_sizes.is_empty() {
-            break;
-        }
-        modbot.spin = spin;
+    if result.is_ok() && !target_sizes.is_empty() {
+        let rows = ("calls.modbot_blocking_paced", "calls.uds_blocking_paced");
+        let pace = Some(PACE);
         result = pair_sizes(
             opts,
             report,
@@ -199,6 +185,25 @@ fn blocking_pair(
             &mut uds,
             pace,
         );
+    }
+    if result.is_ok() && !target_sizes.is_empty() {
+        // An echo module of its own, which sleeps at once too.
+        let mut sleeper =
+            ModbotPath::open(opts, ReceiveMode::Blocking, max_frame, fifo, Duration::ZERO)?;
+        let rows = (
+            "calls.modbot_blocking_no_spin",
+            "calls.uds_blocking_beside_no_spin",
+        );
+        result = pair_sizes(
+            opts,
+            report,
+            &target_sizes,
+            rows,
+            &mut sleeper,
+            &mut uds,
+            None,
+        );
+        sleeper.close(report, sizes)?;
     }
     modbot.close(report, sizes)?;
     uds.close()?;
@@ -211,6 +216,10 @@ pub(crate) trait Path {
     fn one(&mut self, payload: &[u8]) -> anyhow::Result<u64>;
     fn server(&mut self) -> &mut Proc;
 }
+
+/// How long modbot's blocking side looks before sleeping: the defaults of [`CallOptions::spin`]
+/// and [`ModuleBuilder::linger`] (the same).
+const LOOK: Duration = modbot_runtime::module::DEFAULT_LINGER;
 
 /// The pause before each call of the paced rows: long enough for both sides to sleep.
 const PACE: Duration = Duration::from_micros(200);
@@ -302,13 +311,21 @@ struct ModbotPath {
 }
 
 impl ModbotPath {
+    /// `look`: how long the caller looks for an answer and the echo module for the next call
+    /// before sleeping (blocking mode: [`CallOptions::spin`], [`ModuleBuilder::linger`]).
     fn open(
         opts: &Opts,
         mode: ReceiveMode,
         max_frame: usize,
         fifo: Option<u8>,
+        look: Duration,
     ) -> anyhow::Result<ModbotPath> {
-        let what = format!("calls_{}_{}", mode_arg(mode), max_frame >> 10);
+        let what = format!(
+            "calls_{}_{}_{}",
+            mode_arg(mode),
+            max_frame >> 10,
+            look.as_micros()
+        );
         let scratch = Scratch::new(&what, Some(max_frame))?;
         let domain = scratch.domain.clone();
         let mut child = procs::spawn_role(
@@ -320,6 +337,7 @@ impl ModbotPath {
                 mode_arg(mode).to_owned(),
                 procs::core_arg(procs::core_for(opts, 1)),
                 uds::prio_arg(fifo),
+                look.as_micros().to_string(),
             ],
         )?;
         let mut tool = ModuleBuilder::new("bench", 0)
@@ -331,7 +349,7 @@ impl ModbotPath {
             tool,
             child,
             mode,
-            spin: CallOptions::default().spin,
+            spin: look,
             sink: Vec::new(),
             scratch,
         })
@@ -593,9 +611,14 @@ fn echo(_: &mut (), _: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(
 }
 
 fn echo_module(args: &[String]) -> anyhow::Result<()> {
-    let [domain, max_frame, mode, core, prio] = args else {
-        bail!("usage: child calls-echo DOMAIN MAX_FRAME busy|blocking CORE PRIO");
+    let [domain, max_frame, mode, core, prio, look_us] = args else {
+        bail!("usage: child calls-echo DOMAIN MAX_FRAME busy|blocking CORE PRIO LOOK_US");
     };
+    let look = Duration::from_micros(
+        look_us
+            .parse()
+            .with_context(|| format!("look '{look_us}' (µs)"))?,
+    );
     let _pinned = procs::pin(procs::parse_core(core)?)?;
     let mode = match mode.as_str() {
         "busy" => ReceiveMode::BusyPoll,
@@ -610,6 +633,7 @@ fn echo_module(args: &[String]) -> anyhow::Result<()> {
     let module = ModuleBuilder::new("echo", 1)
         .mode(mode)
         .method("echo", echo)
+        .linger(look)
         .open(two_module_system(&domain)?, ())?;
     module.run()?;
     Ok(())

@@ -4,6 +4,8 @@
 //! - `ping()` → the number of pings served so far (i64): shows that the module serves;
 //! - `panic()`, `exit(code)`: acknowledges, then panics or exits with `code` right after;
 //! - `hang()`: acknowledges, then stops serving and stops its heartbeat, busy in a loop;
+//! - `work(ms)`: takes `ms` milliseconds before it answers `ms`, beating meanwhile
+//!   ([`Ctx::keep_alive`]): a long method that is not a hang;
 //! - `flood(module, n)`: sends `n` malformed frames to `module`'s inbox → `[sent, refused]`;
 //! - `spam(module, n)`: sends `n` REPORTs to `module` as fast as it can, never waiting for
 //!   room → `[sent, refused]` (a refused frame is counted as dropped by the runtime);
@@ -73,6 +75,23 @@ pub fn exit(
 
 pub fn hang(f: &mut Faulty, _: &mut Ctx, _: &Args<'_>, _: &mut Reply) -> Result<(), MethodError> {
     f.next = Fault::Hang;
+    Ok(())
+}
+
+/// Works `ms` milliseconds (sleeping 10 ms at a time, beating between), then answers `ms`.
+pub fn work(
+    _: &mut Faulty,
+    ctx: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let ms = args.i64(0)?.clamp(0, 600_000);
+    let until = std::time::Instant::now() + std::time::Duration::from_millis(ms as u64);
+    while std::time::Instant::now() < until {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+        ctx.keep_alive();
+    }
+    reply.push(Value::I64(ms));
     Ok(())
 }
 

@@ -9,7 +9,7 @@ use modbot_modules::faulty::{self, Faulty};
 
 /// A module that panics, exits, hangs, floods or spams when called to; see `modbot_modules::faulty`.
 ///
-/// Methods: `ping()`, `panic()`, `exit(code)`, `hang()`, `flood(module, n)`, `spam(module, n)`,
+/// Methods: `ping()`, `panic()`, `exit(code)`, `hang()`, `work(ms)`, `flood(module, n)`, `spam(module, n)`,
 /// `record(seq)`.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-faulty", version)]
@@ -51,6 +51,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         .method("panic", faulty::panic)
         .method("exit", faulty::exit)
         .method("hang", faulty::hang)
+        .method("work", faulty::work)
         .method("flood", faulty::flood)
         .method("spam", faulty::spam)
         .method("record", faulty::record)

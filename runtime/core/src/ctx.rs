@@ -3,8 +3,10 @@
 use core::time::Duration;
 use std::sync::Arc;
 
+use modbot_ipc_schema::heartbeat::{Counters, ModuleState};
 use modbot_ipc_schema::{sysmethod, value, Addr, FrameKind, FrameSpec, Seq, SnapshotView, Value};
 
+use crate::beat::Heartbeats;
 use crate::blackboard::Blackboard;
 use crate::calls::{CallHandle, CallOptions, MethodQueue, Purpose, Resend};
 use crate::clock::Clock;
@@ -99,6 +101,8 @@ pub struct Ctx {
     /// Whether the operator left the module active (`activate`/`deactivate`): while not, its
     /// own methods answer NAK not-ready and its tasks do not run.
     pub(crate) active: bool,
+    /// Its heartbeats.
+    pub(crate) heartbeats: Heartbeats,
 }
 
 impl Ctx {
@@ -117,6 +121,27 @@ impl Ctx {
 
     pub fn now_ns(&self) -> u64 {
         self.clock.now_ns()
+    }
+
+    /// Sends a heartbeat if one is due. The message manager beats between the frames it serves;
+    /// a method that waits long (for a file to close, a device to answer) calls this while it
+    /// waits, or the supervisor, hearing nothing for the heartbeat timeout, judges the module
+    /// hung and kills it.
+    pub fn keep_alive(&mut self) {
+        if self.heartbeats.due(self.now_ns()) {
+            self.beat(ModuleState::Running);
+        }
+    }
+
+    /// Publishes a heartbeat now.
+    pub(crate) fn beat(&mut self, state: ModuleState) {
+        let counters = Counters {
+            dropped: self.tx.dropped(),
+            rejected: self.serving.rejected,
+            replayed: self.serving.replayed,
+        };
+        self.heartbeats
+            .send(self.tx.as_mut(), self.addr, state, counters);
     }
 
     /// Asks the main loop to stop after this step.

@@ -26,6 +26,7 @@
 //! No file imports another in a circle (`tests/layout.rs` checks every library crate): the
 //! manager and the module both stand on `hooks`, the stats on neither.
 
+mod beat;
 pub mod blackboard;
 pub mod calls;
 pub mod cli;

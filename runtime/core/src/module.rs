@@ -3,19 +3,21 @@
 //!
 //! - `builder`: [`ModuleBuilder`], declaring a module and opening it in a domain;
 //! - this file: [`Module`], a running module (serving, housekeeping, calls, heartbeats);
-//! - `closed`: what stands in for the endpoint after the module released it.
+//! - `closed`: what stands in for the endpoint after the module released it;
+//! - `look`: looking for a frame before sleeping (blocking calls, lingering after serving).
 
 mod builder;
 mod closed;
+mod look;
 
 pub use builder::ModuleBuilder;
 use closed::Closed;
+use look::{realtime_thread, Look};
 
 use core::time::Duration;
 
-use modbot_ipc_schema::heartbeat::{Counters, Heartbeat, ModuleState};
+use modbot_ipc_schema::heartbeat::ModuleState;
 use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
-use zerocopy::IntoBytes;
 
 use crate::calls::{CallOptions, Purpose};
 use crate::ctx::Ctx;
@@ -36,23 +38,21 @@ pub struct Module<S> {
     next_refresh_ns: u64,
     last_snapshot_ns: u64,
     reply: Reply,
-    /// Heartbeat period, and when the next beat is due.
-    beat_period_ns: u64,
-    next_beat_ns: u64,
-    /// Heartbeats sent.
-    beats: u64,
-    /// The digest of this module's method names, in its heartbeat.
-    methods_digest: u32,
     /// The generation of the published directory the phone book last took in.
     book_generation: u64,
-    /// Blocking calls left that sleep at once: after a look for an answer that did not
-    /// come in time ([`CallOptions::spin`]), the next [`SKIPS_AFTER_MISSED_LOOK`] do not look.
-    looks_skipped: u32,
+    /// How blocking calls' looks for their answers fared ([`CallOptions::spin`]).
+    answer_look: Look,
+    /// How lingering after a served frame fared ([`ModuleBuilder::linger`]), and how long.
+    linger: Look,
+    linger_span: Duration,
+    /// Whether the module's thread ran under SCHED_FIFO or SCHED_RR at the last directory
+    /// refresh (the supervisor may set the policy after the module started): it never looks.
+    realtime: bool,
 }
 
-/// Blocking calls that sleep at once after a look for an answer that came too late: where the
-/// callee shares the caller's core (or the machine is loaded), looking only keeps it away.
-const SKIPS_AFTER_MISSED_LOOK: u32 = 16;
+/// [`ModuleBuilder::linger`] by default: about one wake-up of a halted core on the machines
+/// modbot is measured on.
+pub const DEFAULT_LINGER: Duration = Duration::from_micros(50);
 
 /// The longest a module in blocking mode sleeps without a frame or a due deadline.
 const MAX_IDLE_NS: u64 = 1_000_000_000;
@@ -84,7 +84,7 @@ impl<S> Module<S> {
 
     /// The digest of this module's method names (in its heartbeats and the directory).
     pub fn methods_digest(&self) -> u32 {
-        self.methods_digest
+        self.ctx.heartbeats.methods_digest
     }
 
     /// Every module of the domain as the directory sees it now.
@@ -181,6 +181,7 @@ impl<S> Module<S> {
         };
         if directory_due {
             self.next_refresh_ns = now + REFRESH_NS;
+            self.realtime = realtime_thread();
             let changes = self.ctx.refresh_book();
             if !changes.died.is_empty() {
                 self.ctx.directory.reap_dead();
@@ -234,9 +235,8 @@ impl<S> Module<S> {
         }
         self.ctx.flush_pending();
         self.deliver_failures(waiter);
-        if now >= self.next_beat_ns {
-            self.next_beat_ns = now + self.beat_period_ns;
-            self.beat(ModuleState::Running);
+        if self.ctx.heartbeats.due(now) {
+            self.ctx.beat(ModuleState::Running);
         }
         let since = now.saturating_sub(self.last_snapshot_ns);
         if !self.ctx.bb.is_empty()
@@ -269,27 +269,6 @@ impl<S> Module<S> {
                     self.ctx.describe(addr);
                 }
             }
-        }
-    }
-
-    /// Publishes a heartbeat now.
-    fn beat(&mut self, state: ModuleState) {
-        self.beats += 1;
-        let counters = Counters {
-            dropped: self.ctx.tx.dropped(),
-            rejected: self.ctx.serving.rejected,
-            replayed: self.ctx.serving.replayed,
-        };
-        let hb = Heartbeat::new(
-            self.ctx.addr,
-            std::process::id(),
-            state,
-            self.beats,
-            counters,
-        )
-        .with_methods_digest(self.methods_digest);
-        if let Err(e) = self.ctx.tx.heartbeat(hb.as_bytes()) {
-            tracing::debug!("heartbeat not sent: {e}");
         }
     }
 
@@ -342,11 +321,7 @@ impl<S> Module<S> {
         let mut spin_until = None;
         // Not under a real-time policy (there the callee may wait for this very core), and not
         // right after a look that missed.
-        let look = blocking && !opts.spin.is_zero() && self.looks_skipped == 0;
-        let look = look && !realtime_thread();
-        if blocking && self.looks_skipped > 0 {
-            self.looks_skipped -= 1;
-        }
+        let look = blocking && self.answer_look.begin(opts.spin, self.realtime);
         let mut sleeping = blocking && !look;
         loop {
             match self.poll_with(&mut waiter) {
@@ -387,7 +362,7 @@ impl<S> Module<S> {
                     && now >= *spin_until.get_or_insert(now + opts.spin.as_nanos() as u64)
                 {
                     sleeping = true;
-                    self.looks_skipped = SKIPS_AFTER_MISSED_LOOK;
+                    self.answer_look.missed();
                 }
             }
             if sleeping {
@@ -430,29 +405,46 @@ impl<S> Module<S> {
         }
         crate::transport::launch::apply_mlockall();
         let mut idle_spins = 0u32;
+        let blocking = self.mode() == ReceiveMode::Blocking;
+        // Blocking mode: after serving, the module looks on without sleeping (it lingers)
+        // until `linger_span` after its first housekeeping.
+        let mut lingering = false;
+        let mut linger_until = None;
         while !self.should_stop() {
             let mut served = 0;
             while served < 64 && self.poll_once()? {
                 served += 1;
             }
+            if served > 0 && blocking {
+                lingering = self.linger.begin(self.linger_span, self.realtime);
+                linger_until = None;
+            }
             // A spinning module looks at its inbox between two housekeepings 64 times: a
             // frame that arrives is found within one look at the inbox, not after a
             // housekeeping (which reads the clock), and its tasks still run within
             // microseconds of their time.
-            let spinning = served == 0 && self.mode() == ReceiveMode::BusyPoll;
+            let spinning = served == 0 && (!blocking || lingering);
             if spinning {
                 idle_spins = idle_spins.wrapping_add(1);
             }
             if !spinning || idle_spins.is_multiple_of(64) {
                 self.housekeeping();
+                if lingering {
+                    let now = self.ctx.now_ns();
+                    let until =
+                        *linger_until.get_or_insert(now + self.linger_span.as_nanos() as u64);
+                    if now >= until {
+                        lingering = false;
+                        self.linger.missed();
+                    }
+                }
             }
             if served == 0 {
-                match self.mode() {
-                    ReceiveMode::Blocking => {
-                        let budget = self.idle_budget();
-                        self.wait(budget)?;
-                    }
-                    ReceiveMode::BusyPoll => core::hint::spin_loop(),
+                if spinning {
+                    core::hint::spin_loop();
+                } else {
+                    let budget = self.idle_budget();
+                    self.wait(budget)?;
                 }
             }
         }
@@ -493,7 +485,7 @@ impl<S> Module<S> {
             .copied()
             .chain([
                 refresh,
-                self.next_beat_ns,
+                self.ctx.heartbeats.next_ns,
                 self.ctx.out.calls.next_due_ns(),
                 snapshot,
                 pending,
@@ -510,20 +502,11 @@ impl<S> Module<S> {
     }
 }
 
-/// Whether the calling thread runs under SCHED_FIFO or SCHED_RR: a real-time thread that
-/// spins keeps every lower-priority thread of its core away, the module it waits for included.
-fn realtime_thread() -> bool {
-    // SAFETY: sched_getscheduler reads the policy of the calling thread (pid 0); it takes no
-    // pointers and cannot fail for the calling thread.
-    let policy = unsafe { libc::sched_getscheduler(0) };
-    policy == libc::SCHED_FIFO || policy == libc::SCHED_RR
-}
-
 impl<S> Drop for Module<S> {
     fn drop(&mut self) {
         // Tell the supervisor this is a clean stop, release every iceoryx2 resource of this
         // module, then clean the domain if it was the last one.
-        self.beat(ModuleState::Stopping);
+        self.ctx.beat(ModuleState::Stopping);
         self.rx = Box::new(Closed);
         self.ctx.tx = Box::new(Closed);
         self.ctx.snapshots = Box::new(Closed);

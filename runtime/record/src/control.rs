@@ -10,13 +10,16 @@
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, Weak};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use crossbeam::channel::{bounded, Sender};
+use crossbeam::channel::{bounded, RecvTimeoutError, Sender};
 
 /// How long a method waits for the writer (it finishes the batch at hand, closes a file,
 /// creates one).
 const ANSWER: Duration = Duration::from_secs(30);
+
+/// How often a method waiting for the writer calls back (its module's heartbeat).
+const BETWEEN: Duration = Duration::from_millis(50);
 
 /// What a recording was, when it stops.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -72,7 +75,13 @@ fn the_recorder() -> Result<Arc<Handle>, String> {
     }
 }
 
-fn ask<T>(make: impl FnOnce(Sender<Result<T, String>>) -> Control) -> Result<T, String> {
+/// Hands a request to the writer and waits for its answer, calling `meanwhile` every
+/// [`BETWEEN`] (closing a large file on a slow disk takes seconds, and the method's module
+/// must go on beating meanwhile: [`modbot_runtime::Ctx::keep_alive`]).
+fn ask<T>(
+    make: impl FnOnce(Sender<Result<T, String>>) -> Control,
+    meanwhile: &mut dyn FnMut(),
+) -> Result<T, String> {
     let recorder = the_recorder()?;
     let (answer, answered) = bounded(1);
     recorder
@@ -80,21 +89,42 @@ fn ask<T>(make: impl FnOnce(Sender<Result<T, String>>) -> Control) -> Result<T, 
         .send(make(answer))
         .map_err(|_| "the recorder's writer has stopped".to_owned())?;
     recorder.thread.unpark();
-    answered
-        .recv_timeout(ANSWER)
-        .map_err(|_| "the recorder's writer did not answer".to_owned())?
+    let asked = Instant::now();
+    loop {
+        match answered.recv_timeout(BETWEEN) {
+            Ok(answer) => return answer,
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err("the recorder's writer stopped before it answered".to_owned())
+            }
+            Err(RecvTimeoutError::Timeout) if asked.elapsed() >= ANSWER => {
+                return Err(format!(
+                    "the recorder's writer did not answer within {} s",
+                    ANSWER.as_secs()
+                ))
+            }
+            Err(RecvTimeoutError::Timeout) => meanwhile(),
+        }
+    }
 }
 
-/// Starts recording `signals` (empty: every one) to `file`: the file written.
-pub fn start(file: PathBuf, signals: Vec<String>) -> Result<PathBuf, String> {
-    ask(|answer| Control::Start {
-        file,
-        signals,
-        answer,
-    })
+/// Starts recording `signals` (empty: every one) to `file`: the file written. `meanwhile` is
+/// called while the writer closes the file before and creates this one (see [`ask`]).
+pub fn start(
+    file: PathBuf,
+    signals: Vec<String>,
+    meanwhile: &mut dyn FnMut(),
+) -> Result<PathBuf, String> {
+    ask(
+        |answer| Control::Start {
+            file,
+            signals,
+            answer,
+        },
+        meanwhile,
+    )
 }
 
-/// Stops recording: the file and its rows.
-pub fn stop() -> Result<Stopped, String> {
-    ask(|answer| Control::Stop { answer })
+/// Stops recording: the file and its rows. `meanwhile` is called while the writer closes it.
+pub fn stop(meanwhile: &mut dyn FnMut()) -> Result<Stopped, String> {
+    ask(|answer| Control::Stop { answer }, meanwhile)
 }

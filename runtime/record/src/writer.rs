@@ -335,17 +335,19 @@ mod tests {
         for tick in 0..5 {
             assert!(rows.push(tick, 0, &values(tick)));
         }
-        assert!(control::start(dir.join("run.h5"), vec!["nope.x".into()])
-            .unwrap_err()
-            .contains("signal 'nope.x' is not the recorder's: it records a.y, b.q"));
-        let path = control::start(dir.join("run.h5"), vec!["b.q".into()]).unwrap();
+        assert!(
+            control::start(dir.join("run.h5"), vec!["nope.x".into()], &mut || ())
+                .unwrap_err()
+                .contains("signal 'nope.x' is not the recorder's: it records a.y, b.q")
+        );
+        let path = control::start(dir.join("run.h5"), vec!["b.q".into()], &mut || ()).unwrap();
         for tick in 5..30 {
             while !rows.push(tick, 0, &values(tick)) {
                 sut.wake();
                 std::thread::sleep(Duration::from_millis(1));
             }
         }
-        let stopped = control::stop().unwrap();
+        let stopped = control::stop(&mut || ()).unwrap();
         assert_eq!(
             stopped,
             Stopped {
@@ -353,7 +355,10 @@ mod tests {
                 rows: 25
             }
         );
-        assert_eq!(control::stop().unwrap_err(), "nothing is being recorded");
+        assert_eq!(
+            control::stop(&mut || ()).unwrap_err(),
+            "nothing is being recorded"
+        );
         sut.finish().unwrap();
         let file = hdf5::File::open(&path).unwrap();
         let mut names = file.member_names().unwrap();

@@ -12,18 +12,20 @@ use std::path::PathBuf;
 use modbot_ipc_schema::{Args, Value};
 use modbot_runtime::{Ctx, MethodError, Reply};
 
-fn start(_: &mut (), _: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
+fn start(_: &mut (), ctx: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
     let file = PathBuf::from(args.text(0)?);
     let signals = (1..args.len())
         .map(|i| args.text(i).map(str::to_owned))
         .collect::<Result<Vec<_>, _>>()?;
-    let path = modbot_record::control::start(file, signals).map_err(MethodError::Failed)?;
+    let path = modbot_record::control::start(file, signals, &mut || ctx.keep_alive())
+        .map_err(MethodError::Failed)?;
     reply.push(Value::Text(&path.display().to_string()));
     Ok(())
 }
 
-fn stop(_: &mut (), _: &mut Ctx, _: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
-    let stopped = modbot_record::control::stop().map_err(MethodError::Failed)?;
+fn stop(_: &mut (), ctx: &mut Ctx, _: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
+    let stopped =
+        modbot_record::control::stop(&mut || ctx.keep_alive()).map_err(MethodError::Failed)?;
     reply.push(Value::Text(&stopped.path.display().to_string()));
     reply.push(Value::I64(i64::try_from(stopped.rows).unwrap_or(i64::MAX)));
     Ok(())
