@@ -26,6 +26,11 @@ pub struct ModuleArgs {
     /// How to wait for frames: `blocking` (sleep until woken) or `busy` (spin on a core).
     #[arg(long, default_value = "blocking", value_parser = ["blocking", "busy"])]
     pub mode: String,
+    /// Blocking mode: how long, in µs, the module looks for the next frame after serving one
+    /// before it sleeps again (0: sleeps at once; see `ModuleBuilder::linger`).
+    #[arg(long, env = "MODBOT_LINGER_US", value_name = "US",
+          default_value_t = crate::module::DEFAULT_LINGER.as_micros() as u64)]
+    pub linger_us: u64,
 }
 
 impl ModuleArgs {
@@ -54,9 +59,11 @@ impl ModuleArgs {
     }
 
     /// A builder for the module these options name: `--name` else `name`, `--addr` else
-    /// `addr`, waiting for frames as `--mode` says.
+    /// `addr`, waiting for frames as `--mode` and `--linger-us` say.
     pub fn module<S>(&self, name: &str, addr: u8) -> ModuleBuilder<S> {
-        ModuleBuilder::new(&self.name_or(name), self.addr_or(addr)).mode(self.receive_mode())
+        ModuleBuilder::new(&self.name_or(name), self.addr_or(addr))
+            .mode(self.receive_mode())
+            .linger(core::time::Duration::from_micros(self.linger_us))
     }
 
     /// Opens the module `builder` describes in the domain, with `state`, and serves until it
@@ -89,4 +96,27 @@ pub fn exit(
     }
     eprintln!("{line}");
     std::process::ExitCode::from(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Debug, Parser)]
+    struct Program {
+        #[command(flatten)]
+        module: ModuleArgs,
+    }
+
+    #[test]
+    fn a_module_program_lingers_fifty_microseconds_unless_told_otherwise() {
+        let default = Program::try_parse_from(["m"]).unwrap();
+        assert_eq!(default.module.linger_us, 50);
+        let none = Program::try_parse_from(["m", "--linger-us", "0"]).unwrap();
+        assert_eq!(none.module.linger_us, 0);
+        let err = Program::try_parse_from(["m", "--linger-us", "soon"]).unwrap_err();
+        assert!(err.to_string().contains("--linger-us"), "{err}");
+    }
 }
