@@ -167,7 +167,7 @@ fn blocking_pair(
     let mut result = pair_sizes(opts, report, sizes, rows, &mut modbot, &mut uds, None);
     // The sizes of the targets again: each call after a pause, so that both sides sleep when
     // it starts (calls back to back find a server that has not gone to sleep yet); then back
-    // to back without the caller's look before sleeping, the wake-ups alone.
+    // to back with both sides sleeping at once (no look, no linger), the wake-ups alone.
     let target_sizes: Vec<usize> = sizes
         .iter()
         .copied()
@@ -217,8 +217,8 @@ pub(crate) trait Path {
     fn server(&mut self) -> &mut Proc;
 }
 
-/// How long modbot's blocking side looks before sleeping: the defaults of [`CallOptions::spin`]
-/// and [`ModuleBuilder::linger`] (the same).
+/// How long modbot's blocking side looks before sleeping: the default of [`CallOptions::spin`]
+/// and of [`ModuleBuilder::linger`], which is defined as the same.
 const LOOK: Duration = modbot_runtime::module::DEFAULT_LINGER;
 
 /// The pause before each call of the paced rows: long enough for both sides to sleep.

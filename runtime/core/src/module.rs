@@ -45,14 +45,15 @@ pub struct Module<S> {
     /// How lingering after a served frame fared ([`ModuleBuilder::linger`]), and how long.
     linger: Look,
     linger_span: Duration,
-    /// Whether the module's thread ran under SCHED_FIFO or SCHED_RR at the last directory
-    /// refresh (the supervisor may set the policy after the module started): it never looks.
+    /// Whether the module's thread ran under SCHED_FIFO or SCHED_RR at its last heartbeat (the
+    /// supervisor may set the policy after the module started): it never looks.
     realtime: bool,
 }
 
-/// [`ModuleBuilder::linger`] by default: about one wake-up of a halted core on the machines
+/// [`ModuleBuilder::linger`] by default: the same as a blocking call's look for its answer
+/// ([`crate::calls::DEFAULT_CALL_SPIN`]), about one wake-up of a halted core on the machines
 /// modbot is measured on.
-pub const DEFAULT_LINGER: Duration = Duration::from_micros(50);
+pub const DEFAULT_LINGER: Duration = crate::calls::DEFAULT_CALL_SPIN;
 
 /// The longest a module in blocking mode sleeps without a frame or a due deadline.
 const MAX_IDLE_NS: u64 = 1_000_000_000;
@@ -181,7 +182,6 @@ impl<S> Module<S> {
         };
         if directory_due {
             self.next_refresh_ns = now + REFRESH_NS;
-            self.realtime = realtime_thread();
             let changes = self.ctx.refresh_book();
             if !changes.died.is_empty() {
                 self.ctx.directory.reap_dead();
@@ -237,6 +237,7 @@ impl<S> Module<S> {
         self.deliver_failures(waiter);
         if self.ctx.heartbeats.due(now) {
             self.ctx.beat(ModuleState::Running);
+            self.realtime = realtime_thread();
         }
         let since = now.saturating_sub(self.last_snapshot_ns);
         if !self.ctx.bb.is_empty()
