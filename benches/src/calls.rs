@@ -8,7 +8,9 @@
 //! - `calls.modbot_blocking`: both in blocking mode (Event wake-ups); baseline
 //!   `calls.uds_blocking`, interleaved the same way;
 //! - `calls.raw_iceoryx2_busy`, `calls.raw_iceoryx2_event`, `calls.uds_blocking`: the
-//!   baselines, each its own.
+//!   baselines, each its own;
+//! - `calls.modbot_work` against `calls.raw_iceoryx2_work`: the CPU work of a call, both sides
+//!   in one thread ([`crate::work`]).
 //!
 //! Every path copies the payload in on the way out and out on the way back, on both sides:
 //! the modbot client copies the answer out of shared memory, as the raw client does. The echo
@@ -95,6 +97,10 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
                 ));
             }
         }
+    }
+    if let Err(e) = crate::work::run(opts, report) {
+        procs::check_interrupted()?;
+        report.note(format!("calls: the _work rows failed: {e:#}"));
     }
     report.note(format!(
         "calls: each modbot row and its baseline were measured interleaved, in {BLOCKS} \
@@ -419,7 +425,7 @@ impl Path for ModbotPath {
 
 /// The transport of either side: inboxes with the sender slots a supervisor gives a system of
 /// two modules, as `modbot up` would run them.
-fn two_module_system(domain: &Domain) -> anyhow::Result<IpcTransport> {
+pub(crate) fn two_module_system(domain: &Domain) -> anyhow::Result<IpcTransport> {
     Ok(IpcTransport::new(domain)?.with_inbox_senders(inbox_senders_for(2)))
 }
 
@@ -603,7 +609,12 @@ pub fn child(role: &str, args: &[String]) -> Option<anyhow::Result<()>> {
     (role == "calls-echo").then(|| echo_module(args))
 }
 
-fn echo(_: &mut (), _: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
+pub(crate) fn echo(
+    _: &mut (),
+    _: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
     for v in args.as_slice() {
         reply.push(*v);
     }

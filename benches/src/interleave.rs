@@ -29,6 +29,13 @@ pub struct Side<'a> {
     pub server: Option<u32>,
 }
 
+impl<'a> Side<'a> {
+    /// A side without a server process (both of its ends live in this process).
+    pub fn alone(one: &'a mut dyn FnMut() -> anyhow::Result<u64>) -> Side<'a> {
+        Side { one, server: None }
+    }
+}
+
 /// The ratios of the blocks: each block's subject median over its baseline median.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Blocks {
@@ -151,18 +158,7 @@ mod tests {
             log.borrow_mut().push('b');
             Ok(100)
         };
-        let pair = interleave(
-            &plan,
-            Side {
-                one: &mut a,
-                server: None,
-            },
-            Side {
-                one: &mut b,
-                server: None,
-            },
-        )
-        .unwrap();
+        let pair = interleave(&plan, Side::alone(&mut a), Side::alone(&mut b)).unwrap();
         let blocks = pair.blocks.unwrap();
         assert_eq!((blocks.count, blocks.median), (BLOCKS, 3.0));
         assert_eq!((pair.subject.len(), pair.baseline.len()), (100, 100));

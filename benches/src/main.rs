@@ -30,6 +30,7 @@
 //!   start.
 //! - [`sample`]: warm-up, sample counts, histograms, the cross-process clock.
 //! - [`raw`], [`uds`]: the baselines, raw iceoryx2 and Unix-domain sockets.
+//! - [`work`]: part of benchmark 1, the CPU work of one call (both sides in one thread).
 //! - [`hogs`]: CPU hogs of normal priority, for measurements on a busy machine.
 //! - Benchmarks, one file each, each with `run` and its child roles in `child`: [`calls`] (1,
 //!   method-call round trip), [`snapshots`] (2, blackboard snapshots), [`grid`] (3, tick error
@@ -60,6 +61,7 @@ mod supervised;
 mod swaps;
 mod targets;
 mod uds;
+mod work;
 
 use std::path::PathBuf;
 use std::time::Instant;

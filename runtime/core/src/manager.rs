@@ -68,7 +68,9 @@ pub(crate) fn dispatch<S>(
                     .map(|e| e.name.clone())
                     .unwrap_or_else(|| format!("module {src}"))
             };
-            let result = match frame.kind() {
+            // Decoded in place: `Args` is a few hundred bytes, not moved through results.
+            let mut args = Args::EMPTY;
+            let result: Result<&Args<'_>, CallError> = match frame.kind() {
                 FrameKind::Nak { code } => {
                     let detail = match frame.values().next() {
                         Some(Ok(Value::Text(t))) => t.to_owned(),
@@ -80,10 +82,13 @@ pub(crate) fn dispatch<S>(
                         detail,
                     })
                 }
-                _ => Args::decode(frame.values()).map_err(|e| CallError::BadAnswer {
-                    module: module(ctx),
-                    detail: e.to_string(),
-                }),
+                _ => match args.decode_from(frame.values()) {
+                    Ok(()) => Ok(&args),
+                    Err(e) => Err(CallError::BadAnswer {
+                        module: module(ctx),
+                        detail: e.to_string(),
+                    }),
+                },
             };
             match purpose {
                 Purpose::Describe => {
@@ -107,7 +112,7 @@ pub(crate) fn dispatch<S>(
                         Ok(_) => ctx.stats.answered += 1,
                         Err(_) => ctx.stats.failed += 1,
                     }
-                    let result = result.as_ref();
+                    let result = result.as_ref().map(|a| *a);
                     match waiter {
                         Some((h, f)) if *h == handle => f(result),
                         _ => match def.on_done {
@@ -200,9 +205,10 @@ fn serve_request<S>(
     }
     reply.buf.clear();
     reply.count = 0;
-    let result: Result<(), UnknownOr> = match Args::decode(frame.values()) {
+    let mut args = Args::EMPTY;
+    let result: Result<(), UnknownOr> = match args.decode_from(frame.values()) {
         Err(e) => Err(MethodError::from(e).into()),
-        Ok(args) => {
+        Ok(()) => {
             if method >= sysmethod::FIRST_RESERVED {
                 system_method(def, state, ctx, method, &args, reply)
             } else {
