@@ -53,7 +53,8 @@ impl RetryPolicy {
 /// Options of one call.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct CallOptions {
-    /// How long to wait for the answer, all attempts included.
+    /// How long to wait for the answer, all attempts included, from the request's first send
+    /// (or from the call, for one that waits to be sent).
     pub timeout: Duration,
     /// While the peer is down or its inbox is full, keep trying until the deadline instead of
     /// failing at once; a call sent to a peer that then dies is sent again when it comes back.
@@ -137,6 +138,9 @@ impl CallHandle {
 
 /// No slot, in the (peer, sequence) index.
 const NO_SLOT: u8 = u8::MAX;
+
+/// The deadline of a call whose timeout has not started ([`MethodQueue::start`]).
+const NOT_STARTED: u64 = u64::MAX;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum SlotState {
@@ -273,10 +277,13 @@ impl Default for MethodQueue {
 
 impl MethodQueue {
     /// Enters a call to `peer`; returns its handle and the sequence number to send.
+    ///
+    /// Its timeout starts when it is first sent ([`MethodQueue::sent`]) or, for a call that
+    /// waits to be sent, when it starts waiting ([`MethodQueue::start`]): the caller reads the
+    /// clock after the request left, not on the way to sending it.
     pub fn begin(
         &mut self,
         peer: Addr,
-        now_ns: u64,
         opts: CallOptions,
         purpose: Purpose,
     ) -> Result<(CallHandle, Seq), CallError> {
@@ -303,7 +310,6 @@ impl MethodQueue {
         let handle = CallHandle((self.next_handle << 8) | free_slot as u64);
         self.next_handle += 1;
         let timeout_ns = timeout.as_nanos() as u64;
-        let deadline_ns = now_ns.saturating_add(timeout_ns);
         let retry_every_ns = if opts.retry.retries > 0 {
             timeout_ns / (u64::from(opts.retry.retries) + 1)
         } else {
@@ -313,7 +319,7 @@ impl MethodQueue {
             handle,
             peer,
             seq,
-            deadline_ns,
+            deadline_ns: NOT_STARTED,
             timeout,
             state: SlotState::Waiting,
             purpose,
@@ -327,8 +333,21 @@ impl MethodQueue {
             first_sent_ns: None,
         });
         self.payloads[free_slot].clear();
-        self.earliest_ns = self.earliest_ns.min(deadline_ns);
         Ok((handle, seq))
+    }
+
+    /// Starts `handle`'s timeout at `now_ns`, unless it has started already.
+    pub fn start(&mut self, handle: CallHandle, now_ns: u64) {
+        let Some(i) = self.index(handle) else {
+            return;
+        };
+        let Some(slot) = self.slots[i].as_mut() else {
+            return;
+        };
+        if slot.deadline_ns == NOT_STARTED {
+            slot.deadline_ns = now_ns.saturating_add(slot.timeout.as_nanos() as u64);
+            self.earliest_ns = self.earliest_ns.min(slot.deadline_ns);
+        }
     }
 
     fn index(&self, handle: CallHandle) -> Option<usize> {
@@ -346,9 +365,11 @@ impl MethodQueue {
         Some(&mut self.payloads[i])
     }
 
-    /// Records that `handle`'s request for `method` was sent now; `kept` says whether its
-    /// payload is in [`MethodQueue::payload_buffer`].
+    /// Records that `handle`'s request for `method` was sent now (which starts its timeout if
+    /// it has not started); `kept` says whether its payload is in
+    /// [`MethodQueue::payload_buffer`].
     pub fn sent(&mut self, handle: CallHandle, method: u8, now_ns: u64, kept: bool) {
+        self.start(handle, now_ns);
         let Some(i) = self.index(handle) else {
             return;
         };
@@ -380,23 +401,27 @@ impl MethodQueue {
     /// call's does, so that a late second answer is not taken for a newer call that reused it.
     pub fn answer(&mut self, peer: Addr, seq: Seq, now_ns: u64) -> Option<Answered> {
         let i = usize::from(self.by_seq[usize::from(peer.0)][usize::from(seq.get())]);
-        self.slots
-            .get(i)?
+        // Read and changed in place: a slot is ~90 bytes, not moved out and back per answer.
+        let slot = self
+            .slots
+            .get_mut(i)?
+            .as_mut()
             .filter(|s| s.peer == peer && s.seq == seq && s.state == SlotState::Waiting)?;
-        let mut slot = self.slots[i].take().expect("found above");
-        if slot.sends > 1 {
-            let until_ns = now_ns + quarantine_ns(slot.timeout);
-            slot.state = SlotState::Quarantined { until_ns };
-            self.slots[i] = Some(slot);
-            self.earliest_ns = self.earliest_ns.min(until_ns);
-        } else {
-            self.release(i, slot);
-        }
-        Some(Answered {
+        let answered = Answered {
             handle: slot.handle,
             purpose: slot.purpose,
             first_sent_ns: slot.first_sent_ns,
-        })
+        };
+        if slot.sends > 1 {
+            let until_ns = now_ns + quarantine_ns(slot.timeout);
+            slot.state = SlotState::Quarantined { until_ns };
+            self.earliest_ns = self.earliest_ns.min(until_ns);
+        } else {
+            self.slots[i] = None;
+            self.free_number(peer, seq);
+            self.free.push(i as u8);
+        }
+        Some(answered)
     }
 
     /// Ends a call without an answer (its send failed, say).
@@ -409,10 +434,15 @@ impl MethodQueue {
 
     /// Frees slot `i`, which held `slot` (already taken out of the table).
     fn release(&mut self, i: usize, slot: Slot) {
-        let p = usize::from(slot.peer.0);
-        self.in_use[p] &= !(1 << slot.seq.get());
-        self.by_seq[p][usize::from(slot.seq.get())] = NO_SLOT;
+        self.free_number(slot.peer, slot.seq);
         self.free.push(i as u8);
+    }
+
+    /// Frees sequence number `seq` of `peer`.
+    fn free_number(&mut self, peer: Addr, seq: Seq) {
+        let p = usize::from(peer.0);
+        self.in_use[p] &= !(1 << seq.get());
+        self.by_seq[p][usize::from(seq.get())] = NO_SLOT;
     }
 
     /// Moves calls past their deadline to quarantine and reports them through `on_expired`;
@@ -550,6 +580,19 @@ mod tests {
 
     const SEC: u64 = 1_000_000_000;
 
+    /// Enters a call whose timeout starts at `now` (as when it is sent or parked then).
+    fn begin_at(
+        sut: &mut MethodQueue,
+        peer: Addr,
+        now: u64,
+        opts: CallOptions,
+        purpose: Purpose,
+    ) -> Result<(CallHandle, Seq), CallError> {
+        let (handle, seq) = sut.begin(peer, opts, purpose)?;
+        sut.start(handle, now);
+        Ok((handle, seq))
+    }
+
     /// One second, never retransmitted.
     fn one_second() -> CallOptions {
         CallOptions::timeout(Duration::from_secs(1)).with_retry(RetryPolicy::NONE)
@@ -558,9 +601,9 @@ mod tests {
     #[test]
     fn answers_are_matched_by_peer_and_sequence() {
         let mut sut = MethodQueue::default();
-        let (a, sa) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
-        let (b, sb) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
-        let (c, sc) = sut.begin(Addr(3), 0, one_second(), Purpose::User).unwrap();
+        let (a, sa) = begin_at(&mut sut, Addr(2), 0, one_second(), Purpose::User).unwrap();
+        let (b, sb) = begin_at(&mut sut, Addr(2), 0, one_second(), Purpose::User).unwrap();
+        let (c, sc) = begin_at(&mut sut, Addr(3), 0, one_second(), Purpose::User).unwrap();
         assert_ne!(sa, sb);
         assert_eq!(sa, sc, "sequence numbers count per peer");
         assert_eq!(sut.complete(Addr(2), sb, 0), Some((b, Purpose::User)));
@@ -577,20 +620,20 @@ mod tests {
     fn thirty_two_calls_can_wait_on_one_peer_and_the_thirty_third_is_refused() {
         let mut sut = MethodQueue::default();
         for _ in 0..32 {
-            sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
+            begin_at(&mut sut, Addr(2), 0, one_second(), Purpose::User).unwrap();
         }
         assert_eq!(
-            sut.begin(Addr(2), 0, one_second(), Purpose::User),
+            begin_at(&mut sut, Addr(2), 0, one_second(), Purpose::User),
             Err(CallError::TooManyOutstanding(Addr(2)))
         );
-        assert!(sut.begin(Addr(3), 0, one_second(), Purpose::User).is_ok());
+        assert!(begin_at(&mut sut, Addr(3), 0, one_second(), Purpose::User).is_ok());
     }
 
     #[test]
     fn a_second_answer_to_a_retransmitted_call_is_not_taken_for_a_newer_call() {
         let mut sut = MethodQueue::default();
         let opts = one_second().with_retry(RetryPolicy { retries: 3 });
-        let (a, seq) = sut.begin(Addr(2), 0, opts, Purpose::User).unwrap();
+        let (a, seq) = begin_at(&mut sut, Addr(2), 0, opts, Purpose::User).unwrap();
         sut.sent(a, 1, 0, true);
         let mut resent = 0;
         sut.expire(SEC / 2, |_| {}, |_| resent += 1);
@@ -604,16 +647,14 @@ mod tests {
         // number of the call sent twice (which it would take next in turn).
         let others: Vec<Seq> = (0..31)
             .map(|_| {
-                sut.begin(Addr(2), SEC, one_second(), Purpose::User)
+                begin_at(&mut sut, Addr(2), SEC, one_second(), Purpose::User)
                     .unwrap()
                     .1
             })
             .collect();
         assert!(!others.contains(&seq));
         assert!(sut.complete(Addr(2), others[4], SEC).is_some());
-        let (_, next) = sut
-            .begin(Addr(2), SEC, one_second(), Purpose::User)
-            .unwrap();
+        let (_, next) = begin_at(&mut sut, Addr(2), SEC, one_second(), Purpose::User).unwrap();
         assert_eq!(
             next, others[4],
             "the number of a call sent twice is not reused at once"
@@ -630,7 +671,7 @@ mod tests {
     #[test]
     fn an_answer_to_a_call_sent_once_frees_its_number_at_once() {
         let mut sut = MethodQueue::default();
-        let (a, seq) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
+        let (a, seq) = begin_at(&mut sut, Addr(2), 0, one_second(), Purpose::User).unwrap();
         sut.sent(a, 1, 0, false);
         assert_eq!(sut.complete(Addr(2), seq, 1), Some((a, Purpose::User)));
         assert_eq!(sut.waiting(), 0);
@@ -639,7 +680,7 @@ mod tests {
     #[test]
     fn a_timed_out_call_is_reported_and_its_late_answer_is_not_taken_for_a_new_call() {
         let mut sut = MethodQueue::default();
-        let (a, seq) = sut.begin(Addr(2), 0, one_second(), Purpose::User).unwrap();
+        let (a, seq) = begin_at(&mut sut, Addr(2), 0, one_second(), Purpose::User).unwrap();
         let mut expired = vec![];
         sut.expire(SEC / 2, |e| expired.push(e.handle), |_| {});
         assert!(expired.is_empty());
@@ -659,9 +700,7 @@ mod tests {
             "the expiry reports the caller's timeout"
         );
         for _ in 0..31 {
-            let (_, s) = sut
-                .begin(Addr(2), SEC, one_second(), Purpose::User)
-                .unwrap();
+            let (_, s) = begin_at(&mut sut, Addr(2), SEC, one_second(), Purpose::User).unwrap();
             assert_ne!(s, seq, "a quarantined sequence number is not reused");
         }
         assert_eq!(
@@ -678,7 +717,7 @@ mod tests {
         let mut sut = MethodQueue::default();
         let opts =
             CallOptions::timeout(Duration::from_secs(3)).with_retry(RetryPolicy { retries: 2 });
-        let (handle, seq) = sut.begin(Addr(4), 0, opts, Purpose::User).unwrap();
+        let (handle, seq) = begin_at(&mut sut, Addr(4), 0, opts, Purpose::User).unwrap();
         sut.payload_buffer(handle)
             .unwrap()
             .extend_from_slice(b"args");
@@ -711,10 +750,10 @@ mod tests {
     fn a_call_that_waits_for_its_peer_survives_the_peers_death_and_is_sent_again_when_it_returns() {
         let mut sut = MethodQueue::default();
         let waits = CallOptions::timeout(Duration::from_secs(5)).waiting_for_peer();
-        let (patient, seq) = sut.begin(Addr(4), 0, waits, Purpose::User).unwrap();
+        let (patient, seq) = begin_at(&mut sut, Addr(4), 0, waits, Purpose::User).unwrap();
         sut.payload_buffer(patient).unwrap().push(7);
         sut.sent(patient, 1, 0, true);
-        let (hasty, _) = sut.begin(Addr(4), 0, one_second(), Purpose::User).unwrap();
+        let (hasty, _) = begin_at(&mut sut, Addr(4), 0, one_second(), Purpose::User).unwrap();
         sut.sent(hasty, 1, 0, false);
         let mut failed = vec![];
         sut.fail_peer(Addr(4), |e| failed.push(e.handle));
@@ -738,7 +777,7 @@ mod tests {
         let mut sut = MethodQueue::default();
         let opts =
             CallOptions::timeout(Duration::from_secs(3)).with_retry(RetryPolicy { retries: 2 });
-        let (handle, seq) = sut.begin(Addr(4), 5, opts, Purpose::User).unwrap();
+        let (handle, seq) = begin_at(&mut sut, Addr(4), 5, opts, Purpose::User).unwrap();
         sut.sent(handle, 1, 7, true);
         sut.expire(SEC + 7, |_| {}, |_| {});
         sut.sent(handle, 1, SEC + 8, true); // sent again from a pending queue, say
@@ -750,7 +789,7 @@ mod tests {
                 first_sent_ns: Some(7)
             })
         );
-        let (never_sent, seq) = sut.begin(Addr(4), 5, opts, Purpose::User).unwrap();
+        let (never_sent, seq) = begin_at(&mut sut, Addr(4), 5, opts, Purpose::User).unwrap();
         assert_eq!(
             sut.answer(Addr(4), seq, 2 * SEC)
                 .map(|a| (a.handle, a.first_sent_ns)),
@@ -766,18 +805,16 @@ mod tests {
             let peer = Addr(1 + (i / 32) as u8);
             calls.push((
                 peer,
-                sut.begin(peer, 0, one_second(), Purpose::User).unwrap(),
+                begin_at(&mut sut, peer, 0, one_second(), Purpose::User).unwrap(),
             ));
         }
         assert_eq!(
-            sut.begin(Addr(100), 0, one_second(), Purpose::User),
+            begin_at(&mut sut, Addr(100), 0, one_second(), Purpose::User),
             Err(CallError::QueueFull(MAX_OUTSTANDING))
         );
         let (peer, (old, seq)) = calls[200];
         assert_eq!(sut.complete(peer, seq, 0), Some((old, Purpose::User)));
-        let (new, _) = sut
-            .begin(Addr(100), 0, one_second(), Purpose::User)
-            .unwrap();
+        let (new, _) = begin_at(&mut sut, Addr(100), 0, one_second(), Purpose::User).unwrap();
         assert_ne!(new, old);
         assert!(sut.is_waiting(new));
         assert!(
@@ -792,9 +829,32 @@ mod tests {
     }
 
     #[test]
+    fn a_calls_timeout_starts_when_it_is_first_sent_not_when_it_is_entered() {
+        let mut sut = MethodQueue::default();
+        let (handle, _) = sut.begin(Addr(4), one_second(), Purpose::User).unwrap();
+        let mut expired = vec![];
+        sut.expire(10 * SEC, |e| expired.push(e.handle), |_| {});
+        assert!(
+            expired.is_empty(),
+            "not sent yet: its timeout has not started"
+        );
+        sut.sent(handle, 1, 10 * SEC, false);
+        sut.sent(handle, 1, 10 * SEC + SEC / 2, false); // sent again: the timeout runs on
+        sut.expire(10 * SEC + SEC / 2, |e| expired.push(e.handle), |_| {});
+        assert!(expired.is_empty());
+        assert_eq!(
+            sut.next_due_ns(),
+            11 * SEC,
+            "due one timeout after the first send"
+        );
+        sut.expire(11 * SEC, |e| expired.push(e.handle), |_| {});
+        assert_eq!(expired, vec![handle]);
+    }
+
+    #[test]
     fn a_call_without_retries_keeps_no_payload_and_is_never_resent() {
         let mut sut = MethodQueue::default();
-        let (handle, _) = sut.begin(Addr(4), 0, one_second(), Purpose::User).unwrap();
+        let (handle, _) = begin_at(&mut sut, Addr(4), 0, one_second(), Purpose::User).unwrap();
         sut.sent(handle, 1, 0, false);
         let mut resent = 0;
         for t in 1..=10 {

@@ -210,9 +210,8 @@ impl Ctx {
     ) -> Result<CallHandle, CallError> {
         if let Some((addr, id)) = self.book.resolved(module, method) {
             // The same method as last time, and the book has not changed since.
-            let now = self.now_ns();
-            let (handle, seq) = self.out.calls.begin(addr, now, opts, Purpose::User)?;
-            return self.send_call(handle, (addr, seq, id), method, args, opts, now);
+            let (handle, seq) = self.out.calls.begin(addr, opts, Purpose::User)?;
+            return self.send_call(handle, (addr, seq, id), method, args, opts);
         }
         let addr = match self.book.lookup(module) {
             Ok(e) => e.addr,
@@ -232,11 +231,10 @@ impl Ctx {
                 }
             }
         };
-        let now = self.now_ns();
-        let (handle, seq) = self.out.calls.begin(addr, now, opts, Purpose::User)?;
+        let (handle, seq) = self.out.calls.begin(addr, opts, Purpose::User)?;
         match self.book.method_id(addr, method) {
             Some(Ok(id)) => {
-                let sent = self.send_call(handle, (addr, seq, id), method, args, opts, now);
+                let sent = self.send_call(handle, (addr, seq, id), method, args, opts);
                 if sent.is_ok() && self.book.get(addr).is_some_and(|e| e.alive) {
                     self.book.remember(module, method, addr, id);
                 }
@@ -263,9 +261,8 @@ impl Ctx {
         method: &str,
         args: &[Value<'_>],
         opts: CallOptions,
-        now: u64,
     ) -> Result<CallHandle, CallError> {
-        match self.send_exec(handle, (addr, seq, id), args, opts.keeps_payload(), now) {
+        match self.send_exec(handle, (addr, seq, id), args, opts.keeps_payload()) {
             Ok(()) => Ok(handle),
             Err(CallError::Send(SendError::NoReceiver(_) | SendError::InboxFull(_)))
                 if opts.wait_for_peer =>
@@ -280,16 +277,17 @@ impl Ctx {
         }
     }
 
-    /// Sends call `handle` to `addr` as an EXEC of method `id` with `args`, begun at `now`
-    /// (the clock is read once per call). With `keep`, the payload is encoded into the call's
-    /// retransmission buffer first and sent from there.
+    /// Sends call `handle` to `addr` as an EXEC of method `id` with `args`, encoded straight
+    /// into the sample. What the answer does not wait for comes after the send: the clock read
+    /// that starts the call's timeout, and with `keep` the payload encoded again into the call's
+    /// retransmission buffer (the caller's next step is to wait for the answer, which takes
+    /// longer than either).
     fn send_exec(
         &mut self,
         handle: CallHandle,
         (addr, seq, id): (Addr, Seq, u8),
         args: &[Value<'_>],
         keep: bool,
-        now: u64,
     ) -> Result<(), CallError> {
         let spec = FrameSpec {
             dst: addr,
@@ -297,26 +295,15 @@ impl Ctx {
             seq,
             kind: FrameKind::Exec { method: id },
         };
-        if keep {
-            let mut buf = self
-                .out
-                .calls
-                .payload_buffer(handle)
-                .map(core::mem::take)
-                .unwrap_or_default();
-            buf.clear();
-            let mut sent = encode_into(args, &mut buf);
-            if sent.is_ok() {
-                sent = self.send_raw(Dest::Module(addr), spec, &buf);
-            }
-            if let Some(slot) = self.out.calls.payload_buffer(handle) {
-                *slot = buf;
-            }
-            sent?;
-        } else {
-            self.send_values(Dest::Module(addr), spec, args)?;
-        }
-        self.out.calls.sent(handle, id, now, keep);
+        self.send_values(Dest::Module(addr), spec, args)?;
+        let now = self.now_ns();
+        let kept = keep
+            && match self.out.calls.payload_buffer(handle) {
+                // It was encoded once into the sample: it encodes again.
+                Some(buf) => encode_into(args, buf).is_ok(),
+                None => false,
+            };
+        self.out.calls.sent(handle, id, now, kept);
         Ok(())
     }
 
@@ -330,7 +317,13 @@ impl Ctx {
         opts: CallOptions,
     ) -> Result<(), CallError> {
         let mut payload = Vec::with_capacity(value::encoded_len(args));
-        encode_into(args, &mut payload)?;
+        if let Err(e) = encode_into(args, &mut payload) {
+            self.out.calls.cancel(handle);
+            return Err(e);
+        }
+        // Its timeout runs while it waits to be sent.
+        let now = self.now_ns();
+        self.out.calls.start(handle, now);
         self.out.pending.push(PendingCall {
             handle,
             addr,
@@ -374,12 +367,11 @@ impl Ctx {
         if self.out.describing[usize::from(addr.0)] {
             return;
         }
-        let now = self.now_ns();
         let opts = CallOptions::timeout(Duration::from_millis(1000));
-        let Ok((handle, seq)) = self.out.calls.begin(addr, now, opts, Purpose::Describe) else {
+        let Ok((handle, seq)) = self.out.calls.begin(addr, opts, Purpose::Describe) else {
             return;
         };
-        match self.send_exec(handle, (addr, seq, sysmethod::DESCRIBE), &[], true, now) {
+        match self.send_exec(handle, (addr, seq, sysmethod::DESCRIBE), &[], true) {
             Ok(()) => self.out.describing[usize::from(addr.0)] = true,
             Err(e) => {
                 tracing::debug!("cannot ask module {addr} for its methods: {e}");

@@ -1,7 +1,8 @@
 //! Traffic statistics and call latency: what the `stats` system method answers.
 //!
 //! Every module counts the frames it sends and receives and the calls it makes, and records the
-//! latency of each of its calls (first send to answer, by the injected clock) in a
+//! latency of each of its calls (from just after the request's first send to the answer, by the
+//! injected clock) in a
 //! [`Histogram`]. Recording is a few integer operations on a fixed array: the hot path never
 //! allocates.
 //!
