@@ -8,7 +8,7 @@ use modbot_runtime::signals::Shutdown;
 use modbot_runtime::supervisor::processes::{self, GridRun};
 use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError};
 use modbot_runtime::system::{self, DefaultResolver};
-use modbot_runtime::Domain;
+use modbot_runtime::{Domain, IpcTransport};
 
 /// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]... [--ticks N] [--trace OUT]`.
 pub fn up(
@@ -45,7 +45,7 @@ pub fn up(
             // What this run started is stopped by now; a domain another system uses is
             // left alone.
             if !matches!(e, SupervisorError::DomainInUse { .. }) {
-                domain.remove_files();
+                sweep(&domain);
             }
             eprintln!("modbot up: {e}");
             return Ok(ExitCode::from(1));
@@ -55,7 +55,7 @@ pub fn up(
         run_for,
         show_status: true,
     });
-    domain.remove_files();
+    sweep(&domain);
     println!(
         "modbot up: ran {:.1} s in domain '{}'",
         summary.ran_for.as_secs_f64(),
@@ -70,5 +70,22 @@ pub fn up(
             eprintln!("modbot up: {p}");
         }
         Ok(ExitCode::from(1))
+    }
+}
+
+/// Removes what the system left in `domain`, unless a process of the domain still lives (a
+/// tool): its files stay, and the last process to leave removes them.
+fn sweep(domain: &Domain) {
+    match IpcTransport::for_supervisor(domain) {
+        Ok(t) => {
+            if !t.sweep_after_system() {
+                tracing::info!(
+                    "processes still in domain '{}' keep its files",
+                    domain.name()
+                );
+            }
+        }
+        // The domain is closed to this user (a refused start, which says so itself), say.
+        Err(e) => tracing::debug!("cannot clean domain '{}': {e}", domain.name()),
     }
 }

@@ -707,3 +707,45 @@ fn the_cli_and_the_benchmarks_refuse_in_one_line_without_a_backtrace() {
     }
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }
+
+/// An operator's console that stays open (here a tool in this test's own process) outlives
+/// `modbot up`: the stopping supervisor leaves the files of processes that still live alone, so
+/// the console reaches the system that comes up next, and the last process to leave the domain
+/// removes what is left.
+#[test]
+fn a_tool_that_outlives_modbot_up_keeps_its_files_and_reaches_the_next_system() {
+    use modbot_runtime::{CallOptions, IpcTransport, ModuleBuilder};
+    let mut sut = TestDomain::new("outlive");
+    let first = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let domain = modbot_runtime::Domain::new(sut.name()).unwrap();
+    let mut console = ModuleBuilder::new("console", 0)
+        .open_tool(IpcTransport::new(&domain).unwrap(), ())
+        .unwrap();
+    let patient = CallOptions::timeout(Duration::from_secs(60)).waiting_for_peer();
+    let ranges = |console: &mut modbot_runtime::Module<()>| {
+        console.call_owned("sonar", "ranges", &[], patient)
+    };
+    assert!(ranges(&mut console).is_ok(), "the first system answers");
+
+    sut.signal(first, Signal::SIGTERM);
+    let status = sut.wait_exit(first, Duration::from_secs(30));
+    assert_eq!(status.code(), Some(0), "{}", sut.output_of(first));
+    assert!(
+        !sut.leftover_files().is_empty(),
+        "the console's files were removed while it runs"
+    );
+
+    let second = start_up(&mut sut, MRA, &["sonar", "mobility"]);
+    let answer = ranges(&mut console);
+    assert!(
+        answer.is_ok(),
+        "the console reaches the next system: {answer:?}"
+    );
+
+    // The system stops before the console: the console, last to leave, removes what is left.
+    sut.signal(second, Signal::SIGTERM);
+    let status = sut.wait_exit(second, Duration::from_secs(30));
+    assert_eq!(status.code(), Some(0), "{}", sut.output_of(second));
+    drop(console);
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}

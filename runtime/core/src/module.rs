@@ -511,6 +511,9 @@ impl<S> Drop for Module<S> {
         self.rx = Box::new(Closed);
         self.ctx.tx = Box::new(Closed);
         self.ctx.snapshots = Box::new(Closed);
+        // The directory too: a supervisor's published one is a service this module holds, and
+        // whether anyone still holds it says whether this module may be the last to leave.
+        self.ctx.directory = Box::new(Closed);
         if self.transport.sweep_if_empty() {
             tracing::debug!("last module of the domain left: its files are removed");
         }

@@ -323,7 +323,8 @@ pub trait Transport {
     fn directory(&self) -> Result<Box<dyn Directory>, TransportError>;
 
     /// Runs when the last module of this process leaves: removes the domain's files if no
-    /// module of it lives anymore.
+    /// module of it lives anymore (under a supervisor, if the supervisor has stopped and left
+    /// them to the last process of the domain).
     fn sweep_if_empty(&self) -> bool;
 
     /// Marks this transport as a tool's: a tool is short-lived and may run while a system

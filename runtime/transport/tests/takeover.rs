@@ -50,15 +50,21 @@ fn the_next_supervisor_takes_over_the_directory_a_tool_holds_and_its_generations
     let mut writer = DirectoryWriter::create(&node).expect("the held directory is taken over");
     assert_eq!(
         writer.generation(),
-        2,
-        "a reader that saw the last generation must see the next one as new"
+        3,
+        "what the first left is replaced at once, by a generation a reader that saw the last \
+         one sees as new"
+    );
+    assert_eq!(
+        names(&*sut),
+        Vec::<String>::new(),
+        "the first supervisor's modules are not read as the new one's"
     );
     writer.publish(&[listing("c", 5)]).unwrap();
     assert!(
         sut.published(),
         "the tool reads the new supervisor's directory"
     );
-    assert_eq!(sut.generation(), 3);
+    assert_eq!(sut.generation(), 4);
     assert_eq!(names(&*sut), ["c"]);
 }
 

@@ -4,7 +4,7 @@ use core::time::Duration;
 
 use modbot_ipc_schema::Addr;
 
-use crate::transport::{Dest, Rx, SendError, Snapshots, TransportError, Tx};
+use crate::transport::{Dest, Directory, PeerInfo, Rx, SendError, Snapshots, TransportError, Tx};
 
 /// Stands in for the endpoint once a module has released it.
 pub(super) struct Closed;
@@ -46,5 +46,14 @@ impl Snapshots for Closed {
     }
     fn read_latest(&mut self, _: Addr, _: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
         Ok(false)
+    }
+}
+
+impl Directory for Closed {
+    fn list(&self, _: &mut dyn FnMut(PeerInfo)) -> Result<(), TransportError> {
+        Ok(())
+    }
+    fn reap_dead(&self) -> usize {
+        0
     }
 }

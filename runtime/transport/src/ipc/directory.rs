@@ -172,8 +172,8 @@ pub struct DirectoryWriter {
 impl DirectoryWriter {
     /// Creates the directory of the domain `node` belongs to, empty (generation 0), in the
     /// first free slot ([`slots`]). A slot another process still holds is taken over if its
-    /// writer stopped cleanly; one a dead supervisor wrote cannot be written again and is
-    /// passed by. Generations go on from the highest an earlier supervisor published, so a
+    /// writer stopped cleanly (an empty image replaces the one it left); one a dead supervisor
+    /// wrote cannot be written again and is passed by. Generations go on from the highest an earlier supervisor published, so a
     /// reader that saw it sees the next one as new.
     pub fn create(node: &Node<ipc::Service>) -> Result<DirectoryWriter, TransportError> {
         let mut image: Box<Image> = vec![0u8; IMAGE_LEN]
@@ -215,7 +215,12 @@ impl DirectoryWriter {
             }
             generation = generation.max(last_generation(&service)?);
             match DirectoryWriter::write_in(service, image.clone(), generation) {
-                Ok(writer) => return Ok(writer),
+                // What the stopped supervisor published last is not true any more (its own
+                // entry among it): it is replaced at once, before anyone reads it as ours.
+                Ok(mut writer) => {
+                    writer.publish(&[])?;
+                    return Ok(writer);
+                }
                 Err(e) => tracing::debug!("directory slot {slot} taken by a dead writer: {e}"),
             }
             slot += 1;

@@ -487,8 +487,10 @@ impl Transport for IpcTransport {
     }
 
     fn sweep_if_empty(&self) -> bool {
-        if self.supervised {
-            // The supervisor removes the domain's files when the system stops.
+        if self.supervised && directory::is_published(&self.config) {
+            // The supervisor removes the domain's files when the system stops; one that
+            // stopped while other processes lived left them to the last of those, and as long
+            // as its directory exists someone still holds it.
             return false;
         }
         // A system may be starting in this domain right now: only files older than this
@@ -512,6 +514,26 @@ impl Transport for IpcTransport {
                 });
             return only_management && self.domain.remove_files_older_than(before) > 0;
         }
+        self.remove_files_unless_alive(before)
+    }
+}
+
+impl IpcTransport {
+    /// After a system stopped, or failed to start: removes what dead processes left, and the
+    /// domain's files if no process of the domain lives any more. A process that still does (an
+    /// operator's console, `modbot top`, a module started by hand) keeps its files and goes on
+    /// working; the last process to leave the domain removes what is left
+    /// ([`Transport::sweep_if_empty`]). Returns whether the files were removed.
+    pub fn sweep_after_system(&self) -> bool {
+        // A process may be starting in the domain while we look: only files older than this
+        // check are removed.
+        let before = std::time::SystemTime::now();
+        self.scan().reap_dead();
+        self.remove_files_unless_alive(before)
+    }
+
+    /// Removes the domain's files older than `before` if no node of the domain lives.
+    fn remove_files_unless_alive(&self, before: std::time::SystemTime) -> bool {
         // Any node that is not known dead counts, not only modules (a supervisor's heartbeat
         // monitor, say), and so does one whose state cannot be read right now.
         let mut alive = 0;
