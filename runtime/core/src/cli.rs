@@ -11,6 +11,10 @@ use crate::module::ModuleBuilder;
 use crate::transport::ipc::IpcTransport;
 use crate::transport::ReceiveMode;
 
+/// The environment variable a module program reads its `--linger-us` from (a system
+/// description's `linger_us` sets it).
+pub const LINGER_ENV: &str = "MODBOT_LINGER_US";
+
 /// The options every module program takes.
 #[derive(Debug, Clone, Args)]
 pub struct ModuleArgs {
@@ -28,7 +32,7 @@ pub struct ModuleArgs {
     pub mode: String,
     /// Blocking mode: how long, in µs, the module looks for the next frame after serving one
     /// before it sleeps again (0: sleeps at once; see `ModuleBuilder::linger`).
-    #[arg(long, env = "MODBOT_LINGER_US", value_name = "US",
+    #[arg(long, env = LINGER_ENV, value_name = "US",
           default_value_t = crate::module::DEFAULT_LINGER.as_micros() as u64)]
     pub linger_us: u64,
 }

@@ -82,7 +82,16 @@ impl ModuleDecl {
 }
 
 const MODULE_FIELDS: &[&str] = &[
-    "addr", "program", "args", "restart", "cpus", "priority", "mlock", "env", "mode",
+    "addr",
+    "program",
+    "args",
+    "restart",
+    "cpus",
+    "priority",
+    "mlock",
+    "env",
+    "mode",
+    "linger_us",
 ];
 const SUPERVISION_FIELDS: &[&str] = &[
     "start_timeout",
@@ -98,6 +107,9 @@ const RESTART_FIELDS: &[&str] = &[
     "max_backoff",
     "give_up",
 ];
+
+/// The longest a module may linger after serving a frame (`linger_us`): one second.
+const MAX_LINGER_US: i64 = 1_000_000;
 
 /// The largest CPU index an affinity mask can hold (the kernel's `CPU_SETSIZE` - 1).
 const MAX_CPU: i64 = 1023;
@@ -197,6 +209,23 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
         },
         None => ReceiveMode::Blocking,
     };
+    let mut env = env;
+    if let Some(v) = fields.take("linger_us") {
+        let us = integer_in(what, "linger_us", &v, 0, MAX_LINGER_US)?;
+        if mode == ReceiveMode::BusyPoll {
+            return Err(DeclError::invalid(
+                what,
+                "field 'linger_us' is for a module in blocking mode (a busy one never sleeps)",
+            ));
+        }
+        let var = modbot_core::cli::LINGER_ENV;
+        if env.iter().any(|(k, _)| k == var) {
+            let why = format!("set linger_us or env {var}, not both");
+            return Err(DeclError::invalid(what, why));
+        }
+        env.push((var.to_owned(), us.to_string()));
+        env.sort();
+    }
     Ok(ModuleDecl {
         name: name.to_owned(),
         // The range was checked above.

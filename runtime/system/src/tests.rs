@@ -474,7 +474,7 @@ fn unknown_field_is_refused_naming_the_expected_ones() {
     assert_error(
         "domain \"t\"\nmodule \"sonar\" { adr = 2, program = \"modbot-sonar\" }",
         Some(2),
-        "module 'sonar': unknown field 'adr' (expected addr, program, args, restart, cpus, priority, mlock, env, mode)",
+        "module 'sonar': unknown field 'adr' (expected addr, program, args, restart, cpus, priority, mlock, env, mode, linger_us)",
     );
     assert_error(
         "domain \"t\"\n\nsupervision { heartbeat = 1 }",
@@ -778,5 +778,36 @@ fn file_that_cannot_be_read_is_an_error_without_a_line() {
     assert!(
         sut.message.starts_with("cannot read the description"),
         "{sut}"
+    );
+}
+
+#[test]
+fn linger_us_sets_the_module_programs_linger_and_is_refused_where_it_cannot_apply() {
+    let module = |fields: &str| {
+        format!("domain \"t\"\nmodule \"x\" {{ addr = 1, program = \"modbot-sonar\", {fields} }}")
+    };
+    let sut = load_text(&module("linger_us = 0, env = { RUST_LOG = \"info\" }")).unwrap();
+    assert_eq!(
+        sut.modules[0].env,
+        [
+            ("MODBOT_LINGER_US".to_owned(), "0".to_owned()),
+            ("RUST_LOG".to_owned(), "info".to_owned())
+        ],
+        "in the environment, sorted with the rest"
+    );
+    assert_error(
+        &module("linger_us = -1"),
+        Some(2),
+        "field 'linger_us' must be an integer from 0 to 1000000",
+    );
+    assert_error(
+        &module("linger_us = 20, mode = \"busy\""),
+        Some(2),
+        "field 'linger_us' is for a module in blocking mode",
+    );
+    assert_error(
+        &module("linger_us = 20, env = { MODBOT_LINGER_US = \"5\" }"),
+        Some(2),
+        "set linger_us or env MODBOT_LINGER_US, not both",
     );
 }
