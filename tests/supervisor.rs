@@ -749,3 +749,45 @@ fn a_tool_that_outlives_modbot_up_keeps_its_files_and_reaches_the_next_system() 
     drop(console);
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }
+
+/// Two `modbot up` of one domain started at the same moment: one system runs, the other start
+/// is refused with the domain in use (whichever step of the start finds the other supervisor),
+/// and the refused one leaves the running system and its files alone.
+#[test]
+fn two_systems_started_at_once_in_one_domain_run_one_and_refuse_the_other() {
+    let mut sut = TestDomain::new("twin");
+    let file = sut.write_system(&format!("{FAST}{MRA}"));
+    let ups = [
+        sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]),
+        sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]),
+    ];
+    // Whichever ends first is the refused one (the other runs until it is stopped).
+    let start = Instant::now();
+    let refused = loop {
+        if let Some(&up) = ups.iter().find(|&&up| sut.exited(up).is_some()) {
+            break up;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "neither start ended:\n{}\n{}",
+            sut.output_of(ups[0]),
+            sut.output_of(ups[1])
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let running = ups.into_iter().find(|&up| up != refused).expect("two");
+    let status = sut.wait_exit(refused, Duration::from_secs(10));
+    let output = sut.output_of(refused);
+    assert_eq!(status.code(), Some(1), "{output}");
+    assert!(output.contains("is in use by a running system"), "{output}");
+
+    sut.wait_for("the system to run", Duration::from_secs(60), || {
+        ["sonar", "mobility"]
+            .iter()
+            .all(|m| sut.ls_field(m, "STATE").as_deref() == Some("running"))
+    });
+    sut.modbot_ok(&["call", "sonar.ranges"]);
+    let (code, output) = stop(&mut sut, running);
+    assert_eq!(code, 0, "{output}");
+    assert!(output.contains("every module stopped cleanly"), "{output}");
+}

@@ -226,8 +226,21 @@ impl Supervisor {
         let directory = transport.scanned_directory();
         let used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
         sweep(&domain, directory.as_ref(), &used)?;
-        let roster = Roster::new(&transport)?;
-        let relay = Relay::new(&transport)?;
+        // Two `modbot up` started at once may both pass the sweep: the directory has one
+        // writer and the relay one server, and the one that comes second finds the domain in
+        // use.
+        let in_use = |e: TransportError| match e {
+            TransportError::AnotherSupervisor { pid } => SupervisorError::DomainInUse {
+                domain: domain.name().to_owned(),
+                modules: match pid {
+                    Some(pid) => format!("supervisor (pid {pid})"),
+                    None => "another supervisor".to_owned(),
+                },
+            },
+            e => e.into(),
+        };
+        let roster = Roster::new(&transport).map_err(in_use)?;
+        let relay = Relay::new(&transport).map_err(in_use)?;
         let mut endpoint = open_endpoint(&transport, &used)?;
         endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
         let heartbeats = HeartbeatMonitor::new(&transport)?;

@@ -130,6 +130,10 @@ pub enum TransportError {
          they are cleaned up)"
     )]
     InboxSendersTaken { addr: Addr, slots: usize },
+    /// Another supervisor holds what a domain has one of (its directory, its relay for tools):
+    /// its system runs, or is starting beside this one. `pid` when it is known.
+    #[error("another supervisor runs in the domain{}", pid.map(|p| format!(" (pid {p})")).unwrap_or_default())]
+    AnotherSupervisor { pid: Option<u32> },
     #[error("iceoryx2 {op} failed: {detail}")]
     Ipc { op: &'static str, detail: String },
     #[error(transparent)]

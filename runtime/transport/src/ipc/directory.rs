@@ -209,9 +209,9 @@ impl DirectoryWriter {
                 continue;
             };
             if let Some(pid) = slots::live_writer(&service) {
-                return Err(ipc_err("create the directory")(&format!(
-                    "the supervisor with pid {pid} publishes it"
-                )));
+                return Err(TransportError::AnotherSupervisor {
+                    pid: Some(pid as u32),
+                });
             }
             generation = generation.max(last_generation(&service)?);
             match DirectoryWriter::write_in(service, image.clone(), generation) {

@@ -108,7 +108,13 @@ impl RelayServer {
             .allocation_strategy(AllocationStrategy::Static)
             .max_loaned_responses_per_request(1)
             .create()
-            .map_err(|e| ipc_err("relay server")(&e))?;
+            .map_err(|e| match e {
+                // A domain's relay has one server: another supervisor's.
+                iceoryx2::service::port_factory::server::ServerCreateError::ExceedsMaxSupportedServers => {
+                    TransportError::AnotherSupervisor { pid: None }
+                }
+                e => ipc_err("relay server")(&e),
+            })?;
         Ok(RelayServer {
             server,
             _service: service,
