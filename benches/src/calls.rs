@@ -26,7 +26,8 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use modbot_ipc_schema::{Args, Value};
 use modbot_runtime::{
-    CallOptions, Ctx, Domain, IpcTransport, MethodError, Module, ModuleBuilder, ReceiveMode, Reply,
+    CallError, CallOptions, Ctx, Domain, IpcTransport, MethodError, Module, ModuleBuilder,
+    ReceiveMode, Reply,
 };
 
 use crate::interleave::{interleave, Side, BLOCKS};
@@ -398,17 +399,7 @@ impl Path for ModbotPath {
             "echo",
             &[Value::Bytes(payload)],
             CallOptions::default().with_spin(self.spin),
-            |r| match r {
-                Ok(args) => match args.as_slice().first() {
-                    Some(Value::Bytes(b)) => {
-                        sink.clear();
-                        sink.extend_from_slice(b);
-                        Ok(b.len())
-                    }
-                    other => Err(format!("unexpected answer {other:?}")),
-                },
-                Err(e) => Err(e.to_string()),
-            },
+            |r| copy_answer(r, sink),
         );
         let ns = sample::since(t);
         match got {
@@ -420,6 +411,25 @@ impl Path for ModbotPath {
 
     fn server(&mut self) -> &mut Proc {
         &mut self.child
+    }
+}
+
+/// Copies the echo module's answer (its first value, bytes) out of shared memory into `sink`;
+/// its length, or why there is none.
+pub(crate) fn copy_answer(
+    answer: Result<&Args<'_>, &CallError>,
+    sink: &mut Vec<u8>,
+) -> Result<usize, String> {
+    match answer {
+        Ok(args) => match args.as_slice().first() {
+            Some(Value::Bytes(b)) => {
+                sink.clear();
+                sink.extend_from_slice(b);
+                Ok(b.len())
+            }
+            other => Err(format!("unexpected answer {other:?}")),
+        },
+        Err(e) => Err(e.to_string()),
     }
 }
 

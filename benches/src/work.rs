@@ -16,7 +16,7 @@ use anyhow::{bail, Context};
 use modbot_ipc_schema::{Args, Value};
 use modbot_runtime::{CallError, CallHandle, CallOptions, Ctx, Module, ModuleBuilder, ReceiveMode};
 
-use crate::calls::{echo, two_module_system};
+use crate::calls::{copy_answer, echo, two_module_system};
 use crate::interleave::{interleave, Side};
 use crate::opts::Opts;
 use crate::procs::Scratch;
@@ -86,17 +86,7 @@ struct Answers {
 }
 
 fn done(s: &mut Answers, _: &mut Ctx, _: CallHandle, r: Result<&Args<'_>, &CallError>) {
-    s.last = Some(match r {
-        Ok(args) => match args.as_slice().first() {
-            Some(Value::Bytes(b)) => {
-                s.sink.clear();
-                s.sink.extend_from_slice(b);
-                Ok(b.len())
-            }
-            other => Err(format!("unexpected answer {other:?}")),
-        },
-        Err(e) => Err(e.to_string()),
-    });
+    s.last = Some(copy_answer(r, &mut s.sink));
 }
 
 /// modbot's caller and echo module, in this thread.

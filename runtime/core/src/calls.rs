@@ -181,6 +181,14 @@ struct Slot {
 }
 
 impl Slot {
+    /// Starts the timeout at `now_ns` unless it has started; the deadline when it starts now.
+    fn start(&mut self, now_ns: u64) -> Option<u64> {
+        (self.deadline_ns == NOT_STARTED).then(|| {
+            self.deadline_ns = now_ns.saturating_add(self.timeout.as_nanos() as u64);
+            self.deadline_ns
+        })
+    }
+
     fn expired(&self) -> Expired {
         Expired {
             handle: self.handle,
@@ -338,15 +346,10 @@ impl MethodQueue {
 
     /// Starts `handle`'s timeout at `now_ns`, unless it has started already.
     pub fn start(&mut self, handle: CallHandle, now_ns: u64) {
-        let Some(i) = self.index(handle) else {
-            return;
-        };
-        let Some(slot) = self.slots[i].as_mut() else {
-            return;
-        };
-        if slot.deadline_ns == NOT_STARTED {
-            slot.deadline_ns = now_ns.saturating_add(slot.timeout.as_nanos() as u64);
-            self.earliest_ns = self.earliest_ns.min(slot.deadline_ns);
+        if let Some(slot) = self.index(handle).and_then(|i| self.slots[i].as_mut()) {
+            if let Some(deadline) = slot.start(now_ns) {
+                self.earliest_ns = self.earliest_ns.min(deadline);
+            }
         }
     }
 
@@ -369,13 +372,12 @@ impl MethodQueue {
     /// it has not started); `kept` says whether its payload is in
     /// [`MethodQueue::payload_buffer`].
     pub fn sent(&mut self, handle: CallHandle, method: u8, now_ns: u64, kept: bool) {
-        self.start(handle, now_ns);
-        let Some(i) = self.index(handle) else {
+        let Some(slot) = self.index(handle).and_then(|i| self.slots[i].as_mut()) else {
             return;
         };
-        let Some(slot) = self.slots[i].as_mut() else {
-            return;
-        };
+        if let Some(deadline) = slot.start(now_ns) {
+            self.earliest_ns = self.earliest_ns.min(deadline);
+        }
         slot.method = Some(method);
         slot.sends = slot.sends.saturating_add(1);
         slot.first_sent_ns.get_or_insert(now_ns);

@@ -42,10 +42,10 @@ pub(super) fn open_endpoint(
                 source: TransportError::NameTaken { pid, .. },
                 ..
             }) => {
-                return Err(SupervisorError::DomainInUse {
-                    domain: transport.domain().name().to_owned(),
-                    modules: format!("supervisor (pid {pid})"),
-                })
+                return Err(SupervisorError::another_supervisor(
+                    transport.domain(),
+                    Some(pid),
+                ))
             }
             Err(e) => last = e.into(),
         }

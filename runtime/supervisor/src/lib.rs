@@ -80,6 +80,19 @@ use status::{Row, RunState};
 use sweep::sweep;
 
 /// Why the supervisor could not start or run a system.
+impl SupervisorError {
+    /// `domain` is in use: another supervisor runs there (its pid, when known).
+    pub(crate) fn another_supervisor(domain: &Domain, pid: Option<u32>) -> SupervisorError {
+        SupervisorError::DomainInUse {
+            domain: domain.name().to_owned(),
+            modules: match pid {
+                Some(pid) => format!("supervisor (pid {pid})"),
+                None => "another supervisor".to_owned(),
+            },
+        }
+    }
+}
+
 #[derive(Debug, Error)]
 pub enum SupervisorError {
     #[error("domain '{domain}' is in use by a running system (live modules: {modules}); stop it first with `modbot down --domain {domain}`")]
@@ -230,13 +243,9 @@ impl Supervisor {
         // writer and the relay one server, and the one that comes second finds the domain in
         // use.
         let in_use = |e: TransportError| match e {
-            TransportError::AnotherSupervisor { pid } => SupervisorError::DomainInUse {
-                domain: domain.name().to_owned(),
-                modules: match pid {
-                    Some(pid) => format!("supervisor (pid {pid})"),
-                    None => "another supervisor".to_owned(),
-                },
-            },
+            TransportError::AnotherSupervisor { pid } => {
+                SupervisorError::another_supervisor(&domain, pid)
+            }
             e => e.into(),
         };
         let roster = Roster::new(&transport).map_err(in_use)?;

@@ -194,7 +194,7 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
         None => RestartPolicy::default(),
     };
     let (cpus, priority, mlock) = realtime(what, &mut fields)?;
-    let env = match fields.take("env") {
+    let mut env = match fields.take("env") {
         Some(v) => env(lua, what, &v)?,
         None => Vec::new(),
     };
@@ -209,7 +209,6 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
         },
         None => ReceiveMode::Blocking,
     };
-    let mut env = env;
     if let Some(v) = fields.take("linger_us") {
         let us = integer_in(what, "linger_us", &v, 0, MAX_LINGER_US)?;
         if mode == ReceiveMode::BusyPoll {

@@ -173,8 +173,8 @@ impl DirectoryWriter {
     /// Creates the directory of the domain `node` belongs to, empty (generation 0), in the
     /// first free slot ([`slots`]). A slot another process still holds is taken over if its
     /// writer stopped cleanly (an empty image replaces the one it left); one a dead supervisor
-    /// wrote cannot be written again and is passed by. Generations go on from the highest an earlier supervisor published, so a
-    /// reader that saw it sees the next one as new.
+    /// wrote cannot be written again and is passed by. Generations go on from the highest an
+    /// earlier supervisor published, so a reader that saw it sees the next one as new.
     pub fn create(node: &Node<ipc::Service>) -> Result<DirectoryWriter, TransportError> {
         let mut image: Box<Image> = vec![0u8; IMAGE_LEN]
             .into_boxed_slice()
