@@ -6,7 +6,8 @@
 # - the HDF5 C library and its headers, for the data recorder (`hdf5-metno`: Debian/Ubuntu
 #   libhdf5-dev, through apt-get; elsewhere install HDF5 1.10 or newer and set HDF5_DIR);
 # - with --tests, Python's h5py (the tests read the recordings with it) and FMPy (the tests
-#   validate and simulate the FMUs with it), through pip.
+#   validate and simulate the FMUs with it), through pip; and iproute2 (`ip`: the EtherCAT
+#   tests make a network namespace and a veth pair), through apt-get.
 set -euo pipefail
 
 have_libclang() {
@@ -22,8 +23,11 @@ have_hdf5() {
 missing=()
 have_libclang || missing+=(libclang-dev)
 have_hdf5 || missing+=(libhdf5-dev)
+if [ "${1:-}" = "--tests" ] && ! command -v ip > /dev/null; then
+    missing+=(iproute2)
+fi
 if [ ${#missing[@]} -gt 0 ]; then
-    echo "setup: installing ${missing[*]} (libclang for the fmi crate's bindgen, HDF5 for the recorder)"
+    echo "setup: installing ${missing[*]} (libclang for the fmi crate's bindgen, HDF5 for the recorder, iproute2 for the EtherCAT tests)"
     sudo=""
     [ "$(id -u)" -ne 0 ] && sudo="sudo"
     $sudo apt-get update -qq

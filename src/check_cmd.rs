@@ -38,7 +38,7 @@ fn check_assemblies(grid: &modbot_runtime::grid::GridSpec) -> Result<(), system:
     let Some(a) = &grid.assembly else {
         return Ok(());
     };
-    let registry = modbot_runtime::grid::Registry::builtin();
+    let registry = modbot_runtime::components::builtin();
     for name in system::assembly_names(&a.dir) {
         let spec = system::load_assembly(grid, &name, a.generation, &registry)?;
         let hosts = spec.assembly_hosts();

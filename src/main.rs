@@ -32,6 +32,19 @@ struct Cli {
     command: Command,
 }
 
+/// `modbot bus` subcommands.
+#[derive(Debug, Subcommand)]
+enum BusCommand {
+    /// The slaves on an EtherCAT segment: position, station address, AL state, distributed
+    /// clocks, identity and name (like IgH's `ethercat slaves`). It resets the slaves to PRE-OP,
+    /// so it is refused while another master runs the segment. Needs CAP_NET_RAW.
+    Scan {
+        /// The network interface of the segment.
+        #[arg(long)]
+        interface: String,
+    },
+}
+
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Encode or decode RVMF* frames.
@@ -66,8 +79,8 @@ enum Command {
         /// Run exactly this many base ticks of the grid, then stop.
         #[arg(long)]
         ticks: Option<u64>,
-        /// Write every component output at every tick to this file (see the README's trace
-        /// format), so runs can be compared byte for byte.
+        /// Write every component output at every tick to this file (see the trace format in
+        /// docs/grid.md), so runs can be compared byte for byte.
         #[arg(long, value_name = "OUT")]
         trace: Option<PathBuf>,
         /// Run the grid in lockstep: each tick as soon as every release due at it can be
@@ -93,6 +106,8 @@ enum Command {
     /// The bus ledger: bus cycles, missed cycles, a safe stop if there was one, and every
     /// drive's CiA 402 state and mode.
     Bus {
+        #[command(subcommand)]
+        command: Option<BusCommand>,
         /// Every assembly switch the bus saw instead: a line `max_step S max_velocity_step V`
         /// (the largest steps within an assembly), then per switch `GENERATION TICK STEP
         /// MISSED VSTEP` (the command's position step, the cycles missed within five ticks of
@@ -183,6 +198,13 @@ fn with_record(mut vars: Vec<(String, String)>, record: Option<PathBuf>) -> Vec<
     vars
 }
 
+/// `modbot bus scan --interface IF`.
+fn bus_scan(interface: &str) -> anyhow::Result<ExitCode> {
+    let slaves = modbot_ethercat::scan::scan(interface)?;
+    print!("{}", modbot_ethercat::scan::render(&slaves));
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     // Output piped into `head` and closed: end quietly, as Unix tools do, rather than panic
     // on the failed write.
@@ -223,6 +245,11 @@ fn main() -> ExitCode {
         ),
         Command::Top { once } => tool::top(&cli.domain, once),
         Command::Bus {
+            command: Some(BusCommand::Scan { interface }),
+            ..
+        } => bus_scan(&interface),
+        Command::Bus {
+            command: None,
             switches,
             timeout_ms,
         } => tool::bus(&cli.domain, switches, timeout_ms),

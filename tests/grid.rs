@@ -8,7 +8,6 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use common::TestDomain;
-use modbot_runtime::grid::component::Registry;
 use modbot_runtime::grid::{reference_trace, reference_trace_with, Overruns};
 use modbot_runtime::system::{self, DefaultResolver};
 use nix::sys::signal::Signal;
@@ -60,7 +59,11 @@ fn grid_of(file: &std::path::Path, domain: &str) -> modbot_runtime::grid::GridSp
 
 /// What logical execution time predicts, computed in this process.
 fn expected(file: &std::path::Path, domain: &str, ticks: u64) -> String {
-    reference_trace(&grid_of(file, domain), &Registry::builtin(), ticks)
+    reference_trace(
+        &grid_of(file, domain),
+        &modbot_runtime::components::builtin(),
+        ticks,
+    )
 }
 
 /// Checks a run's trace line by line against the reference run with the overruns the run
@@ -68,7 +71,13 @@ fn expected(file: &std::path::Path, domain: &str, ticks: u64) -> String {
 fn assert_trace_is_let(file: &std::path::Path, domain: &str, ticks: u64, trace: &str) -> usize {
     let grid = grid_of(file, domain);
     let overruns = Overruns::from_trace(&grid, trace).unwrap();
-    let want = reference_trace_with(&grid, &Registry::builtin(), ticks, &overruns).unwrap();
+    let want = reference_trace_with(
+        &grid,
+        &modbot_runtime::components::builtin(),
+        ticks,
+        &overruns,
+    )
+    .unwrap();
     let got: Vec<&str> = trace
         .lines()
         .filter(|l| !l.starts_with("# overrun"))

@@ -7,8 +7,10 @@
 //! - `modbot-core` ([`module`], [`ctx`], [`calls`], [`phonebook`], [`blackboard`], [`run`],
 //!   [`stats`], [`sim`], [`tool`], [`clock`], [`signals`], [`error`]): the module core: what
 //!   every module program links → transport.
-//! - `modbot-grid` ([`grid`], [`bus`]): the time grid (components, LET, coordinator, hosts,
-//!   ledger, traces, the example controllers) and the bus with its CiA 402 drives → core.
+//! - `modbot-grid` ([`grid`]): the time grid (components, LET, coordinator, hosts, ledger,
+//!   traces) → core; `modbot-control` ([`control`]): the robot controllers → grid;
+//!   `modbot-bus` ([`bus`]): the bus bridge and its CiA 402 drives → control, grid;
+//!   `modbot-components` ([`components`]): every built-in type in one registry → bus.
 //! - `modbot-system` ([`system`]): system descriptions, the sandboxed Lua files (the only crate
 //!   with mlua) → grid, core.
 //! - `modbot-supervisor` ([`supervisor`]): `modbot up`: starts, watches and restarts a system's
@@ -16,8 +18,10 @@
 //!
 //! A module program that needs no grid depends on `modbot-core` alone.
 
+pub use modbot_bus as bus;
+pub use modbot_components as components;
+pub use modbot_control as control;
 pub use modbot_grid as grid;
-pub use modbot_grid::bus;
 pub use modbot_supervisor as supervisor;
 pub use modbot_system as system;
 

@@ -49,6 +49,8 @@ pub struct TestDomain {
     files: Vec<PathBuf>,
     /// Variables every process this test starts gets (`MODBOT_DATA_DIR`, say).
     env: Vec<(String, String)>,
+    /// The command that runs the programs this test starts (`ip netns exec NS`), if any.
+    wrapper: Vec<String>,
 }
 
 impl TestDomain {
@@ -58,6 +60,24 @@ impl TestDomain {
             children: Vec::new(),
             files: Vec::new(),
             env: Vec::new(),
+            wrapper: Vec::new(),
+        }
+    }
+
+    /// Starts every program of this test from now on in the network namespace `ns`.
+    pub fn run_in_netns(&mut self, ns: &str) {
+        self.wrapper = ["ip", "netns", "exec", ns].map(String::from).to_vec();
+    }
+
+    /// The command that starts `program` (in this test's network namespace, if it has one).
+    fn command(&self, program: &str) -> Command {
+        match self.wrapper.split_first() {
+            Some((first, rest)) => {
+                let mut command = Command::new(first);
+                command.args(rest).arg(bin(program));
+                command
+            }
+            None => Command::new(bin(program)),
         }
     }
 
@@ -78,7 +98,8 @@ impl TestDomain {
     pub fn spawn_logged(&mut self, program: &str, args: &[&str]) -> u32 {
         let log = std::env::temp_dir().join(format!("{}.{}.log", self.name(), self.files.len()));
         let out = std::fs::File::create(&log).unwrap();
-        let child = Command::new(bin(program))
+        let child = self
+            .command(program)
             .args(args)
             .env("MODBOT_DOMAIN", self.name())
             .env("RUST_LOG", "info")
@@ -184,7 +205,8 @@ impl TestDomain {
 
     /// Starts a module program in this domain.
     pub fn spawn(&mut self, program: &str, args: &[&str]) -> u32 {
-        let child = Command::new(bin(program))
+        let child = self
+            .command(program)
             .args(args)
             .env("MODBOT_DOMAIN", self.name())
             .env("RUST_LOG", "info")
@@ -219,7 +241,7 @@ impl TestDomain {
 
     fn modbot_at(&self, dir: Option<&std::path::Path>, args: &[&str], input: &str) -> Output {
         use std::io::Write;
-        let mut command = Command::new(bin("modbot"));
+        let mut command = self.command("modbot");
         if let Some(dir) = dir {
             command.current_dir(dir);
         }

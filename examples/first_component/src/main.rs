@@ -2,7 +2,7 @@
 //! This program is the host that steps it; `limited.lua` declares it and puts it on a grid.
 use modbot_grid::component::Released;
 use modbot_grid::component::{Component, ComponentError, ComponentInfo, ParamDecl, ParamType};
-use modbot_grid::component::{ParamValue, Params, PortDecl, PortType, PortValue, Registry};
+use modbot_grid::component::{ParamValue, Params, PortDecl, PortType, PortValue};
 
 struct Limiter {
     limit: f64,
@@ -43,7 +43,7 @@ fn make(params: &Params) -> Result<Box<dyn Component>, ComponentError> {
 }
 
 fn main() -> std::process::ExitCode {
-    let mut registry = Registry::builtin();
+    let mut registry = modbot_components::builtin();
     registry.register(info, make);
     modbot_grid_processes::host_process::host_main("modbot-first-component", registry)
 }

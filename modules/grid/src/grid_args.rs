@@ -31,7 +31,7 @@ pub struct GridArgs {
 impl GridArgs {
     /// Loads the description and returns its grid, with the built-in component types.
     pub fn load(&self) -> anyhow::Result<GridSpec> {
-        self.load_with(&modbot_runtime::grid::Registry::builtin())
+        self.load_with(&modbot_runtime::components::builtin())
     }
 
     /// Loads the description and returns its grid, with the component types of `registry`
@@ -64,6 +64,6 @@ pub fn load_assembly(
     name: &str,
     generation: Generation,
 ) -> Result<GridSpec, modbot_runtime::grid::host::LoadError> {
-    let registry = modbot_runtime::grid::Registry::builtin();
+    let registry = modbot_runtime::components::builtin();
     Ok(system::load_assembly(system, name, generation, &registry)?)
 }

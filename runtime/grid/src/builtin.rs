@@ -26,20 +26,17 @@ use super::component::{
     PortDecl, PortType, PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
-impl Registry {
-    /// The built-in components: these, the example controllers ([`crate::control`]), the
-    /// bus ([`crate::bus::robot`]), and the data recorder ([`crate::record_type`], which the
-    /// program `modbot-recorder` makes).
-    pub fn builtin() -> Registry {
-        let mut registry = Registry::new();
-        register_all(&mut registry);
-        // Made by a program of its own, which writes the file off the real-time path.
-        crate::record_type::declare(&mut registry);
-        registry
-    }
+/// The grid's own built-in types with the data recorder's declaration: what the grid's tests
+/// use. Every built-in type (the controllers and the bus too) is `modbot_components::builtin`.
+pub fn grid_registry() -> Registry {
+    let mut registry = Registry::new();
+    register_all(&mut registry);
+    crate::record_type::declare(&mut registry);
+    registry
 }
 
-/// Adds every built-in type to `registry`.
+/// Adds the grid's built-in types to `registry` (the controllers are `modbot-control`'s, the
+/// bus `modbot-bus`'s; `modbot-components` assembles them all).
 pub fn register_all(registry: &mut Registry) {
     registry.register(counter_info, |p| {
         Ok(Box::new(Counter { y: p.i64("start")? }))
@@ -96,8 +93,6 @@ pub fn register_all(registry: &mut Registry) {
             live: p.bool("sleep_live")?,
         }))
     });
-    super::control::register(registry);
-    crate::bus::robot::register(registry);
 }
 
 fn f64_param(name: &'static str, default: f64) -> ParamDecl {
@@ -420,7 +415,7 @@ mod tests {
     use super::*;
 
     fn run(type_name: &str, params: Params, ticks: &[(u64, Vec<PortValue>)]) -> Vec<PortValue> {
-        let registry = Registry::builtin();
+        let registry = grid_registry();
         let info = registry.info(type_name, &params).unwrap();
         let mut sut = registry.instantiate(type_name, &params).unwrap();
         let mut outputs = info.zero_outputs();
@@ -469,7 +464,7 @@ mod tests {
 
     #[test]
     fn array_components_take_their_length_from_a_param() {
-        let registry = Registry::builtin();
+        let registry = grid_registry();
         let params = Params::new()
             .with("n", ParamValue::I64(3))
             .with("k", ParamValue::F64(2.0));
@@ -515,16 +510,16 @@ mod tests {
         assert!(started.elapsed() >= Duration::from_millis(30));
         assert_eq!(y, [1.0, 2.0].map(PortValue::F64));
         let negative = Params::new().with("sleep_ms", ParamValue::F64(-1.0));
-        assert!(Registry::builtin().info("sleeper", &negative).is_err());
+        assert!(grid_registry().info("sleeper", &negative).is_err());
     }
 
     #[test]
     fn registry_checks_params_against_the_declarations() {
-        let sut = Registry::builtin();
+        let sut = grid_registry();
         assert_eq!(
             sut.type_names().len(),
-            24,
-            "23 built in, and the data recorder"
+            12,
+            "11 built in, and the data recorder"
         );
         let err = sut.info("gain", &Params::new()).unwrap_err().to_string();
         assert_eq!(err, "param 'k' (f64) is required for type 'gain'");

@@ -1,8 +1,8 @@
 //! modbot-grid: the time grid — its component model, the checked description, the reference
-//! run of its logical execution time (LET) semantics, the coordinator and the hosts — and the
-//! bus ([`bus`]: CiA 402 drives, elastic-joint plant, the bus bridge), whose drives are grid
-//! components. Uses `modbot-core` and `modbot-transport`; reads no Lua (the descriptions are
-//! `modbot-system`'s).
+//! run of its logical execution time (LET) semantics, the coordinator and the hosts. Uses
+//! `modbot-core` and `modbot-transport`; reads no Lua (the descriptions are `modbot-system`'s).
+//! The robot controllers are components of `modbot-control`, the bus bridge and its drives of
+//! `modbot-bus`; `modbot-components` assembles every built-in type in one registry.
 //!
 //! A grid is a set of *components* (FMI-style: named, typed inputs, outputs and parameters)
 //! on *host* processes, each released every k base ticks, and the *connections* from outputs
@@ -20,10 +20,8 @@
 //! - [`component`]: ports, parameters, the [`Component`] trait (initialise → step → terminate)
 //!   and the [`Registry`] of component types, which checks parameters and instantiates; what
 //!   a type refuses for ([`ComponentError`], [`ParamError`]).
-//! - [`builtin`]: the built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`, `integrator`,
-//!   `delay`, `vec_gain`, `pack`, `sleeper`).
-//! - [`control`]: example controllers: `ptp`, `hold_position`, `feedforward`, `cascade`, `monitor`,
-//!   `waypoints`, `setpoint`, `settle`.
+//! - [`builtin`]: the grid's built-in types (`counter`, `ramp`, `sine`, `gain`, `sum`,
+//!   `integrator`, `lowpass`, `delay`, `vec_gain`, `pack`, `sleeper`).
 //! - [`spec`]: the checked grid ([`GridSpec`]): components, hosts, periods in base ticks,
 //!   connections, and the *sources* of a component (the release notice's order); built from
 //!   declarations by [`GridSpec::build`], which says what is wrong with them ([`GridError`]).
@@ -46,14 +44,11 @@
 //!   ports (the component, which writes HDF5, is `modbot-record`'s).
 //! - [`offload`]: a writer whose bytes a thread of normal priority writes out (the trace).
 //! - [`ledger`]: the overrun ledger as `modbot top` shows it.
-//! - [`bus`]: the drives on the bus and the bus bridge (its watchdog, safe stop, switches).
 //! - [`switch`]: swapping assemblies from a program (`modbot assembly switch`); the assembly
 //!   files are read by `modbot_system::load_assembly`.
 
 pub mod builtin;
-pub mod bus;
 pub mod component;
-pub mod control;
 pub mod coordinator;
 pub mod host;
 pub mod ledger;

@@ -1,11 +1,11 @@
 //! The example controllers in a loop from a description: ptp → feedforward → cascade → a
 //! test plant, watched by the monitor.
 
+use modbot_control::{
+    array, array_mut, array_ports, axes, axes_decl, per_axis, per_axis_decl, positive,
+};
 use modbot_grid::component::{
     ComponentError, ComponentInfo, Params, PortValue, Registry, Released,
-};
-use modbot_grid::control::{
-    array, array_mut, array_ports, axes, axes_decl, per_axis, per_axis_decl, positive,
 };
 use modbot_grid::{reference_run, Component};
 
@@ -65,7 +65,7 @@ impl Component for Plant {
 }
 
 fn registry() -> Registry {
-    let mut registry = Registry::builtin();
+    let mut registry = modbot_components::builtin();
     registry.register(goal_info, |p| Ok(Box::new(Goal(p.f64s("value")?.to_vec()))));
     registry.register(plant_info, |p| {
         let n = axes(p)?;

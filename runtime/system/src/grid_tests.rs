@@ -20,7 +20,7 @@ fn grid_of(source: &str) -> GridSpec {
 /// Loads `source`, expecting an error on `line` whose message contains `fragment`.
 #[track_caller]
 fn assert_error(source: &str, line: Option<u32>, fragment: &str) {
-    assert_error_with(&Registry::builtin(), source, line, fragment);
+    assert_error_with(&modbot_components::builtin(), source, line, fragment);
 }
 
 #[track_caller]
@@ -377,7 +377,7 @@ impl Component for Wide {
 
 #[test]
 fn more_than_16_source_components_is_refused() {
-    let mut registry = Registry::builtin();
+    let mut registry = modbot_components::builtin();
     registry.register(wide_info, |_| Ok(Box::new(Wide)));
     let source = |sources: usize| {
         let mut body = String::from("component \"W\" { type = \"wide\", host = \"h\" }\n");
@@ -549,7 +549,7 @@ fn grid_demo_example_loads_and_runs_the_same_twice() {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/grid_demo.lua");
     let sut = load(&path, &|_: &str| None).unwrap().grid.unwrap();
     assert!(sut.components.len() >= 3);
-    let registry = Registry::builtin();
+    let registry = modbot_components::builtin();
     let trace = modbot_grid::reference_trace(&sut, &registry, 100);
     assert_eq!(trace.lines().count(), 101);
     assert_eq!(trace, modbot_grid::reference_trace(&sut, &registry, 100));
@@ -610,7 +610,7 @@ fn two_programs_on_one_host_are_refused() {
 
 #[test]
 fn a_type_the_process_registers_itself_must_agree_with_its_declaration() {
-    let mut registry = Registry::builtin();
+    let mut registry = modbot_components::builtin();
     registry.register(
         |_| {
             Ok(ComponentInfo {

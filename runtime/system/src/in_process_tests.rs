@@ -43,7 +43,7 @@ fn grid(body: &str) -> GridSpec {
 fn run_in_process(test: &str, spec: &GridSpec, ticks: u64) -> String {
     let domain = TestDomain::new("inproc", test);
     let channels = LocalTransport::new(&domain).channels();
-    let registry = Registry::builtin();
+    let registry = modbot_components::builtin();
     let period = spec.base_period.as_nanos() as u64;
     let stop = Arc::new(AtomicBool::new(false));
     // Every host listens before the coordinator's first release, as under a supervisor.
@@ -101,7 +101,10 @@ connect "B.y -> C.u"
 "#,
     );
     let sut = run_in_process("chain", &spec, 200);
-    assert_eq!(sut, reference_trace(&spec, &Registry::builtin(), 200));
+    assert_eq!(
+        sut,
+        reference_trace(&spec, &modbot_components::builtin(), 200)
+    );
 }
 
 #[test]
@@ -121,5 +124,8 @@ connect "both.y -> late.u"
 "#,
     );
     let sut = run_in_process("hosts", &spec, 300);
-    assert_eq!(sut, reference_trace(&spec, &Registry::builtin(), 300));
+    assert_eq!(
+        sut,
+        reference_trace(&spec, &modbot_components::builtin(), 300)
+    );
 }

@@ -17,7 +17,7 @@ fn table(spec: &GridSpec, ticks: u64, order: Order) -> Vec<Vec<PortValue>> {
     let mut rows = vec![Vec::new(); ticks as usize];
     run(
         spec,
-        &Registry::builtin(),
+        &modbot_components::builtin(),
         ticks,
         order,
         &Overruns::default(),
@@ -158,7 +158,7 @@ connect "S.y -> S.b"
 #[test]
 fn two_reference_traces_are_identical() {
     let spec = chain();
-    let registry = Registry::builtin();
+    let registry = modbot_components::builtin();
     let sut = reference_trace(&spec, &registry, 50);
     assert_eq!(sut, reference_trace(&spec, &registry, 50));
     let mut lines = sut.lines();
@@ -175,7 +175,8 @@ fn two_reference_traces_are_identical() {
 fn a_component_that_cannot_be_made_fails_the_run_by_name() {
     let mut spec = chain();
     spec.components[1].params = Default::default();
-    let sut = reference_run(&spec, &Registry::builtin(), 1, &mut |_, _, _| {}).unwrap_err();
+    let sut =
+        reference_run(&spec, &modbot_components::builtin(), 1, &mut |_, _, _| {}).unwrap_err();
     assert_eq!(
         sut.to_string(),
         "component 'B': param 'k' (f64) is required for type 'gain'"

@@ -329,7 +329,7 @@ pub fn load_with_vars(
     resolver: &dyn ProgramResolver,
     vars: &[(String, String)],
 ) -> Result<SystemSpec, SystemError> {
-    load_with_registry(path, resolver, vars, &Registry::builtin())
+    load_with_registry(path, resolver, vars, &modbot_components::builtin())
 }
 
 /// Like [`load_with_vars`], with the grid's component types taken from `registry` (the others
@@ -373,7 +373,13 @@ pub fn load_str_with_vars(
     resolver: &dyn ProgramResolver,
     vars: &[(String, String)],
 ) -> Result<SystemSpec, SystemError> {
-    load_str_with_registry(file_name, source, resolver, vars, &Registry::builtin())
+    load_str_with_registry(
+        file_name,
+        source,
+        resolver,
+        vars,
+        &modbot_components::builtin(),
+    )
 }
 
 /// Like [`load_str_with_vars`], with the grid's component types taken from `registry`.

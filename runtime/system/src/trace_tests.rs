@@ -52,7 +52,7 @@ fn wrong_component_or_output_count_is_refused_and_an_empty_trace_has_its_header(
 #[test]
 fn first_difference_names_the_line() {
     let spec = spec();
-    let registry = Registry::builtin();
+    let registry = modbot_components::builtin();
     let a = modbot_grid::reference::reference_trace(&spec, &registry, 5);
     assert_eq!(first_difference(&a, &a), None);
     let b = a.replacen("4 A.y=4", "4 A.y=5", 1);

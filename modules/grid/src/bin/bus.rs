@@ -5,15 +5,16 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_ethercat::EthercatBackend;
+use modbot_ethercat::EthercatConfig;
 use modbot_grid_processes::grid_args::load_assembly;
 use modbot_grid_processes::grid_args::GridArgs;
 use modbot_grid_processes::host_process::{HostArgs, HostProcess};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
-use modbot_runtime::bus::{robot, DriveParams, SimBackend};
+use modbot_runtime::bus::{robot, Backend, DriveParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
-use modbot_runtime::grid::component::Registry;
 use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
 use modbot_runtime::{Ctx, MethodError, ModuleBuilder, Reply};
 
@@ -128,18 +129,44 @@ fn run() -> anyhow::Result<()> {
         );
         axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
         let period_ns = grid.base_period.as_nanos() as u64;
-        let joints = robot::joints(&bus.params, axes).map_err(anyhow::Error::msg)?;
-        let sim = SimBackend::with_joints(&joints, DriveParams::default())?;
-        let bridge = Bridge::new(Box::new(sim), period_ns)
+        let lockstep = grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep;
+        let backend: Box<dyn Backend> =
+            match robot::backend(&bus.params).map_err(anyhow::Error::msg)? {
+                "ethercat" => {
+                    let config = EthercatConfig::from_params(&bus.params, axes, period_ns)
+                        .map_err(|e| anyhow::anyhow!("component '{}': {e}", bus.name))?;
+                    // In lockstep a cycle waits for its frame as long as it takes; in real time a
+                    // frame not back within ten periods (10 ms at least) is lost.
+                    let pdu = if lockstep {
+                        Duration::from_secs(2)
+                    } else {
+                        Duration::from_nanos(period_ns.saturating_mul(10))
+                            .max(Duration::from_millis(10))
+                    };
+                    let started = std::time::Instant::now();
+                    let backend = EthercatBackend::start(&config, pdu)?;
+                    tracing::info!(
+                        "EtherCAT segment on '{}' in OP: {} slave(s), {} drive(s), {:.0} ms",
+                        config.interface,
+                        backend.slaves().len(),
+                        config.drives.len(),
+                        started.elapsed().as_secs_f64() * 1e3
+                    );
+                    Box::new(backend)
+                }
+                _ => {
+                    let joints = robot::joints(&bus.params, axes).map_err(anyhow::Error::msg)?;
+                    Box::new(SimBackend::with_joints(&joints, DriveParams::default())?)
+                }
+            };
+        let bridge = Bridge::new(backend, period_ns)
             .watchdog_periods(robot::watchdog_periods(&bus.params).map_err(anyhow::Error::msg)?);
-        let made = Arc::new(Mutex::new(
-            if grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep {
-                bridge.lockstep()
-            } else {
-                bridge
-            },
-        ));
-        let mut registry = Registry::builtin();
+        let made = Arc::new(Mutex::new(if lockstep {
+            bridge.lockstep()
+        } else {
+            bridge
+        }));
+        let mut registry = modbot_runtime::components::builtin();
         robot::register_bridge(&mut registry, made.clone());
         shared = Some(made);
         Ok(registry)

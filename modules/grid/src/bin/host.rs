@@ -4,6 +4,6 @@
 fn main() -> std::process::ExitCode {
     modbot_grid_processes::host_process::host_main(
         "modbot-host",
-        modbot_runtime::grid::component::Registry::builtin(),
+        modbot_runtime::components::builtin(),
     )
 }

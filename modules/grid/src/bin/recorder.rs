@@ -32,7 +32,7 @@ fn stop(_: &mut (), ctx: &mut Ctx, _: &Args<'_>, reply: &mut Reply) -> Result<()
 }
 
 fn main() -> std::process::ExitCode {
-    let mut registry = modbot_runtime::grid::component::Registry::builtin();
+    let mut registry = modbot_runtime::components::builtin();
     modbot_record::register(&mut registry);
     modbot_grid_processes::host_process::host_main_with("modbot-recorder", registry, |module| {
         module.method("start", start).method("stop", stop)

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use modbot_ipc_schema::grid::Prepare;
 use modbot_ipc_schema::Value;
-use modbot_runtime::grid::component::{Generation, Registry};
+use modbot_runtime::grid::component::Generation;
 use modbot_runtime::grid::coordinator::{link, SwitchState};
 use modbot_runtime::grid::switch::{Outcome, State, Status};
 use modbot_runtime::grid::wire::{self, Pub};
@@ -219,7 +219,7 @@ impl Switching {
                     &system,
                     &loading,
                     Generation(generation),
-                    &Registry::builtin(),
+                    &modbot_runtime::components::builtin(),
                 )
                 .map_err(|e| e.to_string());
                 let _ = tx.send(loaded);

@@ -1,0 +1,132 @@
+//! The backend trait: the one part of the bus bridge that changes with the hardware.
+//!
+//! The bus bridge is served every base tick of the time grid. Each tick it hands the backend
+//! one [`AxisCommand`] per axis (the process data a master writes to a CiA 402 drive) and gets
+//! back one [`AxisActual`] per axis (what it reads). Quantities are SI at the link side (rad,
+//! rad/s, Nm); a hardware backend converts to and from the drive's units.
+
+use super::cia402::DriveState;
+
+/// What the master writes to one drive each cycle.
+#[derive(Clone, Copy, Default, PartialEq, Debug)]
+pub struct AxisCommand {
+    /// Controlword (0x6040): the state machine command, see [`super::cia402`].
+    pub controlword: u16,
+    /// Modes of operation (0x6060): 8 CSP, 9 CSV, 10 CST.
+    pub mode: i8,
+    /// Target position (0x607A), rad; used in CSP.
+    pub target_position: f64,
+    /// Target velocity (0x60FF), rad/s; in CSV the target, in CSP the velocity feed-forward
+    /// (the role of the velocity offset, 0x60B1).
+    pub target_velocity: f64,
+    /// Target torque (0x6071), Nm; in CST the target, in CSP and CSV the torque feed-forward
+    /// (the role of the torque offset, 0x60B2).
+    pub target_torque: f64,
+}
+
+/// What the master reads from one drive each cycle.
+#[derive(Clone, Copy, Default, PartialEq, Debug)]
+pub struct AxisActual {
+    /// Statusword (0x6041).
+    pub statusword: u16,
+    /// Modes of operation display (0x6061); 0 until a supported mode was commanded.
+    pub mode: i8,
+    /// Position actual value (0x6064), rad.
+    pub motor_position: f64,
+    /// Velocity actual value (0x606C), rad/s.
+    pub motor_velocity: f64,
+    /// Torque actual value (0x6077), Nm.
+    pub motor_torque: f64,
+    /// The link's position measured outside the drive (the simulation's "laser tracker").
+    pub link_position: f64,
+    /// The state the statusword encodes, decoded for the reader's convenience.
+    pub state: DriveState,
+    /// Error code (0x603F): 0 without a fault, else the CiA 402 code of the last fault.
+    pub error_code: u16,
+}
+
+/// A set of drives on one bus.
+///
+/// One call to [`Backend::cycle`] per bus cycle; it must not allocate or read a clock (its time
+/// is the `dt_s` passed in), and blocks at most for the cycle's frames to come back (a hardware
+/// backend's round trip on the wire; the simulator does not block).
+pub trait Backend: Send {
+    /// The number of axes (drives).
+    fn axes(&self) -> usize;
+
+    /// One bus cycle: apply the commands, advance by `dt_s`, fill the actuals.
+    ///
+    /// Both slices should hold [`Backend::axes`] elements. An axis without a command is sent
+    /// a quick stop (controlword 0x0002); actuals beyond the slice's length are not written.
+    /// A cycle whose commands did not reach every drive, or whose actuals did not all come
+    /// back, is a [`BusFault`]: the actuals of the drives that did not answer are left as
+    /// they were.
+    fn cycle(
+        &mut self,
+        dt_s: f64,
+        commands: &[AxisCommand],
+        actuals: &mut [AxisActual],
+    ) -> Result<(), BusFault>;
+
+    /// `fault` in words for the log and the ledger, naming the slave as the backend knows it.
+    fn describe(&self, fault: &BusFault) -> String {
+        fault.to_string()
+    }
+
+    /// Brings every drive to quick stop and holds it there (safe stop); idempotent.
+    ///
+    /// Drives in operation enabled take transition 11; the others keep their state, which
+    /// produces no torque. Until an axis is sent *disable voltage*, no command raises its power
+    /// state (transitions 2, 3, 4, 16 are inhibited): a master that lost control cannot
+    /// re-enable it by repeating a stale controlword.
+    fn quick_stop_all(&mut self);
+
+    /// Blocks the link of `axis` (a collision, a jammed gear), or frees it: for tests of the
+    /// monitoring. Hardware cannot do this.
+    fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), BlockError> {
+        let _ = (axis, blocked);
+        Err(BlockError::Unsupported {
+            backend: self.name(),
+        })
+    }
+
+    /// The backend's name for logs and `modbot top`.
+    fn name(&self) -> &'static str;
+}
+
+/// A bus cycle that did not reach every drive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum BusFault {
+    /// No reply to the cycle's frames came back in time (a lost frame, a cut link).
+    #[error("no reply from the bus")]
+    NoReply,
+    /// The slave at `position` on the segment did not answer (its working counter is missing:
+    /// it lost power or its link, and so did every slave behind it).
+    #[error("slave {position} stopped answering")]
+    SlaveLost { position: u16 },
+    /// The slave at `position` left OP: its AL state (0x0130's low nibble) is `state`.
+    #[error("slave {position} left OP (AL state {state:#x})")]
+    SlaveState { position: u16, state: u8 },
+    /// Every slave answered its state, but the process data's working counter is not what
+    /// the mapping gives: a slave did not read or write its process data.
+    #[error("process data working counter {received}, expected {expected}")]
+    WorkingCounter { expected: u16, received: u16 },
+}
+
+/// Why an axis cannot be blocked (or freed).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BlockError {
+    #[error("axis {axis} does not exist: the bus has {axes} axes (0 to {})", .axes.saturating_sub(1))]
+    NoSuchAxis { axis: usize, axes: usize },
+    #[error("the {backend} backend cannot block an axis")]
+    Unsupported { backend: &'static str },
+}
+
+/// The command an axis gets when the caller supplied none.
+pub const MISSING_COMMAND: AxisCommand = AxisCommand {
+    controlword: 0x0002,
+    mode: 0,
+    target_position: 0.0,
+    target_velocity: 0.0,
+    target_torque: 0.0,
+};

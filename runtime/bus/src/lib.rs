@@ -1,0 +1,42 @@
+//! modbot-bus: the bus bridge, its CiA 402 drives and the backends it drives them through.
+//!
+//! The bus bridge is served every base tick of the time grid and owns the drives. Only one
+//! part changes with the hardware, the [`Backend`]: it takes one [`AxisCommand`] per axis
+//! (controlword, mode, targets), runs one bus cycle of `dt` seconds, and returns one
+//! [`AxisActual`] per axis (statusword, mode, motor and link positions, torque). Everything
+//! here is pure and deterministic: no I/O, no clock (time is the cycle period passed in), no
+//! allocation per cycle.
+//!
+//! # Layout
+//! - [`backend`]: the [`Backend`] trait and the per-axis process data ([`AxisCommand`],
+//!   [`AxisActual`]).
+//! - [`cia402`]: the CiA 402 power drive state machine ([`DriveStateMachine`]): controlword
+//!   commands, the numbered transitions 0–16, statusword encoding, modes of operation.
+//! - [`plant`]: a two-mass elastic joint ([`Plant`]) integrated with sub-stepped
+//!   semi-implicit Euler, with the limits it reports for monitoring.
+//! - [`sim`]: the `sim` backend ([`SimBackend`]): N drives, each a state machine, the drive's
+//!   internal loops (CSP, CSV, CST, quick stop ramp) and a plant.
+//! - [`link`]: a raw Ethernet link on a named interface, for a fieldbus master (the EtherCAT
+//!   backend, `modbot-ethercat`) and the EtherCAT slave emulator (`modbot-ecat-sim`).
+//! - [`bridge`]: the bus bridge: the backend served every tick, with its own watchdog that
+//!   quick-stops the drives when the coordinator is lost, and the bus ledger.
+//! - [`robot`]: the grid components `bus` (one bus cycle per release) and `drive_enable`.
+
+pub mod backend;
+pub mod bridge;
+pub mod cia402;
+pub mod link;
+pub mod plant;
+pub mod robot;
+pub mod sim;
+
+#[cfg(test)]
+mod tests;
+
+pub use backend::{AxisActual, AxisCommand, Backend, BusFault};
+pub use cia402::{
+    Command, DriveState, DriveStateMachine, FaultReason, IllegalCommand, ModeOfOperation,
+    QuickStopOption, Transition, UnsupportedMode,
+};
+pub use plant::{InvalidParameter, LimitStatus, Plant, PlantParams, PlantState};
+pub use sim::{DriveParams, SimBackend};

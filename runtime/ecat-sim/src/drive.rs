@@ -1,0 +1,206 @@
+//! The emulated slave's device: a CiA 402 servo drive on an elastic joint, the same drive and
+//! plant as the bus bridge's simulator (`modbot_bus::SimBackend`, one axis), behind the objects
+//! a real drive has.
+//!
+//! | object | name | type | PDO |
+//! |---|---|---|---|
+//! | 0x6040 | controlword | u16 | Rx |
+//! | 0x6060 | modes of operation | i8 | Rx |
+//! | 0x607A | target position | i32, counts | Rx |
+//! | 0x60FF | target velocity | i32, counts/s | Rx |
+//! | 0x6071 | target torque | i16, ‰ of the rated torque | Rx |
+//! | 0x6041 | statusword | u16 | Tx |
+//! | 0x6061 | modes of operation display | i8 | Tx |
+//! | 0x6064 | position actual value | i32, counts | Tx |
+//! | 0x606C | velocity actual value | i32, counts/s | Tx |
+//! | 0x6077 | torque actual value | i16, ‰ | Tx |
+//! | 0x603F | error code | u16 | Tx |
+//! | 0x20A0 | load-side encoder position (the link's) | i32, counts | Tx |
+//! | 0x608F:1, :2 | position encoder resolution: increments, motor revolutions | u32 | — |
+//! | 0x6076 | motor rated torque | u32, mNm | — |
+//!
+//! When the slave leaves OP (the sync manager watchdog, the master's request), the drive
+//! quick-stops, as a drive whose abort connection option code (0x6007) is 3 does.
+//!
+//! Each step converts the outputs to SI units, runs one cycle of the simulated drive with the
+//! step's `dt`, and converts its actuals back (rounded to the nearest count). So the emulated
+//! drive moves as the simulator's does, to within its encoder's resolution.
+
+use std::f64::consts::TAU;
+
+use modbot_bus::{AxisActual, AxisCommand, Backend, DriveParams, PlantParams, SimBackend};
+
+use crate::application::Application;
+use crate::dictionary::{ObjectDictionary, ObjectEntry};
+
+/// A drive's encoder and torque units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveUnits {
+    /// Position encoder increments per motor revolution (0x608F:1, with :2 = 1).
+    pub increments_per_rev: u32,
+    /// Motor rated torque (0x6076), mNm: torques are in per mille of it.
+    pub rated_torque_mnm: u32,
+}
+
+impl Default for DriveUnits {
+    /// A 20-bit encoder and a 10 Nm rated torque: the EtherCAT backend's defaults.
+    fn default() -> Self {
+        DriveUnits {
+            increments_per_rev: 1 << 20,
+            rated_torque_mnm: 10_000,
+        }
+    }
+}
+
+impl DriveUnits {
+    fn counts_per_rad(&self) -> f64 {
+        f64::from(self.increments_per_rev) / TAU
+    }
+
+    fn torque_per_nm(&self) -> f64 {
+        1.0e6 / f64::from(self.rated_torque_mnm)
+    }
+}
+
+/// A CiA 402 drive on an elastic joint.
+pub struct Cia402Drive {
+    sim: SimBackend,
+    units: DriveUnits,
+    actual: [AxisActual; 1],
+}
+
+fn counts(x: f64, per: f64) -> i32 {
+    (x * per).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32
+}
+
+impl Cia402Drive {
+    /// A drive just powered on, its joint (`plant`) at rest at 0.
+    pub fn new(
+        plant: PlantParams,
+        units: DriveUnits,
+    ) -> Result<Cia402Drive, modbot_bus::InvalidParameter> {
+        Ok(Cia402Drive {
+            sim: SimBackend::with_joints(&[plant], DriveParams::default())?,
+            units,
+            actual: [AxisActual::default()],
+        })
+    }
+
+    /// What the drive reported at its last step.
+    pub fn actual(&self) -> &AxisActual {
+        &self.actual[0]
+    }
+}
+
+impl Application for Cia402Drive {
+    fn objects(&self) -> Vec<ObjectEntry> {
+        vec![
+            ObjectEntry::new(0x6040, 0, "Controlword", 0u16).rx_pdo(),
+            ObjectEntry::new(0x6060, 0, "Modes of operation", 0i8).rx_pdo(),
+            ObjectEntry::new(0x607A, 0, "Target position", 0i32).rx_pdo(),
+            ObjectEntry::new(0x60FF, 0, "Target velocity", 0i32).rx_pdo(),
+            ObjectEntry::new(0x6071, 0, "Target torque", 0i16).rx_pdo(),
+            ObjectEntry::new(0x6041, 0, "Statusword", 0u16).tx_pdo(),
+            ObjectEntry::new(0x6061, 0, "Modes of operation display", 0i8).tx_pdo(),
+            ObjectEntry::new(0x6064, 0, "Position actual value", 0i32).tx_pdo(),
+            ObjectEntry::new(0x606C, 0, "Velocity actual value", 0i32).tx_pdo(),
+            ObjectEntry::new(0x6077, 0, "Torque actual value", 0i16).tx_pdo(),
+            ObjectEntry::new(0x603F, 0, "Error code", 0u16).tx_pdo(),
+            ObjectEntry::new(0x20A0, 0, "Load-side encoder position", 0i32).tx_pdo(),
+            ObjectEntry::new(0x608F, 0, "Position encoder resolution", 2u8),
+            ObjectEntry::new(
+                0x608F,
+                1,
+                "Encoder increments",
+                self.units.increments_per_rev,
+            ),
+            ObjectEntry::new(0x608F, 2, "Motor revolutions", 1u32),
+            ObjectEntry::new(0x6076, 0, "Motor rated torque", self.units.rated_torque_mnm),
+        ]
+    }
+
+    fn step(&mut self, od: &mut ObjectDictionary, dt_s: f64) {
+        let per_rad = self.units.counts_per_rad();
+        let per_nm = self.units.torque_per_nm();
+        let command = AxisCommand {
+            controlword: od.get::<u16>(0x6040, 0).unwrap_or(0),
+            mode: od.get::<i8>(0x6060, 0).unwrap_or(0),
+            target_position: f64::from(od.get::<i32>(0x607A, 0).unwrap_or(0)) / per_rad,
+            target_velocity: f64::from(od.get::<i32>(0x60FF, 0).unwrap_or(0)) / per_rad,
+            target_torque: f64::from(od.get::<i16>(0x6071, 0).unwrap_or(0)) / per_nm,
+        };
+        // The simulated drive never fails a cycle.
+        let _ = self.sim.cycle(dt_s, &[command], &mut self.actual);
+        let a = self.actual[0];
+        let torque = (a.motor_torque * per_nm)
+            .round()
+            .clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
+        // The objects exist (objects() declared them) with these types: set cannot fail.
+        let _ = od.set(0x6041, 0, a.statusword);
+        let _ = od.set(0x6061, 0, a.mode);
+        let _ = od.set(0x6064, 0, counts(a.motor_position, per_rad));
+        let _ = od.set(0x606C, 0, counts(a.motor_velocity, per_rad));
+        let _ = od.set(0x6077, 0, torque);
+        let _ = od.set(0x603F, 0, a.error_code);
+        let _ = od.set(0x20A0, 0, counts(a.link_position, per_rad));
+    }
+
+    /// Abort connection option code 3 (0x6007): the drive quick-stops when the master's
+    /// outputs stop coming.
+    fn outputs_invalid(&mut self, od: &mut ObjectDictionary) {
+        let _ = od.set(0x6040, 0, 0x0002u16);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dictionary_of(drive: &Cia402Drive) -> ObjectDictionary {
+        let mut od = ObjectDictionary::new();
+        for entry in drive.objects() {
+            od.insert(entry);
+        }
+        od
+    }
+
+    #[test]
+    fn the_emulated_drive_moves_as_the_simulator_does_to_within_a_count() {
+        let mut sut = Cia402Drive::new(PlantParams::default(), DriveUnits::default()).unwrap();
+        let mut od = dictionary_of(&sut);
+        let mut reference = SimBackend::new(1, PlantParams::default());
+        let mut want = [AxisActual::default()];
+        let per_rad = DriveUnits::default().counts_per_rad();
+        for tick in 0..600u32 {
+            let controlword = match tick {
+                0 => 0x06,
+                1 => 0x07,
+                _ => 0x0F,
+            };
+            let target = if tick < 100 { 0.0 } else { 0.2 };
+            let command = AxisCommand {
+                controlword,
+                mode: 8,
+                target_position: f64::from(counts(target, per_rad)) / per_rad,
+                ..Default::default()
+            };
+            od.set(0x6040, 0, controlword).unwrap();
+            od.set(0x6060, 0, 8i8).unwrap();
+            od.set(0x607A, 0, counts(target, per_rad)).unwrap();
+            sut.step(&mut od, 0.001);
+            reference.cycle(0.001, &[command], &mut want).unwrap();
+            let link = f64::from(od.get::<i32>(0x20A0, 0).unwrap()) / per_rad;
+            assert!(
+                (link - want[0].link_position).abs() <= 0.5 / per_rad + 1e-12,
+                "tick {tick}: {link} against {}",
+                want[0].link_position
+            );
+            assert_eq!(
+                od.get::<u16>(0x6041, 0).unwrap(),
+                want[0].statusword,
+                "tick {tick}"
+            );
+        }
+        assert!((sut.actual().link_position - 0.2).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,276 @@
+//! The `ethercat` backend of the bus bridge: one bus cycle is one exchange of process data with
+//! the segment (ethercrab's `tx_rx`, or `tx_rx_dc` with distributed clocks), on the bridge's
+//! real-time thread, without allocation.
+//!
+//! Each cycle: every drive's command is written into its outputs (in its units); the frame goes
+//! out and comes back; every slave's AL state comes back with it (ethercrab reads them in the
+//! same frame); the drives' inputs are read into their actuals. A cycle is a [`BusFault`] when
+//! no reply came, when a slave did not answer (it and those behind it: a cut cable, a slave
+//! without power), when a slave left OP, or when the working counter of the process data is
+//! short. The bridge turns a fault into a safe stop naming the slave.
+//!
+//! Safe stop ([`Backend::quick_stop_all`]): every drive is sent *quick stop* (controlword
+//! 0x0002) and held there: until the master sends it *disable voltage* (bit 1 clear), no
+//! command reaches the drive, as with the simulator's drives, so a master that lost control
+//! cannot re-enable a drive by repeating a stale controlword.
+
+use ethercrab::subdevice_group::Op;
+use ethercrab::{DefaultLock, MainDevice, SubDeviceGroup, SubDeviceState};
+use modbot_bus::backend::MISSING_COMMAND;
+use modbot_bus::cia402::DriveState;
+use modbot_bus::{AxisActual, AxisCommand, Backend, BusFault};
+
+use crate::config::{DriveConfig, EthercatConfig};
+use crate::error::EthercatError;
+use crate::master::{Master, Running, SlaveInfo, MAX_PDI, MAX_SLAVES};
+use crate::pdo;
+
+/// CiA 402's quick stop command.
+const QUICK_STOP: u16 = 0x0002;
+
+/// CiA 402 drives on an EtherCAT segment.
+pub struct EthercatBackend {
+    master: Master,
+    running: Running,
+    drives: Vec<DriveConfig>,
+    slaves: Vec<SlaveInfo>,
+    /// Per axis: held in quick stop until disable voltage.
+    held: Vec<bool>,
+    /// The process data's working counter when every slave does its part.
+    expected_wkc: u16,
+    /// With distributed clocks: where in the SYNC0 cycle the last frame was, ns (ethercrab's
+    /// `cycle_start_offset`), and the least and most seen.
+    pub sync0_offset_ns: (u64, u64, u64),
+}
+
+fn al_state(state: SubDeviceState) -> u8 {
+    match state {
+        SubDeviceState::None => 0,
+        SubDeviceState::Init => 1,
+        SubDeviceState::PreOp => 2,
+        SubDeviceState::Bootstrap => 3,
+        SubDeviceState::SafeOp => 4,
+        SubDeviceState::Op => 8,
+        SubDeviceState::Other(x) => x,
+    }
+}
+
+/// The working counter of the process data when every slave of `group` reads its inputs (1)
+/// and writes its outputs (2).
+fn full_wkc<DC>(
+    group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, Op, DC>,
+    md: &'static MainDevice<'static>,
+) -> u16 {
+    (0..group.len())
+        .filter_map(|i| group.subdevice(md, i).ok())
+        .map(|sd| {
+            let io = sd.io_raw();
+            u16::from(!io.inputs().is_empty()) + 2 * u16::from(!io.outputs().is_empty())
+        })
+        .sum()
+}
+
+/// Writes the outputs of the slave at `position` with `fill`.
+fn with_outputs<DC>(
+    group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, Op, DC>,
+    md: &'static MainDevice<'static>,
+    position: usize,
+    fill: impl FnOnce(&mut [u8]),
+) {
+    if let Ok(sd) = group.subdevice(md, position) {
+        let mut io = sd.io_raw_mut();
+        fill(io.outputs());
+    }
+}
+
+/// Reads the inputs of the slave at `position` with `read`.
+fn with_inputs<DC>(
+    group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, Op, DC>,
+    md: &'static MainDevice<'static>,
+    position: usize,
+    read: impl FnOnce(&[u8]),
+) {
+    if let Ok(sd) = group.subdevice(md, position) {
+        let io = sd.io_raw();
+        read(io.inputs());
+    }
+}
+
+impl EthercatBackend {
+    /// Opens the master on the configured interface and brings the segment up to OP. A frame
+    /// not back within `pdu_timeout` is lost.
+    pub fn start(
+        config: &EthercatConfig,
+        pdu_timeout: std::time::Duration,
+    ) -> Result<EthercatBackend, EthercatError> {
+        let mut master = Master::open(&config.interface, pdu_timeout, config.dc)?;
+        let (running, slaves) = master.bring_up(config)?;
+        let md = master.md;
+        let expected_wkc = match &running {
+            Running::Free(g) => full_wkc(g, md),
+            Running::Dc(g) => full_wkc(g, md),
+        };
+        for s in &slaves {
+            tracing::info!(
+                "EtherCAT slave {} '{}': vendor {:#010x} product {:#010x} revision {:#010x} serial {}{}",
+                s.position,
+                s.name,
+                s.vendor,
+                s.product,
+                s.revision,
+                s.serial,
+                if s.dc { ", distributed clocks" } else { "" }
+            );
+        }
+        Ok(EthercatBackend {
+            master,
+            running,
+            held: vec![false; config.drives.len()],
+            drives: config.drives.clone(),
+            slaves,
+            expected_wkc,
+            sync0_offset_ns: (0, u64::MAX, 0),
+        })
+    }
+
+    /// The slaves on the segment, as bring-up found them.
+    pub fn slaves(&self) -> &[SlaveInfo] {
+        &self.slaves
+    }
+
+    fn write_commands(&mut self, commands: &[AxisCommand], actuals: &[AxisActual]) {
+        let md = self.master.md;
+        for (axis, drive) in self.drives.iter().enumerate() {
+            let mut command = commands.get(axis).copied().unwrap_or(MISSING_COMMAND);
+            if self.held[axis] {
+                if command.controlword & 0x0002 == 0 {
+                    self.held[axis] = false; // disable voltage: the master takes the drive back
+                } else {
+                    command.controlword = QUICK_STOP;
+                }
+            }
+            let hold = actuals.get(axis).map_or(0.0, |a| a.motor_position);
+            let fill = |out: &mut [u8]| pdo::write_outputs(out, &command, &drive.scale, hold);
+            let position = usize::from(drive.position);
+            match &self.running {
+                Running::Free(g) => with_outputs(g, md, position, fill),
+                Running::Dc(g) => with_outputs(g, md, position, fill),
+            }
+        }
+    }
+
+    fn read_actuals(&self, answered: impl Fn(usize) -> bool, actuals: &mut [AxisActual]) {
+        let md = self.master.md;
+        for (drive, actual) in self.drives.iter().zip(actuals.iter_mut()) {
+            let position = usize::from(drive.position);
+            if !answered(position) {
+                continue;
+            }
+            let read =
+                |inputs: &[u8]| pdo::read_inputs(inputs, drive.link_encoder, &drive.scale, actual);
+            match &self.running {
+                Running::Free(g) => with_inputs(g, md, position, read),
+                Running::Dc(g) => with_inputs(g, md, position, read),
+            }
+        }
+    }
+}
+
+impl Backend for EthercatBackend {
+    fn axes(&self) -> usize {
+        self.drives.len()
+    }
+
+    fn cycle(
+        &mut self,
+        _dt_s: f64,
+        commands: &[AxisCommand],
+        actuals: &mut [AxisActual],
+    ) -> Result<(), BusFault> {
+        self.write_commands(commands, actuals);
+        let md = self.master.md;
+        let reply = match &self.running {
+            Running::Free(g) => self
+                .master
+                .pump
+                .run(g.tx_rx(md))
+                .map(|r| (r.working_counter, r.subdevice_states)),
+            Running::Dc(g) => self.master.pump.run(g.tx_rx_dc(md)).map(|r| {
+                let offset = r.extra.cycle_start_offset.as_nanos() as u64;
+                let (_, least, most) = self.sync0_offset_ns;
+                self.sync0_offset_ns = (offset, least.min(offset), most.max(offset));
+                (r.working_counter, r.subdevice_states)
+            }),
+        };
+        let Ok((wkc, states)) = reply else {
+            return Err(BusFault::NoReply);
+        };
+        let mut fault = None;
+        for (position, state) in states.iter().enumerate() {
+            let position = position as u16;
+            match *state {
+                SubDeviceState::Op => {}
+                SubDeviceState::None => {
+                    fault = Some(BusFault::SlaveLost { position });
+                    break;
+                }
+                other => {
+                    fault.get_or_insert(BusFault::SlaveState {
+                        position,
+                        state: al_state(other),
+                    });
+                }
+            }
+        }
+        if fault.is_none() && wkc != self.expected_wkc {
+            fault = Some(BusFault::WorkingCounter {
+                expected: self.expected_wkc,
+                received: wkc,
+            });
+        }
+        let in_op = |p: usize| states.get(p).is_some_and(|s| *s == SubDeviceState::Op);
+        self.read_actuals(in_op, actuals);
+        // A drive whose slave is not in OP exchanges no process data: the master cannot
+        // command it and does not know its state (positions stay as last read).
+        for (drive, actual) in self.drives.iter().zip(actuals.iter_mut()) {
+            if !in_op(usize::from(drive.position)) {
+                actual.statusword = 0;
+                actual.state = DriveState::NotReadyToSwitchOn;
+            }
+        }
+        fault.map_or(Ok(()), Err)
+    }
+
+    fn quick_stop_all(&mut self) {
+        self.held.iter_mut().for_each(|h| *h = true);
+    }
+
+    fn describe(&self, fault: &BusFault) -> String {
+        let name = |position: u16| {
+            let axis = self.drives.iter().position(|d| d.position == position);
+            let slave = self.slaves.get(usize::from(position));
+            format!(
+                "EtherCAT slave {position}{}{}",
+                slave.map_or(String::new(), |s| format!(" ('{}')", s.name)),
+                axis.map_or(String::new(), |a| format!(", axis {a}"))
+            )
+        };
+        match *fault {
+            BusFault::NoReply => format!("no reply from the EtherCAT segment on '{}'", self.master.interface()),
+            BusFault::SlaveLost { position } => format!(
+                "{} stopped answering (lost its power or its link; the slaves behind it with it)",
+                name(position)
+            ),
+            BusFault::SlaveState { position, state } => {
+                format!("{} left OP (AL state {state:#x})", name(position))
+            }
+            BusFault::WorkingCounter { expected, received } => format!(
+                "the EtherCAT process data's working counter is {received}, expected {expected}: a slave did not exchange its process data"
+            ),
+        }
+    }
+
+    fn name(&self) -> &'static str {
+        "ethercat"
+    }
+}

@@ -1,0 +1,360 @@
+//! The bus bridge on EtherCAT: ethercrab as the master on one end of a veth pair, modbot's
+//! slave emulator (`modbot-ecat-sim`) on the other, both inside a network namespace the test
+//! makes (named for the test and this process) and removes after. Frames pass only between the
+//! two ends of that pair. Needs root (network namespaces, raw sockets), as CI runs.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use common::{bin, TestDomain};
+
+/// A veth pair in a network namespace of its own, with the slave emulator on one end.
+struct Segment {
+    ns: String,
+    /// The master's end.
+    master: String,
+    emulator: Child,
+    commands: ChildStdin,
+    answers: mpsc::Receiver<String>,
+}
+
+fn ip(args: &[&str]) {
+    let out = Command::new("ip").args(args).output().unwrap_or_else(|e| {
+        panic!("cannot run `ip` (iproute2; ./setup.sh --tests installs it): {e}")
+    });
+    assert!(
+        out.status.success(),
+        "ip {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+impl Segment {
+    /// A segment of `slaves` emulated drives, with more arguments for the emulator.
+    fn new(slaves: usize, more: &[&str]) -> Segment {
+        assert!(
+            nix::unistd::Uid::effective().is_root(),
+            "the EtherCAT tests make network namespaces and raw sockets: run them as root (CI does)"
+        );
+        static NEXT: AtomicU32 = AtomicU32::new(0);
+        let id = format!(
+            "{:x}{}",
+            std::process::id() & 0xfffff,
+            NEXT.fetch_add(1, Ordering::Relaxed)
+        );
+        let (ns, master, slave) = (
+            format!("modbot-ec-{id}"),
+            format!("ecm{id}"),
+            format!("ecs{id}"),
+        );
+        ip(&["netns", "add", &ns]);
+        ip(&[
+            "-n", &ns, "link", "add", &master, "type", "veth", "peer", "name", &slave,
+        ]);
+        ip(&["-n", &ns, "link", "set", &master, "up"]);
+        ip(&["-n", &ns, "link", "set", &slave, "up"]);
+        // Frames sent before both ends have carrier vanish.
+        let carrier = |end: &str| {
+            Command::new("ip")
+                .args(["-n", &ns, "link", "show", end])
+                .output()
+                .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("state UP"))
+        };
+        for _ in 0..500 {
+            if carrier(&master) && carrier(&slave) {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let n = slaves.to_string();
+        let mut emulator = Command::new("ip")
+            .args(["netns", "exec", &ns])
+            .arg(bin("modbot-ecat-sim"))
+            .args(["--interface", &slave, "--slaves", &n])
+            .args(more)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("start modbot-ecat-sim");
+        let commands = emulator.stdin.take().unwrap();
+        let out = emulator.stdout.take().unwrap();
+        let (tx, answers) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut segment = Segment {
+            ns,
+            master,
+            emulator,
+            commands,
+            answers,
+        };
+        let ready = segment.answer();
+        assert!(ready.starts_with("serving"), "the emulator said: {ready}");
+        segment
+    }
+
+    fn answer(&mut self) -> String {
+        self.answers
+            .recv_timeout(Duration::from_secs(60))
+            .expect("an answer of the emulator")
+    }
+
+    /// Sends the emulator a command: its answer.
+    fn command(&mut self, line: &str) -> String {
+        writeln!(self.commands, "{line}").unwrap();
+        self.commands.flush().unwrap();
+        let answer = self.answer();
+        assert!(answer.starts_with("ok"), "{line}: {answer}");
+        answer
+    }
+
+    /// Runs `modbot ARGS` inside the namespace: its output.
+    fn modbot(&self, args: &[&str]) -> std::process::Output {
+        Command::new("ip")
+            .args(["netns", "exec", &self.ns])
+            .arg(bin("modbot"))
+            .args(args)
+            .output()
+            .unwrap()
+    }
+}
+
+impl Drop for Segment {
+    fn drop(&mut self) {
+        let _ = self.emulator.kill();
+        let _ = self.emulator.wait();
+        // Deleting the namespace deletes the veth pair in it.
+        let _ = Command::new("ip").args(["netns", "del", &self.ns]).status();
+    }
+}
+
+/// The arm's description.
+fn arm() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/arm.lua")
+}
+
+/// The values of output `signal` in a trace, one per tick.
+fn column(trace: &str, signal: &str) -> Vec<Vec<f64>> {
+    let key = format!("{signal}=");
+    trace
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let word = line
+                .split_whitespace()
+                .find_map(|w| w.strip_prefix(key.as_str()))
+                .unwrap_or_else(|| panic!("no {signal} in {line}"));
+            word.trim_matches(['[', ']'])
+                .split(',')
+                .map(|x| x.parse().unwrap_or_else(|e| panic!("{x}: {e}")))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn a_scan_lists_the_six_emulated_drives_with_their_identities() {
+    let sut = Segment::new(6, &["--name", "test-drive"]);
+    let out = sut.modbot(&["bus", "scan", "--interface", &sut.master]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), 6, "{text}");
+    for (position, row) in rows.iter().enumerate() {
+        assert!(row.trim_start().starts_with(&position.to_string()), "{row}");
+        assert!(
+            row.contains("0x00004d42") && row.contains("0x00000402"),
+            "{row}"
+        );
+        assert!(
+            row.contains("test-drive") && row.contains("Pre-Operational"),
+            "{row}"
+        );
+    }
+}
+
+#[test]
+fn a_scan_of_an_interface_that_does_not_exist_names_it() {
+    let sut = Segment::new(1, &[]);
+    let out = sut.modbot(&["bus", "scan", "--interface", "nosuchif9"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("interface 'nosuchif9' does not exist"),
+        "{err}"
+    );
+}
+
+/// The arm in lockstep for `ticks`, switching between `ptp` and `hold` ten times, on the bus
+/// backend `bus`: its trace and what `modbot up` printed.
+fn arm_run(
+    sut: &mut TestDomain,
+    segment: &Segment,
+    bus: &str,
+    ticks: u64,
+    tag: &str,
+) -> (String, String) {
+    let bus_var = format!("bus={bus}");
+    let interface = format!("interface={}", segment.master);
+    let mut more = vec![
+        "--var",
+        "dwell=0",
+        "--lockstep",
+        "--var",
+        &bus_var,
+        "--var",
+        &interface,
+    ];
+    // ptp from tick 300 to 1300 (the robot leaves A at about tick 800), then 200 ticks of
+    // hold and 700 of ptp, four times more.
+    let mut at = 300;
+    let mut switches = Vec::new();
+    for i in 0..10 {
+        switches.push(format!("{at}:{}", if i % 2 == 0 { "ptp" } else { "hold" }));
+        at += match i {
+            0 => 1000,
+            _ if i % 2 == 0 => 700,
+            _ => 200,
+        };
+    }
+    for s in &switches {
+        more.extend(["--switch", s.as_str()]);
+    }
+    sut.traced_up(&arm(), ticks, &more, tag)
+}
+
+#[test]
+fn the_arm_on_ethercat_moves_and_swaps_as_on_the_simulator_within_one_encoder_count() {
+    let segment = Segment::new(6, &[]);
+    let mut sut = TestDomain::new("ecarm");
+    sut.run_in_netns(&segment.ns);
+    let ticks = 5200;
+    let (sim, _) = arm_run(&mut sut, &segment, "sim", ticks, "sim");
+    let (ecat, output) = arm_run(&mut sut, &segment, "ethercat", ticks, "ecat");
+    assert!(
+        output.contains("in OP"),
+        "the EtherCAT segment came up:\n{output}"
+    );
+    let (want, got) = (
+        column(&sim, "robot.link_position"),
+        column(&ecat, "robot.link_position"),
+    );
+    assert_eq!(want.len(), ticks as usize);
+    assert_eq!(got.len(), want.len());
+    let count = std::f64::consts::TAU / f64::from(1u32 << 20);
+    let mut worst = (0.0f64, 0usize);
+    for (tick, (w, g)) in want.iter().zip(&got).enumerate() {
+        for (a, b) in w.iter().zip(g) {
+            if (a - b).abs() > worst.0 {
+                worst = ((a - b).abs(), tick);
+            }
+        }
+    }
+    println!(
+        "largest difference of a link position: {:.3e} rad ({:.2} counts) at tick {}",
+        worst.0,
+        worst.0 / count,
+        worst.1
+    );
+    assert!(worst.0 <= count, "{worst:?}");
+    let moved = want[ticks as usize - 1]
+        .iter()
+        .zip(&want[299])
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(moved > 0.1, "the robot moved: {moved} rad");
+    let switched = output.matches("took over").count();
+    assert!(switched >= 10, "ten switches:\n{output}");
+}
+
+/// `modbot bus` of the test's domain.
+fn ledger(sut: &TestDomain) -> String {
+    String::from_utf8_lossy(&sut.modbot(&["bus"]).stdout).into_owned()
+}
+
+/// Starts the arm in real time on the segment (and more variables): `modbot up`'s pid.
+fn arm_on(sut: &mut TestDomain, segment: &Segment, more: &[&str]) -> u32 {
+    let arm = arm();
+    let domain = format!("domain={}", sut.name());
+    let interface = format!("interface={}", segment.master);
+    let mut args = vec![
+        "up",
+        arm.to_str().unwrap(),
+        "--var",
+        &domain,
+        "--var",
+        "bus=ethercat",
+        "--var",
+        &interface,
+    ];
+    args.extend_from_slice(more);
+    sut.spawn_logged("modbot", &args)
+}
+
+#[test]
+fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_restart_it() {
+    let mut segment = Segment::new(6, &[]);
+    let mut sut = TestDomain::new("ecdrop");
+    sut.run_in_netns(&segment.ns);
+    let up = arm_on(&mut sut, &segment, &[]);
+    sut.wait_for(
+        "every drive in operation enabled",
+        Duration::from_secs(60),
+        || ledger(&sut).matches("operation enabled").count() == 6,
+    );
+    segment.command("off 3");
+    sut.wait_for("a safe stop", Duration::from_secs(30), || {
+        ledger(&sut).contains("SAFE STOP")
+    });
+    let text = ledger(&sut);
+    assert!(
+        text.contains("EtherCAT slave 3 ('modbot-drive'), axis 3 stopped answering"),
+        "{text}"
+    );
+    // The slave comes back (in INIT, as after a power cycle), and an assembly switch follows:
+    // the robot stays stopped — only an operator's reset may bring it back.
+    segment.command("on 3");
+    let out = sut.modbot_ok(&["assembly", "switch", "hold"]);
+    assert!(out.contains("switched to hold"), "{out}");
+    let text = ledger(&sut);
+    assert!(text.contains("SAFE STOP"), "{text}");
+    assert_eq!(text.matches("operation enabled").count(), 0, "{text}");
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+}
+
+#[test]
+fn a_slave_of_another_identity_is_refused_at_start_naming_it() {
+    let segment = Segment::new(6, &["--product-at", "2=0x999"]);
+    let mut sut = TestDomain::new("ecid");
+    sut.run_in_netns(&segment.ns);
+    let up = arm_on(
+        &mut sut,
+        &segment,
+        &["--var", "vendor=0x4d42", "--var", "product=0x402"],
+    );
+    let want = "axis 2: slave 2 ('modbot-drive') is vendor 0x00004d42 product 0x00000999, \
+                the description expects vendor 0x00004d42 product 0x00000402";
+    sut.wait_for("the refusal", Duration::from_secs(60), || {
+        sut.output_of(up).contains(want)
+    });
+    let output = sut.output_of(up);
+    assert!(!output.contains("in OP"), "{output}");
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+}
