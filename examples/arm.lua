@@ -29,12 +29,13 @@ grid { base_period = 0.001, priority = 60, assemblies = "arm", assembly = vars.a
 -- `--var bus=ethercat --var interface=IF`: the drives are EtherCAT slaves on the network interface
 -- IF (real CiA 402 drives, or `modbot-ecat-sim` on the other end of a veth pair: see
 -- docs/ethercat.md), each with a load-side encoder for the link's position; `--var vendor=V
--- --var product=P`: the identity every drive must have (checked at start).
+-- --var product=P`: the identity every drive must have (checked at start); `--var dc=true`:
+-- distributed clocks, SYNC0 every base period.
 component "robot" { type = "bus", host = "bus", period = 1,
                     params = { axes = 6, handover = true, watchdog = tonumber(vars.watchdog),
                                backend = vars.bus or "sim", interface = vars.interface,
                                vendor = tonumber(vars.vendor), product = tonumber(vars.product),
-                               link_encoder = vars.bus == "ethercat" } }
+                               link_encoder = vars.bus == "ethercat", dc = vars.dc == "true" } }
 
 -- The data recorder: what the drives do, tick by tick, written to HDF5 off the real-time path
 -- by a process of its own. It runs when `modbot up --record FILE` names the file.

@@ -5,7 +5,7 @@
     python3 examples/plot_recording.py arm.h5           # writes arm.png beside it
     python3 examples/plot_recording.py arm.h5 --summary # numbers only (no matplotlib needed)
 
-The recording is modbot's HDF5 file (see the README's "The data recorder"): `time` (s), of
+The recording is modbot's HDF5 file (see docs/recorder.md): `time` (s), of
 shape (ticks,), and per signal a 2-D dataset of ticks x axes; the following error is the position the drives were
 commanded to (`robot.demand_position`) minus where the links are (`robot.link_position`).
 Needs h5py and numpy; the plot also matplotlib.

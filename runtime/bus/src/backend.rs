@@ -90,6 +90,13 @@ pub trait Backend: Send {
         })
     }
 
+    /// With distributed clocks: where in the slaves' SYNC0 cycle the cycle's frame reached
+    /// the reference clock, ns: at the last cycle, the least and the most seen. `None` for a
+    /// backend without them.
+    fn sync0_offset_ns(&self) -> Option<(u64, u64, u64)> {
+        None
+    }
+
     /// The backend's name for logs and `modbot top`.
     fn name(&self) -> &'static str;
 }

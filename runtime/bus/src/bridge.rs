@@ -440,6 +440,8 @@ pub struct BusView {
     pub max_step: f64,
     pub max_velocity_step: f64,
     pub actuals: Vec<AxisActual>,
+    /// With distributed clocks: the frame's place in the SYNC0 cycle (last, least, most), ns.
+    pub sync0_offset_ns: Option<(u64, u64, u64)>,
 }
 
 impl BusView {
@@ -464,6 +466,7 @@ impl BusView {
         self.max_step = b.max_step;
         self.max_velocity_step = b.max_velocity_step;
         self.actuals.clone_from(&b.actuals);
+        self.sync0_offset_ns = b.backend.sync0_offset_ns();
     }
 
     /// The bus ledger, as `modbot bus` prints it.
@@ -492,6 +495,14 @@ impl BusView {
                 None => "running".to_owned(),
             }
         );
+        if let Some((last, least, most)) = self.sync0_offset_ns {
+            out.push_str(&format!(
+                "distributed clocks: the frame reaches the reference clock {:.1} us into the SYNC0 cycle (least {:.1}, most {:.1})\n",
+                last as f64 / 1e3,
+                least as f64 / 1e3,
+                most as f64 / 1e3
+            ));
+        }
         if let Some(last) = self.switches.last() {
             out.push_str(&format!(
                 "assembly generation {}  switches {}  last at tick {}  largest step: at a switch {:.6} rad, within an assembly {:.6} rad; velocity step: at a switch {:.4} rad/s, within an assembly {:.4} rad/s\n",

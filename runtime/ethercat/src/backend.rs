@@ -40,7 +40,7 @@ pub struct EthercatBackend {
     expected_wkc: u16,
     /// With distributed clocks: where in the SYNC0 cycle the last frame was, ns (ethercrab's
     /// `cycle_start_offset`), and the least and most seen.
-    pub sync0_offset_ns: (u64, u64, u64),
+    sync0_offset_ns: (u64, u64, u64),
 }
 
 fn al_state(state: SubDeviceState) -> u8 {
@@ -267,6 +267,13 @@ impl Backend for EthercatBackend {
             BusFault::WorkingCounter { expected, received } => format!(
                 "the EtherCAT process data's working counter is {received}, expected {expected}: a slave did not exchange its process data"
             ),
+        }
+    }
+
+    fn sync0_offset_ns(&self) -> Option<(u64, u64, u64)> {
+        match self.running {
+            Running::Dc(_) if self.sync0_offset_ns.1 != u64::MAX => Some(self.sync0_offset_ns),
+            _ => None,
         }
     }
 

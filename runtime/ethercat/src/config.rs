@@ -43,6 +43,10 @@ pub struct EthercatConfig {
     /// The bus cycle (the grid's base period), ns.
     pub period_ns: u64,
     pub dc: bool,
+    /// The slaves' process data watchdog (0x0420) stays on: a slave whose outputs stop
+    /// coming leaves OP. Off for a grid in lockstep, which may pause the bus for as long as a
+    /// step of the slowest process takes.
+    pub watchdog: bool,
 }
 
 fn given<'p>(p: &'p Params, name: &str) -> Option<&'p [f64]> {
@@ -157,6 +161,7 @@ impl EthercatConfig {
             drives,
             period_ns,
             dc: flag(p, "dc")?,
+            watchdog: true,
         })
     }
 }

@@ -11,7 +11,7 @@
 //! the frame goes out when the grid serves the bus. With distributed clocks, the slaves' SYNC0
 //! runs at the base period from their own clock (the first DC slave's, which the master
 //! keeps the others locked to every cycle); the backend measures where in the SYNC0 cycle each
-//! frame arrives ([`EthercatBackend::sync0_offset_ns`]).
+//! frame arrives (`Backend::sync0_offset_ns`, shown by `modbot bus`).
 //!
 //! # Layout
 //! - [`config`]: the description's `bus` params for EtherCAT ([`EthercatConfig`]).

@@ -13,7 +13,8 @@
 //! 4. the PDO mapping by CoE SDO downloads (see [`crate::pdo`]), several drives at once; the
 //!    drive's own units (0x608F encoder resolution, 0x6076 rated torque) checked against the
 //!    description where the drive has them;
-//! 5. with `dc`: SYNC0 on every drive at the base period, the clocks' offsets and delays set;
+//! 5. in lockstep, the slaves' process data watchdog off (the grid may pause the bus);
+//!    with `dc`: SYNC0 on every drive at the base period, the clocks' offsets and delays set;
 //! 6. SAFE-OP (ethercrab reads the mapping back and lays out the process image, checked
 //!    against the backend's), then OP, with process data cycling until every slave is in OP.
 //!
@@ -52,6 +53,8 @@ static STORAGE: PduStorage<MAX_FRAMES, FRAME_BYTES> = PduStorage::new();
 const MAPPING_AT_ONCE: usize = 6;
 /// How long bring-up waits for every slave to reach OP.
 const OP_WITHIN: Duration = Duration::from_secs(10);
+/// The ESC's process data (sync manager) watchdog time register.
+const WATCHDOG_PROCESS_DATA: u16 = 0x0420;
 /// How long the master listens for another master's frames before it sends its own.
 const LISTEN: Duration = Duration::from_millis(30);
 
@@ -189,6 +192,22 @@ impl Master {
         let md = self.md;
         let (mut group, slaves) = self.init()?;
         check_identities(config, &slaves, &self.interface)?;
+        if !config.watchdog {
+            // The process data watchdog's time (0x0420) at 0 turns it off.
+            for (position, sd) in group.iter(md).enumerate() {
+                self.pump
+                    .run(sd.register_write(WATCHDOG_PROCESS_DATA, 0u16))
+                    .map_err(|source| EthercatError::State {
+                        interface: self.interface.clone(),
+                        state: "PRE-OP without the process data watchdog",
+                        source,
+                    })
+                    .map_err(|e| {
+                        tracing::error!("slave {position}: {e}");
+                        e
+                    })?;
+            }
+        }
         // The mapping, MAPPING_AT_ONCE drives at a time.
         let axes: Vec<(usize, &DriveConfig)> = config.drives.iter().enumerate().collect();
         for chunk in axes.chunks(MAPPING_AT_ONCE) {

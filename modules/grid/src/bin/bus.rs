@@ -133,8 +133,9 @@ fn run() -> anyhow::Result<()> {
         let backend: Box<dyn Backend> =
             match robot::backend(&bus.params).map_err(anyhow::Error::msg)? {
                 "ethercat" => {
-                    let config = EthercatConfig::from_params(&bus.params, axes, period_ns)
+                    let mut config = EthercatConfig::from_params(&bus.params, axes, period_ns)
                         .map_err(|e| anyhow::anyhow!("component '{}': {e}", bus.name))?;
+                    config.watchdog = !lockstep;
                     // In lockstep a cycle waits for its frame as long as it takes; in real time a
                     // frame not back within ten periods (10 ms at least) is lost.
                     let pdu = if lockstep {
