@@ -209,6 +209,7 @@ fn arm_run(
     bus: &str,
     ticks: u64,
     tag: &str,
+    extra: &[&str],
 ) -> (String, String) {
     let bus_var = format!("bus={bus}");
     let interface = format!("interface={}", segment.master);
@@ -236,6 +237,7 @@ fn arm_run(
     for s in &switches {
         more.extend(["--switch", s.as_str()]);
     }
+    more.extend_from_slice(extra);
     sut.traced_up(&arm(), ticks, &more, tag)
 }
 
@@ -245,8 +247,32 @@ fn the_arm_on_ethercat_moves_and_swaps_as_on_the_simulator_within_one_encoder_co
     let mut sut = TestDomain::new("ecarm");
     sut.run_in_netns(&segment.ns);
     let ticks = 5200;
-    let (sim, sim_output) = arm_run(&mut sut, &segment, "sim", ticks, "sim");
-    let (ecat, output) = arm_run(&mut sut, &segment, "ethercat", ticks, "ecat");
+    let (sim, sim_output) = arm_run(&mut sut, &segment, "sim", ticks, "sim", &[]);
+    let recording = std::env::temp_dir().join(format!("{}.h5", sut.name()));
+    let record = ["--record", recording.to_str().unwrap()];
+    let (ecat, output) = arm_run(&mut sut, &segment, "ethercat", ticks, "ecat", &record);
+    // The recorder wrote every tick of the EtherCAT run, as the trace shows it.
+    let checked = Command::new("python3")
+        .args([
+            "-c",
+            r#"
+import sys, h5py
+f = h5py.File(sys.argv[1], "r")
+link = f["robot.link_position"]
+assert link.shape == (int(sys.argv[2]), 6), link.shape
+print(repr(float(link[-1][0])))
+"#,
+        ])
+        .arg(&recording)
+        .arg(ticks.to_string())
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_file(&recording);
+    assert!(
+        checked.status.success(),
+        "{}",
+        String::from_utf8_lossy(&checked.stderr)
+    );
     assert!(
         output.contains("in OP"),
         "the EtherCAT segment came up:\n{output}"
@@ -284,6 +310,15 @@ fn the_arm_on_ethercat_moves_and_swaps_as_on_the_simulator_within_one_encoder_co
         "{worst:?}\nsimulator: {:?}\nethercat: {:?}",
         took_over(&sim_output),
         took_over(&output)
+    );
+    let recorded: f64 = String::from_utf8_lossy(&checked.stdout)
+        .trim()
+        .parse()
+        .unwrap();
+    assert_eq!(
+        recorded,
+        got[got.len() - 1][0],
+        "the recording's last link position is the trace's"
     );
     let moved = want[ticks as usize - 1]
         .iter()
@@ -328,6 +363,20 @@ fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_rest
         "every drive in operation enabled",
         Duration::from_secs(60),
         || ledger(&sut).matches("operation enabled").count() == 6,
+    );
+    // One frame lost: counted, nothing stops.
+    segment.command("lose 1");
+    sut.wait_for("the lost frame counted", Duration::from_secs(30), || {
+        ledger(&sut).contains("lost frames 1 ")
+    });
+    assert!(!ledger(&sut).contains("SAFE STOP"), "{}", ledger(&sut));
+    // A second master on the interface is refused: this one's frames are on it.
+    let out = segment.modbot(&["bus", "scan", "--interface", &segment.master]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("carries another master's EtherCAT frames"),
+        "{err}"
     );
     segment.command("off 3");
     sut.wait_for("a safe stop", Duration::from_secs(30), || {

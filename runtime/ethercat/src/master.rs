@@ -60,6 +60,23 @@ const LISTEN: Duration = Duration::from_millis(30);
 
 pub type Group<S, DC = NoDc> = SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, S, DC>;
 
+/// SAFE-OP (the process images checked against the backend's), then OP asked for: the same
+/// steps for a group with distributed clocks and one without (ethercrab's group types differ by
+/// their clock, so no generic function can take both).
+macro_rules! into_op {
+    ($master:ident, $group:expr, $md:ident, $config:ident, $slaves:ident, $error:ident) => {{
+        let group = $master
+            .pump
+            .run($group.into_safe_op($md))
+            .map_err(|e| $error("SAFE-OP", e))?;
+        check_images(&group, $md, $config, &$slaves)?;
+        $master
+            .pump
+            .run(group.request_into_op($md))
+            .map_err(|e| $error("OP", e))?
+    }};
+}
+
 /// A segment in OP, with or without distributed clocks.
 pub enum Running {
     Free(Group<Op, NoDc>),
@@ -248,27 +265,9 @@ impl Master {
                 .pump
                 .run(group.configure_dc_sync(md, dc))
                 .map_err(|e| state_error("distributed clocks", e))?;
-            let group = self
-                .pump
-                .run(group.into_safe_op(md))
-                .map_err(|e| state_error("SAFE-OP", e))?;
-            check_images(&group, md, config, &slaves)?;
-            let group = self
-                .pump
-                .run(group.request_into_op(md))
-                .map_err(|e| state_error("OP", e))?;
-            Running::Dc(group)
+            Running::Dc(into_op!(self, group, md, config, slaves, state_error))
         } else {
-            let group = self
-                .pump
-                .run(group.into_safe_op(md))
-                .map_err(|e| state_error("SAFE-OP", e))?;
-            check_images(&group, md, config, &slaves)?;
-            let group = self
-                .pump
-                .run(group.request_into_op(md))
-                .map_err(|e| state_error("OP", e))?;
-            Running::Free(group)
+            Running::Free(into_op!(self, group, md, config, slaves, state_error))
         };
         self.wait_for_op(&running, &slaves)?;
         Ok((running, slaves))
