@@ -84,7 +84,12 @@ const BUS_OUT: [&str; 6] = [
 fn bus_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     let n = axes(p)?;
     watchdog_periods(p)?;
-    backend(p)?;
+    if backend(p)? == "ethercat"
+        && !matches!(p.get("interface"), Some(ParamValue::Text(i)) if !i.is_empty())
+    {
+        let why = "is required with backend = \"ethercat\": the network interface of the segment";
+        return Err(ParamError::invalid("interface", why.to_owned()).into());
+    }
     let (mut inputs, mut outputs) = (ports(&BUS_IN, n), ports(&BUS_OUT, n));
     if handover::wanted(p)? {
         inputs.push(handover::port(n));

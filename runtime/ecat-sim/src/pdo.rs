@@ -6,7 +6,7 @@
 //! subindex 0 to their count. The entries are checked when written and again when the count
 //! enables them; the assignment objects likewise.
 
-use crate::coe::abort;
+use crate::coe_codes::abort;
 use crate::dictionary::{Access, DataType, ObjectDictionary, ObjectEntry};
 use crate::sii::Identity;
 
