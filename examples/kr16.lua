@@ -40,7 +40,12 @@ component "robot" { type = "bus", host = "bus", period = 1,
                                damping          = { 79, 79, 35, 10, 10, 10 },
                                viscous_friction = { 80, 70, 30, 1, 1, 1 },
                                coulomb_friction = { 40, 40, 20, 3, 3, 3 },
-                               torque_limit     = { 3000, 3000, 1200, 200, 200, 200 } } }
+                               torque_limit     = { 3000, 3000, 1200, 200, 200, 200 },
+                               -- `--var bus=ethercat --var interface=IF`: the drives are EtherCAT
+                               -- slaves (see docs/ethercat.md); their torques are per mille of a
+                               -- 100 Nm rated torque (10 units per Nm: up to 3276 Nm in 0x6071).
+                               backend = vars.bus or "sim", interface = vars.interface,
+                               torque_per_nm = 10, link_encoder = vars.bus == "ethercat" } }
 
 -- The data recorder, on demand: a robot program records what the drives do between its
 -- record { } and stop_record { } (examples/kr16_ff.lua records both feed-forward runs);

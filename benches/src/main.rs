@@ -3,13 +3,15 @@
 //!
 //! # Commands
 //! - `modbot-benches all [--quick] [--pin] [--fifo] [--out DIR]`: every benchmark in order
-//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu). A benchmark that fails leaves a note in
+//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu, ethercat; ethercat only as root, else
+//!   a note says it was skipped). A benchmark that fails leaves a note in
 //!   the report and the run goes on. Writes `report.md`, `report.json` and the SVG plots into
 //!   `target/bench-report/` (next to the `release` directory this executable is in) or `DIR`,
 //!   and prints `report.md`. `--quick` finishes in under 3 minutes.
 //!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
-//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu [options]`: one benchmark,
-//!   with the same report.
+//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu|ethercat [options]`: one
+//!   benchmark, with the same report. `ethercat` needs root (a network namespace, raw sockets)
+//!   and `modbot-ecat-sim` built next to this executable; without root it exits with one line.
 //! - `modbot-benches soak [--minutes N] [--seed S] [options]`: MOSER and the arm under a fault a
 //!   second for N minutes (10; 1 with `--quick`). Not part of `all`, which it would outlast.
 //! - `modbot-benches child ROLE ARGS...` (hidden): one side of a benchmark, started by the
@@ -37,10 +39,13 @@
 //!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
 //!   restart), [`swaps`] (6, assembly swaps), [`arm`] (7, the arm holding; the grid's
 //!   [`lockstep`] runs belong to 3), [`soak`] (8, a fault a second for minutes: calls exactly
-//!   once, memory, files), [`fmu`] (9, an FMU component against a built-in doing the same).
+//!   once, memory, files), [`fmu`] (9, an FMU component against a built-in doing the same),
+//!   [`ethercat`] (10, the EtherCAT bus cycle against a raw AF_PACKET ping-pong, and its jitter
+//!   against a bare timerfd loop, on a veth pair against the slave emulator).
 
 mod arm;
 mod calls;
+mod ethercat;
 mod faults;
 mod fmu;
 mod grid;
@@ -134,6 +139,8 @@ enum Cmd {
     Soak(SoakArgs),
     /// 9: an FMU component's step and release to done against a built-in doing the same.
     Fmu(RunArgs),
+    /// 10: EtherCAT bus cycle vs raw AF_PACKET ping-pong, and its jitter at 1 and 4 kHz (root).
+    Ethercat(RunArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -153,7 +160,7 @@ struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-const BENCHES: [Bench; 8] = [
+const BENCHES: [Bench; 9] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -194,6 +201,12 @@ const BENCHES: [Bench; 8] = [
         run: fmu::run,
         needs_binaries: true,
     },
+    // Needs only modbot-ecat-sim (and root: without it, a note in `all`).
+    Bench {
+        name: "ethercat",
+        run: ethercat::run,
+        needs_binaries: false,
+    },
 ];
 
 /// The soak: not in `all` (it runs for minutes).
@@ -207,7 +220,7 @@ const SOAK: Bench = Bench {
 type ChildFn = fn(&str, &[String]) -> Option<anyhow::Result<()>>;
 
 /// The child roles of every benchmark; `None` from one means "not mine".
-const CHILDREN: [ChildFn; 11] = [
+const CHILDREN: [ChildFn; 12] = [
     arm::child,
     hogs::child,
     calls::child,
@@ -219,6 +232,7 @@ const CHILDREN: [ChildFn; 11] = [
     faults::child,
     swaps::child,
     soak::child,
+    ethercat::child,
 ];
 
 fn opts_from(args: &RunArgs, soak: soak::Plan) -> anyhow::Result<Opts> {
@@ -385,6 +399,10 @@ fn run() -> anyhow::Result<()> {
         Cmd::Swaps(args) => run_benches(&args, &[bench("swaps")]),
         Cmd::Arm(args) => run_benches(&args, &[bench("arm")]),
         Cmd::Fmu(args) => run_benches(&args, &[bench("fmu")]),
+        Cmd::Ethercat(args) => {
+            ethercat::require_root()?;
+            run_benches(&args, &[bench("ethercat")])
+        }
         Cmd::Soak(args) => {
             let plan = soak::Plan {
                 minutes: args.minutes,

@@ -127,7 +127,8 @@ pub fn evaluate(report: &mut Report) {
         ),
     ];
     let soak = crate::soak::targets(report);
-    report.targets = targets.into_iter().chain(soak).collect();
+    let ethercat = crate::ethercat::targets(report);
+    report.targets = targets.into_iter().chain(soak).chain(ethercat).collect();
 }
 
 /// Whether `have` matches `want`: equal, or equal as text (`true` and `"true"`).

@@ -55,6 +55,74 @@ struct Cli {
     /// The drives' step without distributed clocks, µs (with DC: the SYNC0 cycle).
     #[arg(long, default_value_t = 1000)]
     period_us: u64,
+    /// The joints' mechanics, as the bus simulator's `bus` params give them: one value for
+    /// every slave or a comma-separated list of one per slave (the simulator's defaults
+    /// otherwise), e.g. `--joint stiffness=1e5,1.2e5,6e4,2e4,2e4,2e4` (repeatable). Names:
+    /// motor_inertia, link_inertia, stiffness, damping, viscous_friction, coulomb_friction,
+    /// torque_limit.
+    #[arg(long = "joint", value_name = "NAME=VALUES", value_parser = parse_joint)]
+    joints: Vec<(String, Vec<f64>)>,
+}
+
+/// The joint parameters the emulator takes, as the bus component names them.
+const JOINT_NAMES: [&str; 7] = [
+    "motor_inertia",
+    "link_inertia",
+    "stiffness",
+    "damping",
+    "viscous_friction",
+    "coulomb_friction",
+    "torque_limit",
+];
+
+fn parse_joint(s: &str) -> Result<(String, Vec<f64>), String> {
+    let (name, values) = s
+        .split_once('=')
+        .ok_or_else(|| format!("'{s}' is not NAME=VALUES"))?;
+    if !JOINT_NAMES.contains(&name) {
+        return Err(format!(
+            "unknown joint parameter '{name}' (known: {})",
+            JOINT_NAMES.join(", ")
+        ));
+    }
+    let values = values
+        .split(',')
+        .map(|v| {
+            v.trim()
+                .parse::<f64>()
+                .map_err(|e| format!("'{v}' in {name}: {e}"))
+        })
+        .collect::<Result<Vec<f64>, String>>()?;
+    Ok((name.to_owned(), values))
+}
+
+/// The mechanics of the joint of slave `position` of `slaves`.
+fn joint(cli: &Cli, position: usize) -> anyhow::Result<PlantParams> {
+    let mut plant = PlantParams::default();
+    for (name, values) in &cli.joints {
+        let value = match values.len() {
+            1 => values[0],
+            n if n == cli.slaves => values[position],
+            n => anyhow::bail!(
+                "--joint {name}: {n} values for {} slaves (give 1 or one per slave)",
+                cli.slaves
+            ),
+        };
+        let slot = match name.as_str() {
+            "motor_inertia" => &mut plant.motor_inertia,
+            "link_inertia" => &mut plant.link_inertia,
+            "stiffness" => &mut plant.stiffness,
+            "damping" => &mut plant.damping,
+            "viscous_friction" => &mut plant.viscous_friction,
+            "coulomb_friction" => &mut plant.coulomb_friction,
+            _ => &mut plant.torque_limit,
+        };
+        *slot = value;
+    }
+    plant
+        .check()
+        .map_err(|e| anyhow::anyhow!("the joint of slave {position}: {e}"))?;
+    Ok(plant)
 }
 
 fn parse_u32(s: &str) -> Result<u32, String> {
@@ -93,7 +161,7 @@ fn chain(cli: &Cli) -> anyhow::Result<Chain> {
             revision: 1,
             serial: position as u32 + 1,
         };
-        let drive = Cia402Drive::new(PlantParams::default(), units)?;
+        let drive = Cia402Drive::new(joint(cli, position)?, units)?;
         // A drive's usual default mapping (the master maps what it needs in PRE-OP).
         let config = SlaveConfig::new(identity, &cli.name)
             .with_rx_pdos(vec![PdoDefinition {

@@ -55,21 +55,6 @@ fn al_state(state: SubDeviceState) -> u8 {
     }
 }
 
-/// The working counter of the process data when every slave of `group` reads its inputs (1)
-/// and writes its outputs (2).
-fn full_wkc<DC>(
-    group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, Op, DC>,
-    md: &'static MainDevice<'static>,
-) -> u16 {
-    (0..group.len())
-        .filter_map(|i| group.subdevice(md, i).ok())
-        .map(|sd| {
-            let io = sd.io_raw();
-            u16::from(!io.inputs().is_empty()) + 2 * u16::from(!io.outputs().is_empty())
-        })
-        .sum()
-}
-
 /// Writes the outputs of the slave at `position` with `fill`.
 fn with_outputs<DC>(
     group: &SubDeviceGroup<MAX_SLAVES, MAX_PDI, DefaultLock, Op, DC>,
@@ -104,12 +89,7 @@ impl EthercatBackend {
         pdu_timeout: std::time::Duration,
     ) -> Result<EthercatBackend, EthercatError> {
         let mut master = Master::open(&config.interface, pdu_timeout, config.dc)?;
-        let (running, slaves) = master.bring_up(config)?;
-        let md = master.md;
-        let expected_wkc = match &running {
-            Running::Free(g) => full_wkc(g, md),
-            Running::Dc(g) => full_wkc(g, md),
-        };
+        let (running, slaves, expected_wkc) = master.bring_up(config)?;
         for s in &slaves {
             tracing::info!(
                 "EtherCAT slave {} '{}': vendor {:#010x} product {:#010x} revision {:#010x} serial {}{}",

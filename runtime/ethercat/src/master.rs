@@ -201,11 +201,14 @@ impl Master {
         Ok((group, slaves))
     }
 
-    /// Brings the segment up for `config`'s drives: returns it in OP, and what is on it.
+    /// Brings the segment up for `config`'s drives: returns it in OP, what is on it, and the
+    /// working counter of its process data when every slave is in OP (the reference each
+    /// cycle's is compared with: it is summed over the frames the process data takes, so a
+    /// slave whose data two frames share counts in both).
     pub fn bring_up(
         &mut self,
         config: &EthercatConfig,
-    ) -> Result<(Running, Vec<SlaveInfo>), EthercatError> {
+    ) -> Result<(Running, Vec<SlaveInfo>, u16), EthercatError> {
         let md = self.md;
         let (mut group, slaves) = self.init()?;
         check_identities(config, &slaves, &self.interface)?;
@@ -269,32 +272,38 @@ impl Master {
         } else {
             Running::Free(into_op!(self, group, md, config, slaves, state_error))
         };
-        self.wait_for_op(&running, &slaves)?;
-        Ok((running, slaves))
+        let working_counter = self.wait_for_op(&running, &slaves)?;
+        Ok((running, slaves, working_counter))
     }
 
     /// Cycles process data (all outputs zero: no controlword enables anything) until every
-    /// slave reports OP.
+    /// slave reports OP: the working counter of that cycle.
     fn wait_for_op(
         &mut self,
         running: &Running,
         slaves: &[SlaveInfo],
-    ) -> Result<(), EthercatError> {
+    ) -> Result<u16, EthercatError> {
         let md = self.md;
         let deadline = Instant::now() + OP_WITHIN;
         loop {
-            let states = match running {
-                Running::Free(g) => self.pump.run(g.tx_rx(md)).map(|r| r.subdevice_states),
-                Running::Dc(g) => self.pump.run(g.tx_rx_dc(md)).map(|r| r.subdevice_states),
+            let reply = match running {
+                Running::Free(g) => self
+                    .pump
+                    .run(g.tx_rx(md))
+                    .map(|r| (r.working_counter, r.subdevice_states)),
+                Running::Dc(g) => self
+                    .pump
+                    .run(g.tx_rx_dc(md))
+                    .map(|r| (r.working_counter, r.subdevice_states)),
             };
-            let states = states.map_err(|source| EthercatError::State {
+            let (working_counter, states) = reply.map_err(|source| EthercatError::State {
                 interface: self.interface.clone(),
                 state: "OP",
                 source,
             })?;
             let behind = states.iter().position(|s| *s != SubDeviceState::Op);
             let Some(position) = behind else {
-                return Ok(());
+                return Ok(working_counter);
             };
             if Instant::now() >= deadline {
                 return Err(EthercatError::NotOperational {
