@@ -504,3 +504,34 @@ fn with_distributed_clocks_the_arm_moves_as_on_the_simulator() {
     }
     assert_ne!(want[299], want[1499], "the robot moved");
 }
+
+#[test]
+fn a_lost_coordinator_quick_stops_every_drive_on_ethercat_as_on_the_simulator() {
+    let segment = Segment::new(6, &[]);
+    let mut sut = TestDomain::new("eccoord");
+    sut.run_in_netns(&segment.ns);
+    // Real time, with a watchdog of 50 base periods: a loaded test machine does not stall the
+    // grid that long by itself.
+    let up = arm_on(&mut sut, &segment, &["--var", "watchdog=50"]);
+    sut.wait_for(
+        "every drive in operation enabled",
+        Duration::from_secs(60),
+        || ledger(&sut).matches("operation enabled").count() == 6,
+    );
+    let coordinator: i32 = sut
+        .ls_field("coordinator", "PID")
+        .and_then(|pid| pid.parse().ok())
+        .expect("the coordinator's pid");
+    sut.signal(coordinator as u32, nix::sys::signal::Signal::SIGSTOP);
+    sut.wait_for("every drive in quick stop", Duration::from_secs(30), || {
+        ledger(&sut).matches("quick stop active").count() == 6
+    });
+    let text = ledger(&sut);
+    sut.signal(coordinator as u32, nix::sys::signal::Signal::SIGCONT);
+    assert!(
+        text.contains("SAFE STOP") && text.contains("coordinator lost"),
+        "{text}"
+    );
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+}
