@@ -13,12 +13,23 @@ use std::time::Duration;
 
 use common::{bin, TestDomain};
 
+/// A network namespace this test made: deleted when dropped (with the veth pair in it), also
+/// when the test fails half-way.
+struct Netns(String);
+
+impl Drop for Netns {
+    fn drop(&mut self) {
+        let _ = Command::new("ip").args(["netns", "del", &self.0]).status();
+    }
+}
+
 /// A veth pair in a network namespace of its own, with the slave emulator on one end.
 struct Segment {
-    ns: String,
+    emulator: Child,
+    /// Deleted after the emulator is killed (`Drop for Segment` kills it first).
+    netns: Netns,
     /// The master's end.
     master: String,
-    emulator: Child,
     commands: ChildStdin,
     answers: mpsc::Receiver<String>,
 }
@@ -53,7 +64,10 @@ impl Segment {
             format!("ecm{id}"),
             format!("ecs{id}"),
         );
+        // Everything that can fail before the namespace exists comes first.
+        let emulator_program = bin("modbot-ecat-sim");
         ip(&["netns", "add", &ns]);
+        let netns = Netns(ns.clone());
         ip(&[
             "-n", &ns, "link", "add", &master, "type", "veth", "peer", "name", &slave,
         ]);
@@ -75,7 +89,7 @@ impl Segment {
         let n = slaves.to_string();
         let mut emulator = Command::new("ip")
             .args(["netns", "exec", &ns])
-            .arg(bin("modbot-ecat-sim"))
+            .arg(&emulator_program)
             .args(["--interface", &slave, "--slaves", &n])
             .args(more)
             .stdin(Stdio::piped())
@@ -94,9 +108,9 @@ impl Segment {
             }
         });
         let mut segment = Segment {
-            ns,
-            master,
             emulator,
+            netns,
+            master,
             commands,
             answers,
         };
@@ -123,7 +137,7 @@ impl Segment {
     /// Runs `modbot ARGS` inside the namespace: its output.
     fn modbot(&self, args: &[&str]) -> std::process::Output {
         Command::new("ip")
-            .args(["netns", "exec", &self.ns])
+            .args(["netns", "exec", &self.netns.0])
             .arg(bin("modbot"))
             .args(args)
             .output()
@@ -135,8 +149,7 @@ impl Drop for Segment {
     fn drop(&mut self) {
         let _ = self.emulator.kill();
         let _ = self.emulator.wait();
-        // Deleting the namespace deletes the veth pair in it.
-        let _ = Command::new("ip").args(["netns", "del", &self.ns]).status();
+        // Then `netns` deletes the namespace, and the veth pair in it.
     }
 }
 
@@ -245,7 +258,7 @@ fn arm_run(
 fn the_arm_on_ethercat_moves_and_swaps_as_on_the_simulator_within_one_encoder_count() {
     let segment = Segment::new(6, &[]);
     let mut sut = TestDomain::new("ecarm");
-    sut.run_in_netns(&segment.ns);
+    sut.run_in_netns(&segment.netns.0);
     let ticks = 5200;
     let (sim, sim_output) = arm_run(&mut sut, &segment, "sim", ticks, "sim", &[]);
     let recording = std::env::temp_dir().join(format!("{}.h5", sut.name()));
@@ -357,7 +370,7 @@ fn arm_on(sut: &mut TestDomain, segment: &Segment, more: &[&str]) -> u32 {
 fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_restart_it() {
     let mut segment = Segment::new(6, &[]);
     let mut sut = TestDomain::new("ecdrop");
-    sut.run_in_netns(&segment.ns);
+    sut.run_in_netns(&segment.netns.0);
     let up = arm_on(&mut sut, &segment, &["--lockstep"]);
     sut.wait_for(
         "every drive in operation enabled",
@@ -403,7 +416,7 @@ fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_rest
 fn a_slave_of_another_identity_is_refused_at_start_naming_it() {
     let segment = Segment::new(6, &["--product-at", "2=0x999"]);
     let mut sut = TestDomain::new("ecid");
-    sut.run_in_netns(&segment.ns);
+    sut.run_in_netns(&segment.netns.0);
     let up = arm_on(
         &mut sut,
         &segment,
@@ -429,7 +442,7 @@ fn operation_enabled(statusword: f64) -> bool {
 fn sixteen_drives_are_enabled_together_in_the_same_cycle() {
     let segment = Segment::new(16, &[]);
     let mut sut = TestDomain::new("ec16");
-    sut.run_in_netns(&segment.ns);
+    sut.run_in_netns(&segment.netns.0);
     let file = sut.write_system(&format!(
         r#"
 grid {{ base_period = 0.001 }}
@@ -470,7 +483,7 @@ connect "zero.value -> robot.target_torque"
 fn with_distributed_clocks_the_arm_moves_as_on_the_simulator() {
     let segment = Segment::new(6, &[]);
     let mut sut = TestDomain::new("ecdc");
-    sut.run_in_netns(&segment.ns);
+    sut.run_in_netns(&segment.netns.0);
     let run = |sut: &mut TestDomain, bus: &str| {
         let bus = format!("bus={bus}");
         let interface = format!("interface={}", segment.master);
@@ -509,7 +522,7 @@ fn with_distributed_clocks_the_arm_moves_as_on_the_simulator() {
 fn a_lost_coordinator_quick_stops_every_drive_on_ethercat_as_on_the_simulator() {
     let segment = Segment::new(6, &[]);
     let mut sut = TestDomain::new("eccoord");
-    sut.run_in_netns(&segment.ns);
+    sut.run_in_netns(&segment.netns.0);
     // Real time, with a watchdog of 50 base periods: a loaded test machine does not stall the
     // grid that long by itself.
     let up = arm_on(&mut sut, &segment, &["--var", "watchdog=50"]);
