@@ -7,7 +7,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use modbot_grid::component::Registry;
 use modbot_grid::coordinator::Coordinator;
 use modbot_grid::host::Host;
 use modbot_grid::reference::reference_trace;

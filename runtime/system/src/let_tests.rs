@@ -1,7 +1,7 @@
 //! LET from descriptions: the reference run's outputs per tick, its independence of the
 //! release order within a tick, and overruns replayed from a trace.
 
-use modbot_grid::component::{PortValue, Registry};
+use modbot_grid::component::PortValue;
 use modbot_grid::reference::{reference_run, reference_trace, run, Order, Overruns};
 use modbot_grid::spec::GridSpec;
 

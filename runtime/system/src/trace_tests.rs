@@ -1,6 +1,6 @@
 //! Traces of grids from descriptions: one line per tick once every component is in.
 
-use modbot_grid::component::{PortValue, Registry};
+use modbot_grid::component::PortValue;
 use modbot_grid::spec::GridSpec;
 use modbot_grid::trace::*;
 
