@@ -16,6 +16,8 @@
 //!   semi-implicit Euler, with the limits it reports for monitoring.
 //! - [`sim`]: the `sim` backend ([`SimBackend`]): N drives, each a state machine, the drive's
 //!   internal loops (CSP, CSV, CST, quick stop ramp) and a plant.
+//! - [`units`]: a CiA 402 drive's units (counts per rad, torque per mille of the rated torque)
+//!   and the conversions, for the EtherCAT master and the emulated drives.
 //! - [`link`]: a raw Ethernet link on a named interface, for a fieldbus master (the EtherCAT
 //!   backend, `modbot-ethercat`) and the EtherCAT slave emulator (`modbot-ecat-sim`).
 //! - [`bridge`]: the bus bridge: the backend served every tick, with its own watchdog that
@@ -29,6 +31,7 @@ pub mod link;
 pub mod plant;
 pub mod robot;
 pub mod sim;
+pub mod units;
 
 #[cfg(test)]
 mod tests;

@@ -26,8 +26,7 @@
 //! step's `dt`, and converts its actuals back (rounded to the nearest count). So the emulated
 //! drive moves as the simulator's does, to within its encoder's resolution.
 
-use std::f64::consts::TAU;
-
+use modbot_bus::units::Scale;
 use modbot_bus::{AxisActual, AxisCommand, Backend, DriveParams, PlantParams, SimBackend};
 
 use crate::application::Application;
@@ -53,12 +52,9 @@ impl Default for DriveUnits {
 }
 
 impl DriveUnits {
-    fn counts_per_rad(&self) -> f64 {
-        f64::from(self.increments_per_rev) / TAU
-    }
-
-    fn torque_per_nm(&self) -> f64 {
-        1.0e6 / f64::from(self.rated_torque_mnm)
+    /// The conversions these units give (as a master computes them from 0x608F and 0x6076).
+    pub fn scale(&self) -> Scale {
+        Scale::of_drive(self.increments_per_rev, 1, self.rated_torque_mnm)
     }
 }
 
@@ -66,11 +62,9 @@ impl DriveUnits {
 pub struct Cia402Drive {
     sim: SimBackend,
     units: DriveUnits,
+    /// The conversions of `units`.
+    scale: Scale,
     actual: [AxisActual; 1],
-}
-
-fn counts(x: f64, per: f64) -> i32 {
-    (x * per).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32
 }
 
 impl Cia402Drive {
@@ -82,6 +76,7 @@ impl Cia402Drive {
         Ok(Cia402Drive {
             sim: SimBackend::with_joints(&[plant], DriveParams::default())?,
             units,
+            scale: units.scale(),
             actual: [AxisActual::default()],
         })
     }
@@ -120,29 +115,25 @@ impl Application for Cia402Drive {
     }
 
     fn step(&mut self, od: &mut ObjectDictionary, dt_s: f64) {
-        let per_rad = self.units.counts_per_rad();
-        let per_nm = self.units.torque_per_nm();
+        let scale = self.scale;
         let command = AxisCommand {
             controlword: od.get::<u16>(0x6040, 0).unwrap_or(0),
             mode: od.get::<i8>(0x6060, 0).unwrap_or(0),
-            target_position: f64::from(od.get::<i32>(0x607A, 0).unwrap_or(0)) / per_rad,
-            target_velocity: f64::from(od.get::<i32>(0x60FF, 0).unwrap_or(0)) / per_rad,
-            target_torque: f64::from(od.get::<i16>(0x6071, 0).unwrap_or(0)) / per_nm,
+            target_position: scale.rad(od.get::<i32>(0x607A, 0).unwrap_or(0)),
+            target_velocity: scale.rad(od.get::<i32>(0x60FF, 0).unwrap_or(0)),
+            target_torque: scale.nm(od.get::<i16>(0x6071, 0).unwrap_or(0)),
         };
         // The simulated drive never fails a cycle.
         let _ = self.sim.cycle(dt_s, &[command], &mut self.actual);
         let a = self.actual[0];
-        let torque = (a.motor_torque * per_nm)
-            .round()
-            .clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
         // The objects exist (objects() declared them) with these types: set cannot fail.
         let _ = od.set(0x6041, 0, a.statusword);
         let _ = od.set(0x6061, 0, a.mode);
-        let _ = od.set(0x6064, 0, counts(a.motor_position, per_rad));
-        let _ = od.set(0x606C, 0, counts(a.motor_velocity, per_rad));
-        let _ = od.set(0x6077, 0, torque);
+        let _ = od.set(0x6064, 0, scale.counts(a.motor_position));
+        let _ = od.set(0x606C, 0, scale.counts(a.motor_velocity));
+        let _ = od.set(0x6077, 0, scale.torque(a.motor_torque));
         let _ = od.set(0x603F, 0, a.error_code);
-        let _ = od.set(0x20A0, 0, counts(a.link_position, per_rad));
+        let _ = od.set(0x20A0, 0, scale.counts(a.link_position));
     }
 
     /// Abort connection option code 3 (0x6007): the drive quick-stops when the master's
@@ -170,7 +161,8 @@ mod tests {
         let mut od = dictionary_of(&sut);
         let mut reference = SimBackend::new(1, PlantParams::default());
         let mut want = [AxisActual::default()];
-        let per_rad = DriveUnits::default().counts_per_rad();
+        let scale = DriveUnits::default().scale();
+        let per_rad = scale.counts_per_rad;
         for tick in 0..600u32 {
             let controlword = match tick {
                 0 => 0x06,
@@ -181,15 +173,15 @@ mod tests {
             let command = AxisCommand {
                 controlword,
                 mode: 8,
-                target_position: f64::from(counts(target, per_rad)) / per_rad,
+                target_position: scale.rad(scale.counts(target)),
                 ..Default::default()
             };
             od.set(0x6040, 0, controlword).unwrap();
             od.set(0x6060, 0, 8i8).unwrap();
-            od.set(0x607A, 0, counts(target, per_rad)).unwrap();
+            od.set(0x607A, 0, scale.counts(target)).unwrap();
             sut.step(&mut od, 0.001);
             reference.cycle(0.001, &[command], &mut want).unwrap();
-            let link = f64::from(od.get::<i32>(0x20A0, 0).unwrap()) / per_rad;
+            let link = scale.rad(od.get::<i32>(0x20A0, 0).unwrap());
             assert!(
                 (link - want[0].link_position).abs() <= 0.5 / per_rad + 1e-12,
                 "tick {tick}: {link} against {}",

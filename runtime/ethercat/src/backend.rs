@@ -40,7 +40,7 @@ pub struct EthercatBackend {
     expected_wkc: u16,
     /// With distributed clocks: where in the SYNC0 cycle the last frame was, ns (ethercrab's
     /// `cycle_start_offset`), and the least and most seen.
-    sync0_offset_ns: (u64, u64, u64),
+    sync0_offset_ns: Option<(u64, u64, u64)>,
 }
 
 fn al_state(state: SubDeviceState) -> u8 {
@@ -109,7 +109,7 @@ impl EthercatBackend {
             drives: config.drives.clone(),
             slaves,
             expected_wkc,
-            sync0_offset_ns: (0, u64::MAX, 0),
+            sync0_offset_ns: None,
         })
     }
 
@@ -139,11 +139,16 @@ impl EthercatBackend {
         }
     }
 
-    fn read_actuals(&self, answered: impl Fn(usize) -> bool, actuals: &mut [AxisActual]) {
+    /// Reads the actuals of the drives whose slaves are `in_op`. A drive whose slave is not in
+    /// OP exchanges no process data: the master cannot command it and does not know its state
+    /// (it reads as not ready to switch on; its positions stay as last read).
+    fn read_actuals(&self, in_op: impl Fn(usize) -> bool, actuals: &mut [AxisActual]) {
         let md = self.master.md;
         for (drive, actual) in self.drives.iter().zip(actuals.iter_mut()) {
             let position = usize::from(drive.position);
-            if !answered(position) {
+            if !in_op(position) {
+                actual.statusword = 0;
+                actual.state = DriveState::NotReadyToSwitchOn;
                 continue;
             }
             let read =
@@ -177,8 +182,10 @@ impl Backend for EthercatBackend {
                 .map(|r| (r.working_counter, r.subdevice_states)),
             Running::Dc(g) => self.master.pump.run(g.tx_rx_dc(md)).map(|r| {
                 let offset = r.extra.cycle_start_offset.as_nanos() as u64;
-                let (_, least, most) = self.sync0_offset_ns;
-                self.sync0_offset_ns = (offset, least.min(offset), most.max(offset));
+                let (least, most) = self
+                    .sync0_offset_ns
+                    .map_or((offset, offset), |(_, l, m)| (l.min(offset), m.max(offset)));
+                self.sync0_offset_ns = Some((offset, least, most));
                 (r.working_counter, r.subdevice_states)
             }),
         };
@@ -210,14 +217,6 @@ impl Backend for EthercatBackend {
         }
         let in_op = |p: usize| states.get(p).is_some_and(|s| *s == SubDeviceState::Op);
         self.read_actuals(in_op, actuals);
-        // A drive whose slave is not in OP exchanges no process data: the master cannot
-        // command it and does not know its state (positions stay as last read).
-        for (drive, actual) in self.drives.iter().zip(actuals.iter_mut()) {
-            if !in_op(usize::from(drive.position)) {
-                actual.statusword = 0;
-                actual.state = DriveState::NotReadyToSwitchOn;
-            }
-        }
         fault.map_or(Ok(()), Err)
     }
 
@@ -251,10 +250,7 @@ impl Backend for EthercatBackend {
     }
 
     fn sync0_offset_ns(&self) -> Option<(u64, u64, u64)> {
-        match self.running {
-            Running::Dc(_) if self.sync0_offset_ns.1 != u64::MAX => Some(self.sync0_offset_ns),
-            _ => None,
-        }
+        self.sync0_offset_ns
     }
 
     fn name(&self) -> &'static str {

@@ -38,7 +38,7 @@ use modbot_bus::link::{RawLink, ETHERTYPE_ETHERCAT};
 
 use crate::config::{DriveConfig, EthercatConfig};
 use crate::error::{EthercatError, SlaveRef};
-use crate::pdo::{self, SdoWrite};
+use crate::pdo::{self, Scale, SdoWrite};
 use crate::pump::Pump;
 
 /// The most slaves on a segment.
@@ -390,7 +390,7 @@ async fn map_drive(
     let revolutions = sd.sdo_read::<u32>(0x608F, 2).await;
     if let (Ok(increments), Ok(revolutions)) = (increments, revolutions) {
         if revolutions > 0 {
-            let found = f64::from(increments) / f64::from(revolutions) / std::f64::consts::TAU;
+            let found = Scale::of_drive(increments, revolutions, 1).counts_per_rad;
             check_scale(
                 axis,
                 &slave,
@@ -403,7 +403,7 @@ async fn map_drive(
     match sd.sdo_read::<u32>(0x6076, 0).await {
         Ok(rated_mnm) if rated_mnm > 0 => {
             // 0x6071/0x6077 are in per mille of the rated torque (0x6076, mNm).
-            let found = 1.0e6 / f64::from(rated_mnm);
+            let found = Scale::of_drive(1, 1, rated_mnm).torque_per_nm;
             check_scale(
                 axis,
                 &slave,

@@ -20,6 +20,7 @@
 //! counts and torque units.
 
 use modbot_bus::cia402::DriveState;
+pub use modbot_bus::units::Scale;
 use modbot_bus::{AxisActual, AxisCommand};
 
 /// One mapped object: index, subindex, bits.
@@ -125,23 +126,6 @@ pub fn sdo_writes(link_encoder: bool) -> Vec<SdoWrite> {
     out
 }
 
-/// A drive's units.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Scale {
-    /// Position counts per radian of the motor (and of the load-side encoder).
-    pub counts_per_rad: f64,
-    /// Torque units (per mille of the rated torque) per Nm.
-    pub torque_per_nm: f64,
-}
-
-fn to_i32(x: f64) -> i32 {
-    x.round().clamp(i32::MIN as f64, i32::MAX as f64) as i32
-}
-
-fn to_i16(x: f64) -> i16 {
-    x.round().clamp(i16::MIN as f64, i16::MAX as f64) as i16
-}
-
 /// Writes `command` into a drive's outputs (at least [`OUT_BYTES`]). A target that is not a
 /// finite number cannot be sent: the position becomes `hold` (where the drive is), the
 /// velocity and torque 0.
@@ -150,9 +134,9 @@ pub fn write_outputs(out: &mut [u8], command: &AxisCommand, scale: &Scale, hold:
         return;
     }
     let finite = |x: f64, otherwise: f64| if x.is_finite() { x } else { otherwise };
-    let position = to_i32(finite(command.target_position, hold) * scale.counts_per_rad);
-    let velocity = to_i32(finite(command.target_velocity, 0.0) * scale.counts_per_rad);
-    let torque = to_i16(finite(command.target_torque, 0.0) * scale.torque_per_nm);
+    let position = scale.counts(finite(command.target_position, hold));
+    let velocity = scale.counts(finite(command.target_velocity, 0.0));
+    let torque = scale.torque(finite(command.target_torque, 0.0));
     out[0..2].copy_from_slice(&command.controlword.to_le_bytes());
     out[2] = command.mode as u8;
     out[3..7].copy_from_slice(&position.to_le_bytes());
@@ -174,13 +158,12 @@ pub fn read_inputs(inputs: &[u8], link_encoder: bool, scale: &Scale, actual: &mu
     actual.state =
         DriveState::from_statusword(statusword).unwrap_or(DriveState::NotReadyToSwitchOn);
     actual.mode = inputs[2] as i8;
-    actual.motor_position = f64::from(i32_at(inputs, 3)) / scale.counts_per_rad;
-    actual.motor_velocity = f64::from(i32_at(inputs, 7)) / scale.counts_per_rad;
-    actual.motor_torque =
-        f64::from(i16::from_le_bytes([inputs[11], inputs[12]])) / scale.torque_per_nm;
+    actual.motor_position = scale.rad(i32_at(inputs, 3));
+    actual.motor_velocity = scale.rad(i32_at(inputs, 7));
+    actual.motor_torque = scale.nm(i16::from_le_bytes([inputs[11], inputs[12]]));
     actual.error_code = u16::from_le_bytes([inputs[13], inputs[14]]);
     actual.link_position = if link_encoder {
-        f64::from(i32_at(inputs, 15)) / scale.counts_per_rad
+        scale.rad(i32_at(inputs, 15))
     } else {
         actual.motor_position
     };
