@@ -28,7 +28,9 @@
 
 domain(vars.domain or "kr16")
 
-supervision { heartbeat_timeout = 2.0 }
+-- `--var heartbeat_timeout=S`: how long a module may be silent before the supervisor judges it
+-- hung (default 2 s).
+supervision { heartbeat_timeout = tonumber(vars.heartbeat_timeout) or 2.0 }
 
 grid { base_period = 0.001, priority = 60, assemblies = "kr16", assembly = "hold" }
 

@@ -7,11 +7,14 @@
 //! - `up FILE`, `down`: run a system under the supervisor, and stop it (see `up_cmd`).
 //! - `program run FILE`, `program repl`: robot programs (see `program_cmd`); `data ls|get`:
 //!   the assembly data they keep (see `data_cmd`).
+//! - `robot`, `robot reset`, `bus inject`: the robot's state, an operator's reset, a drive
+//!   fault injected in the simulation (see `robot_cmd`).
 
 mod assembly_cmd;
 mod check_cmd;
 mod data_cmd;
 mod program_cmd;
+mod robot_cmd;
 mod rvmf_cmd;
 mod tool;
 mod up_cmd;
@@ -42,6 +45,22 @@ enum BusCommand {
         /// The network interface of the segment.
         #[arg(long)]
         interface: String,
+    },
+    /// Injects a drive fault into an axis of the simulation (or an emulated EtherCAT slave's:
+    /// see `modbot-ecat-sim`), for tests and demos: `following` (following error), `torque`
+    /// (torque limit exceeded too long), `encoder` (encoder lost, until `--off`). The faulted
+    /// drive disables itself and the bus bridge quick-stops the others; `modbot robot reset`
+    /// brings them back.
+    Inject {
+        /// The axis (0-based).
+        #[arg(long)]
+        axis: u32,
+        /// following, torque or encoder.
+        #[arg(long)]
+        fault: String,
+        /// Takes a lasting cause away (the encoder back) instead.
+        #[arg(long)]
+        off: bool,
     },
 }
 
@@ -115,7 +134,7 @@ enum Command {
         #[arg(long)]
         switches: bool,
         /// How long to wait for the bus bridge's answer, in milliseconds.
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, global = true, default_value_t = 1000)]
         timeout_ms: u64,
     },
     /// The grid's assemblies: `modbot assembly` shows where they stand, `modbot assembly
@@ -135,6 +154,13 @@ enum Command {
     Data {
         #[command(subcommand)]
         command: data_cmd::DataCommand,
+    },
+    /// The robot's state as the bus bridge owns it (operational, safe stop, fault, disabled;
+    /// since which tick and why), and `modbot robot reset`: an operator's reset after a safe
+    /// stop or a drive fault, without a restart.
+    Robot {
+        #[command(subcommand)]
+        command: Option<robot_cmd::RobotCommand>,
     },
     /// Stop the system running in the domain (from another terminal).
     Down,
@@ -248,6 +274,12 @@ fn main() -> ExitCode {
             command: Some(BusCommand::Scan { interface }),
             ..
         } => bus_scan(&interface),
+        Command::Bus {
+            command: Some(BusCommand::Inject { axis, fault, off }),
+            timeout_ms,
+            ..
+        } => robot_cmd::inject(&cli.domain, axis, &fault, off, timeout_ms),
+        Command::Robot { command } => robot_cmd::run(&cli.domain, command),
         Command::Bus {
             command: None,
             switches,

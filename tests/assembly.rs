@@ -1,8 +1,8 @@
 //! Assemblies swapped at runtime on the simulated 6-axis arm (`examples/arm.lua`), under
 //! `modbot up`, each test in a domain of its own: swaps while the robot moves miss no bus
 //! cycle, happen at the announced tick and do not make the command jump; a blocked axis
-//! faults the assembly and quick-stops the drives, and a switch to `hold` recovers; a killed
-//! host of an assembly with the `fault` policy stops the drives too.
+//! faults the assembly and quick-stops the drives, and a reset after a switch to `hold`
+//! recovers; a killed host of an assembly with the `fault` policy stops the drives too.
 
 mod common;
 
@@ -211,10 +211,11 @@ fn a_hundred_swaps_while_the_robot_moves_switch_at_the_announced_tick_and_keep_t
 }
 
 /// An axis blocked in the simulation: the monitor's following-error check faults the `ptp`
-/// assembly, the bus bridge quick-stops every drive; unblocked, a switch to `hold` (fault
-/// reset, disable voltage, enable) brings every drive back to operation enabled.
+/// assembly, the bus bridge quick-stops every drive; unblocked, a reset is refused while the
+/// running assembly is the faulted one, a switch to `hold` alone re-enables nothing, and then
+/// `modbot robot reset` brings every drive back to operation enabled.
 #[test]
-fn a_blocked_axis_faults_the_assembly_and_a_switch_to_hold_recovers() {
+fn a_blocked_axis_faults_the_assembly_and_only_a_reset_after_a_switch_to_hold_recovers() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("blocked");
     let up = up(&mut sut, &[]);
@@ -239,11 +240,50 @@ fn a_blocked_axis_faults_the_assembly_and_a_switch_to_hold_recovers() {
         "{top}"
     );
     sut.modbot_ok(&["call", "host_bus.block", "2", "false"]);
+    let refused = sut.modbot(&["robot", "reset"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("refused: the running assembly faulted"),
+        "{err}"
+    );
     let out = sut.modbot_ok(&["assembly", "switch", "hold"]);
     assert!(out.contains("switched to hold"), "{out}");
-    sut.wait_for("every drive enabled again", Duration::from_secs(20), || {
-        all_axes(&bus_ledger(&sut), "operation enabled")
+    // The switch alone: the grid goes on (in lockstep, hundreds of ticks), the drives stay
+    // stopped.
+    let cycles = |ledger: &str| -> u64 {
+        let at = ledger.find("cycles ").map(|i| i + 7).unwrap_or(0);
+        ledger[at..]
+            .split_whitespace()
+            .next()
+            .unwrap_or("0")
+            .parse()
+            .unwrap_or(0)
+    };
+    let after_switch = cycles(&bus_ledger(&sut));
+    sut.wait_for("the grid to go on", Duration::from_secs(30), || {
+        cycles(&bus_ledger(&sut)) > after_switch + 500
     });
+    let ledger = bus_ledger(&sut);
+    assert!(all_axes(&ledger, "quick stop active"), "{ledger}");
+    assert!(
+        sut.modbot_ok(&["robot"])
+            .starts_with("safe stop since tick"),
+        "{ledger}"
+    );
+    let out = sut.modbot_ok(&["robot", "reset"]);
+    assert!(
+        out.starts_with("reset: every drive enabled at tick"),
+        "{out}"
+    );
+    assert!(
+        all_axes(&bus_ledger(&sut), "operation enabled"),
+        "{}",
+        bus_ledger(&sut)
+    );
+    assert!(sut
+        .modbot_ok(&["robot"])
+        .starts_with("operational since tick"));
     assert!(bus_ledger(&sut)
         .lines()
         .next()

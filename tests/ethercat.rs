@@ -401,13 +401,21 @@ fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_rest
         "{text}"
     );
     // The slave comes back (in INIT, as after a power cycle), and an assembly switch follows:
-    // the robot stays stopped — only an operator's reset may bring it back.
+    // the robot stays stopped — only an operator's reset may bring it back, and it is refused
+    // while the slave is not in OP: the bus still fails.
     segment.command("on 3");
     let out = sut.modbot_ok(&["assembly", "switch", "hold"]);
     assert!(out.contains("switched to hold"), "{out}");
     let text = ledger(&sut);
     assert!(text.contains("SAFE STOP"), "{text}");
     assert_eq!(text.matches("operation enabled").count(), 0, "{text}");
+    let out = sut.modbot(&["robot", "reset"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("refused: the bus still fails: EtherCAT slave 3"),
+        "{err}"
+    );
     sut.modbot_ok(&["down"]);
     sut.wait_exit(up, Duration::from_secs(60));
 }

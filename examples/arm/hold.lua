@@ -1,6 +1,6 @@
--- Holds the robot where it is commanded to be, in cyclic synchronous position mode. It also
--- recovers from a safe stop: drive_enable resets faults and leaves quick stop (disable
--- voltage, then enable), once the bus bridge obeys an assembly again.
+-- Holds the robot where it is commanded to be, in cyclic synchronous position mode. A safe
+-- stop or a drive fault is not ended by switching here: `modbot robot reset` brings the drives
+-- back (the bus bridge enables them, and this assembly holds where they are).
 
 component "enable" { type = "drive_enable",  host = "ctrl", period = 1,
                      params = { axes = 6, mode = 8, reset_faults = true } }

@@ -1,6 +1,6 @@
 -- Holds the KR 16 where it is commanded to be, in cyclic synchronous torque mode: the
 -- position held goes through the P-PI cascade on the motor side (gains for a 60 rad/s
--- velocity loop on each joint's whole inertia). Also recovers from a safe stop.
+-- velocity loop on each joint's whole inertia). After a safe stop: `modbot robot reset`.
 
 component "enable"  { type = "drive_enable",  host = "ctrl", period = 1,
                       params = { axes = 6, mode = 10, reset_faults = true } }

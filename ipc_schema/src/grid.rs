@@ -33,7 +33,10 @@
 //!             its inputs read)
 //! 22     2    flags: bit 0 TRACK (an assembly being prepared: its outputs are not obeyed yet,
 //!             follow the current state), bit 1 SAFE_STOP (the assembly faulted: stop the
-//!             drives and hold them); the other bits 0
+//!             drives and hold them), bit 2 HELD (with TRACK, for the running assembly: the
+//!             robot is held — in safe stop, in fault or being brought back — and does not
+//!             follow the assembly; its components track until it does again); the other
+//!             bits 0
 //! 24   8·16   versions: for each source component of the inputs (in the order the host was
 //!             told at load), the valid_from of the outputs to read: LET says "as valid at n"
 //! ```
@@ -57,7 +60,9 @@
 //!             the release names was not there (overwritten while the host was held up), so
 //!             the release was not executed — LET is never served with another version
 //! 12     2    generation, as in the release it answers
-//! 14     2    reserved, 0
+//! 14     2    flags: bit 0 HOLDING (the component holds the robot: its drives are stopped,
+//!             faulted or being brought back and do not follow the running assembly, whose
+//!             components the coordinator then releases to track); the other bits 0
 //! 16     8    execution time of the step, ns
 //! 24     8    release latency: from the coordinator's release to the step's start, ns
 //! ```
@@ -106,6 +111,12 @@ pub const PING: u16 = u16::MAX;
 
 /// The component index of a done notice that says a host is ready for an assembly.
 pub const READY: u16 = u16::MAX - 1;
+
+/// Special component index of a release notice: the grid stops (a normal stop, `modbot down`
+/// or its ticks done), no release follows; a host tells its components
+/// (`Component::stopping`), so the bus stops the drives without judging the coordinator lost.
+/// It needs no done notice.
+pub const STOPPING: u16 = u16::MAX - 2;
 
 /// The most source components one component's inputs come from.
 pub const MAX_SOURCES: usize = 16;
@@ -340,6 +351,10 @@ impl Release {
     pub const TRACK: u16 = 1;
     /// Flag: the assembly faulted; the bus stops the drives and holds them.
     pub const SAFE_STOP: u16 = 2;
+    /// Flag (with [`Release::TRACK`]): the running assembly's component is released to track
+    /// because the robot is held (safe stop, drive fault, an operator's reset under way), not
+    /// because its assembly is being prepared.
+    pub const HELD: u16 = 4;
 
     pub fn new(
         tick: u64,
@@ -459,7 +474,7 @@ pub struct Done {
     pub component: U16,
     pub status: U16,
     pub generation: U16,
-    reserved: U16,
+    pub flags: U16,
     pub exec_ns: U64,
     pub latency_ns: U64,
 }
@@ -471,6 +486,8 @@ impl Done {
     pub const UNSAFE: u16 = 2;
     /// A version the release names was not there: the release was not executed.
     pub const STALE: u16 = 3;
+    /// Flag: the component holds the robot (its drives do not follow the running assembly).
+    pub const HOLDING: u16 = 1;
 
     pub fn new(tick: u64, component: u16, status: u16, exec_ns: u64, latency_ns: u64) -> Done {
         Done {
@@ -478,7 +495,7 @@ impl Done {
             component: U16::new(component),
             status: U16::new(status),
             generation: U16::new(0),
-            reserved: U16::new(0),
+            flags: U16::new(0),
             exec_ns: U64::new(exec_ns),
             latency_ns: U64::new(latency_ns),
         }
@@ -488,6 +505,16 @@ impl Done {
     pub fn of_generation(mut self, generation: u16) -> Done {
         self.generation = U16::new(generation);
         self
+    }
+
+    /// The same notice with `flags` ([`Done::HOLDING`]).
+    pub fn with_flags(mut self, flags: u16) -> Done {
+        self.flags = U16::new(flags);
+        self
+    }
+
+    pub fn has(&self, flag: u16) -> bool {
+        self.flags.get() & flag != 0
     }
 
     /// Reads a notice in place.
@@ -591,10 +618,17 @@ mod tests {
         let back = Release::parse(r.as_bytes()).unwrap();
         assert!(back.has(Release::TRACK) && back.has(Release::SAFE_STOP));
         assert_eq!(back.generation.get(), 0x0102);
+        let held = Release::new(7, 99, 3, &[])
+            .unwrap()
+            .with(1, Release::TRACK | Release::HELD);
+        assert_eq!(hex::encode(&held.as_bytes()[20..24]), "01000500");
         let d = Done::new(7, 3, Done::UNSAFE, 0, 0).of_generation(5);
         assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300020005000000");
         let d = Done::new(7, 3, Done::STALE, 0, 0);
         assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300030000000000");
+        let d = Done::new(7, 3, Done::OK, 0, 0).with_flags(Done::HOLDING);
+        assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300000000000100");
+        assert!(Done::parse(d.as_bytes()).unwrap().has(Done::HOLDING));
     }
 
     #[test]

@@ -42,8 +42,8 @@ pub fn one_arm_at_a_time() -> std::sync::MutexGuard<'static, ()> {
 
 /// Waits until every drive of the arm that `modbot up` (pid `up`) runs is in operation
 /// enabled. A machine that starves the coordinator for the watchdog's few base periods stops
-/// the drives first (that is the watchdog doing its job, and the stop stays latched): such a
-/// safe stop is recovered with a switch to `hold`, which resets the drives, at most 5 times.
+/// the drives first (that is the watchdog doing its job, and the stop holds until a reset):
+/// such a safe stop is recovered with `modbot robot reset`, at most 5 times.
 /// On a timeout, fails with the ledger and the end of `modbot up`'s log.
 pub fn wait_enabled(sut: &TestDomain, up: u32) {
     let mut recovered = 0;
@@ -57,7 +57,7 @@ pub fn wait_enabled(sut: &TestDomain, up: u32) {
             println!(
                 "safe stop before the test began (the machine starved the coordinator): recovering"
             );
-            sut.modbot(&["assembly", "switch", "hold", "--timeout", "60"]);
+            sut.modbot(&["robot", "reset"]);
         }
         Err(format!(
             "{ledger}\n--- modbot up:\n{}",

@@ -90,6 +90,23 @@ pub trait Backend: Send {
         })
     }
 
+    /// Injects a drive fault into `axis` (a simulated or emulated drive), or, with `on`
+    /// false, takes away a lasting cause (an encoder plugged back): for tests and demos.
+    /// Hardware cannot do this.
+    fn inject(&mut self, axis: usize, fault: DriveFault, on: bool) -> Result<(), BlockError> {
+        let _ = (axis, fault, on);
+        Err(BlockError::Unsupported {
+            backend: self.name(),
+        })
+    }
+
+    /// Why `axis` cannot leave its fault yet (its cause persists: an encoder still lost), in
+    /// words; `None` when a fault reset can clear it (or it has none).
+    fn fault_cause(&self, axis: usize) -> Option<&'static str> {
+        let _ = axis;
+        None
+    }
+
     /// With distributed clocks: where in the slaves' SYNC0 cycle the cycle's frame reached
     /// the reference clock, ns: at the last cycle, the least and the most seen. `None` for a
     /// backend without them.
@@ -118,6 +135,76 @@ pub enum BusFault {
     /// the mapping gives: a slave did not read or write its process data.
     #[error("process data working counter {received}, expected {expected}")]
     WorkingCounter { expected: u16, received: u16 },
+}
+
+/// A fault a drive detects itself, with its CiA 402 error code (0x603F) and fault reaction:
+/// the faulted drive disables (no torque), and the bus bridge quick-stops the others.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DriveFault {
+    /// The following error stayed beyond the drive's limit for longer than its time-out (the
+    /// simulator's `following_error_limit` and `following_error_timeout`; 0x6065 and 0x6066 on
+    /// a real drive).
+    Following,
+    /// The torque stayed at its limit for longer than the drive allows.
+    Torque,
+    /// The motor encoder's signal is lost: the drive no longer knows where the motor is. The
+    /// cause lasts until the encoder is back.
+    Encoder,
+}
+
+impl DriveFault {
+    /// Every fault, in the order `modbot bus inject` lists them.
+    pub const ALL: [DriveFault; 3] = [
+        DriveFault::Following,
+        DriveFault::Torque,
+        DriveFault::Encoder,
+    ];
+
+    /// The name `modbot bus inject --fault` takes.
+    pub const fn name(self) -> &'static str {
+        match self {
+            DriveFault::Following => "following",
+            DriveFault::Torque => "torque",
+            DriveFault::Encoder => "encoder",
+        }
+    }
+
+    /// The fault named `name`.
+    pub fn parse(name: &str) -> Option<DriveFault> {
+        DriveFault::ALL.into_iter().find(|f| f.name() == name)
+    }
+
+    /// Its error code (0x603F, CiA 402 / CiA 301 error code classes).
+    pub const fn error_code(self) -> u16 {
+        match self {
+            DriveFault::Following => 0x8611,
+            DriveFault::Torque => 0x8311,
+            DriveFault::Encoder => 0x7305,
+        }
+    }
+}
+
+/// An error code (0x603F) in words: the codes the drives here report, and the code's class
+/// (CiA 301) for others.
+pub fn error_text(code: u16) -> &'static str {
+    match code {
+        0 => "no fault",
+        0x8611 => "following error: beyond the window for longer than its time-out",
+        0x8311 => "excess torque: at the torque limit for longer than allowed",
+        0x7305 => "encoder lost: no signal from the motor encoder",
+        0xFF00 => "injected fault",
+        c => match c >> 12 {
+            0x2 => "current",
+            0x3 => "voltage",
+            0x4 => "temperature",
+            0x5 => "device hardware",
+            0x6 => "device software",
+            0x7 => "additional modules (sensor)",
+            0x8 => "monitoring",
+            0x9 => "external error",
+            _ => "device-specific fault",
+        },
+    }
 }
 
 /// Why an axis cannot be blocked (or freed).

@@ -9,11 +9,19 @@
 //! so the drives decelerate and report it. The drives stay latched in quick stop until they are
 //! sent disable voltage (CiA 402 transition 12) and enabled again; the ledger records when
 //! the stop happened.
+//!
+//! The bridge owns the robot's state ([`RobotState`]): a stop of any cause, and a drive that
+//! reports a fault (it disables itself; the bridge quick-stops the others), hold the robot
+//! until an operator's reset ([`Bridge::ask_reset`], see [`super::reset`]); no assembly switch
+//! ends them. While it holds the robot the bridge says so ([`Bridge::holding`]), and the
+//! coordinator releases the running assembly's components to track.
 
 use std::sync::Mutex;
 
-use super::backend::{AxisActual, AxisCommand, Backend, BlockError, BusFault};
+use super::backend::{AxisActual, AxisCommand, Backend, BlockError, BusFault, DriveFault};
 use super::cia402::DriveState;
+use super::reset::{self, Recovery, ResetAsk};
+use super::robot_state::{self, RobotState};
 
 /// Base periods without a release after which the coordinator counts as lost.
 pub const LOST_AFTER: u64 = 3;
@@ -31,9 +39,12 @@ pub struct SafeStop {
     /// When every drive first reported quick stop active (or a state without torque): the
     /// cycle, and the time since the last tick the grid served, in ns.
     pub all_stopped: Option<(u64, u64)>,
-    /// The bus itself failed (a slave lost, the segment silent): an assembly switch does not
-    /// end this stop.
+    /// The bus itself failed (a slave lost, the segment silent).
     pub latched: bool,
+    /// The grid's tick when it happened (the last release's).
+    pub since_tick: u64,
+    /// A drive's fault caused it, or came during it: the drive and its error code.
+    pub fault: Option<(usize, u16)>,
 }
 
 pub use modbot_ipc_schema::bus::{Switch, Switches, SwitchesError};
@@ -90,6 +101,22 @@ pub struct Bridge {
     /// The grid runs in lockstep: releases come as fast as the grid goes, so gaps between
     /// them are not missed cycles.
     lockstep: bool,
+    /// The tick of the last release.
+    last_tick: u64,
+    /// The last cycle's bus fault, in words (`None`: the cycle went through).
+    bus_failure: Option<String>,
+    /// The last release said the running assembly faulted.
+    assembly_faulted: bool,
+    /// A reset under way, and what the bridge says of the last one asked for.
+    recovery: Option<Recovery>,
+    reset: Option<ResetAsk>,
+    /// Per axis: the position a reset holds, and the controlword it sent last.
+    hold: Vec<f64>,
+    sent: Vec<u16>,
+    /// The robot state's kind ([`RobotState::code`]) and the tick since which it holds.
+    state: (usize, u64),
+    /// The grid stopped normally: its silence is no lost coordinator.
+    grid_stopped: bool,
 }
 
 impl Bridge {
@@ -119,6 +146,15 @@ impl Bridge {
             published: (0, 0, false),
             lost_after_ns: LOST_AFTER * period_ns.max(1),
             lockstep: false,
+            last_tick: 0,
+            bus_failure: None,
+            assembly_faulted: false,
+            recovery: None,
+            reset: None,
+            hold: vec![0.0; n],
+            sent: vec![0; n],
+            state: (0, 0),
+            grid_stopped: false,
         }
     }
 
@@ -160,8 +196,8 @@ impl Bridge {
     }
 
     /// One cycle of the grid's release `served`: a release of a new assembly generation is a
-    /// switch (recorded; it ends a safe stop that release does not ask for), and a release
-    /// that asks for a safe stop brings one about.
+    /// switch (recorded; it does not end a safe stop), a release that asks for a safe stop
+    /// brings one about, and a reset asked for is taken (see [`super::reset`]).
     pub fn serve_release(
         &mut self,
         now_ns: u64,
@@ -187,19 +223,28 @@ impl Bridge {
             }
         }
         self.last_release_ns = now_ns;
+        self.last_tick = served.tick;
         let switched = served.generation != self.generation;
-        let ends = self.safe_stop.as_ref().is_some_and(|s| !s.latched);
-        if switched && !served.safe_stop && ends {
-            tracing::info!(
-                "assembly generation {} takes over: the safe stop ends",
-                served.generation
-            );
-            self.safe_stop = None;
-        }
+        self.assembly_faulted = served.safe_stop;
         if served.safe_stop && self.safe_stop.is_none() {
             self.stop("the assembly faulted".into());
         }
-        if self.safe_stop.is_none() {
+        if matches!(self.reset, Some(ResetAsk::Asked { .. })) {
+            self.begin_reset();
+        }
+        if let Some(recovery) = &self.recovery {
+            let first = recovery.cycles == 0;
+            for (((c, a), hold), sent) in self
+                .commands
+                .iter_mut()
+                .zip(&self.actuals)
+                .zip(&self.hold)
+                .zip(self.sent.iter_mut())
+            {
+                *c = reset::command(first, a.state, *sent, *hold);
+                *sent = c.controlword;
+            }
+        } else if self.safe_stop.is_none() {
             for (i, c) in self.commands.iter_mut().enumerate() {
                 *c = commands(i);
             }
@@ -263,12 +308,216 @@ impl Bridge {
             *last = c.target_position;
         }
         self.cycle(now_ns);
+        self.recovery_cycle();
+        self.note_state();
         &self.actuals
+    }
+
+    /// After a cycle of a reset under way: done once every drive has been in operation
+    /// enabled for [`reset::SETTLE_CYCLES`] cycles; failed after [`reset::RESET_CYCLES`].
+    fn recovery_cycle(&mut self) {
+        let Some(recovery) = self.recovery.as_mut() else {
+            return;
+        };
+        recovery.cycles += 1;
+        let enabled = self
+            .actuals
+            .iter()
+            .all(|a| a.state == DriveState::OperationEnabled);
+        recovery.enabled_for = if enabled { recovery.enabled_for + 1 } else { 0 };
+        let (cycles, since) = (recovery.cycles, recovery.since_tick);
+        if recovery.enabled_for >= reset::SETTLE_CYCLES {
+            self.recovery = None;
+            let done = format!(
+                "every drive enabled at tick {} ({} cycles after the reset began at tick {since}), holding where it was found",
+                self.last_tick, cycles
+            );
+            tracing::info!("reset: {done}");
+            self.reset = Some(ResetAsk::Done(done));
+        } else if cycles >= reset::RESET_CYCLES {
+            let stuck = self
+                .actuals
+                .iter()
+                .position(|a| a.state != DriveState::OperationEnabled)
+                .unwrap_or(0);
+            let state = self.actuals.get(stuck).map(|a| a.state).unwrap_or_default();
+            self.stop(format!(
+                "the reset failed: drive {stuck} is still {state} after {cycles} cycles"
+            ));
+        }
+    }
+
+    /// Takes the reset asked for at a release: refused while the stop's cause persists,
+    /// else begun (see [`super::reset`]).
+    fn begin_reset(&mut self) {
+        let refused = if self.assembly_faulted {
+            Some("the running assembly faulted: switch to another assembly first (`modbot assembly switch hold`)".to_owned())
+        } else if let Some(why) = &self.bus_failure {
+            Some(format!("the bus still fails: {why}"))
+        } else {
+            (0..self.axes()).find_map(|axis| {
+                self.backend
+                    .fault_cause(axis)
+                    .map(|why| format!("drive {axis} cannot leave its fault: {why}"))
+            })
+        };
+        if let Some(why) = refused {
+            tracing::warn!("reset refused: {why}");
+            self.reset = Some(ResetAsk::Refused(why));
+            return;
+        }
+        if self.safe_stop.is_none() {
+            let state = self.robot_state();
+            self.reset = Some(ResetAsk::Done(format!(
+                "nothing to reset: the robot is {state}"
+            )));
+            return;
+        }
+        if let Some(stop) = self.safe_stop.take() {
+            tracing::info!(
+                "reset at tick {}: ends the {} ({})",
+                self.last_tick,
+                if stop.fault.is_some() {
+                    "fault"
+                } else {
+                    "safe stop"
+                },
+                stop.reason
+            );
+        }
+        for (hold, a) in self.hold.iter_mut().zip(&self.actuals) {
+            *hold = a.motor_position;
+        }
+        self.sent.fill(0xffff);
+        self.recovery = Some(Recovery {
+            since_tick: self.last_tick,
+            cycles: 0,
+            enabled_for: 0,
+        });
+        self.reset = None;
+    }
+
+    /// An operator asks for a reset at `now_ns` (`modbot robot reset`): it is taken at the
+    /// next release; on a real-time grid that has been silent for the watchdog's periods it
+    /// is refused at once. [`Bridge::take_reset_answer`] has the answer.
+    pub fn ask_reset(&mut self, now_ns: u64) {
+        let silent = now_ns.saturating_sub(self.last_release_ns);
+        if !self.lockstep && self.last_release_ns != 0 && silent >= self.lost_after_ns {
+            let why = format!(
+                "the grid is not ticking: no tick for {} base periods (the coordinator is stopped or lost); reset once it runs again",
+                silent / self.period_ns
+            );
+            tracing::warn!("reset refused: {why}");
+            self.reset = Some(ResetAsk::Refused(why));
+        } else {
+            self.reset = Some(ResetAsk::Asked { at_ns: now_ns });
+        }
+    }
+
+    /// The answer to the reset asked for, once there is one: `Ok` with what happened, or
+    /// `Err` with why it was refused or failed. A reset the grid has not taken within
+    /// [`reset::RESET_WAIT_NS`] (by `now_ns`) is refused.
+    pub fn take_reset_answer(&mut self, now_ns: u64) -> Option<Result<String, String>> {
+        match &self.reset {
+            Some(ResetAsk::Asked { at_ns })
+                if now_ns.saturating_sub(*at_ns) >= reset::RESET_WAIT_NS =>
+            {
+                let why = format!(
+                    "the grid has not ticked for {} ms since the reset was asked (last tick {}): the coordinator is stopped or lost",
+                    now_ns.saturating_sub(self.last_release_ns.max(*at_ns)) / 1_000_000,
+                    self.last_tick
+                );
+                self.reset = None;
+                Some(Err(why))
+            }
+            Some(ResetAsk::Done(_)) | Some(ResetAsk::Refused(_)) => match self.reset.take() {
+                Some(ResetAsk::Done(what)) => Some(Ok(what)),
+                Some(ResetAsk::Refused(why)) => Some(Err(why)),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
+    /// Whether the bridge holds the robot: the drives do not follow the running assembly (a
+    /// safe stop, a fault, a reset under way). The coordinator then releases the assembly's
+    /// components to track.
+    pub fn holding(&self) -> bool {
+        self.safe_stop.is_some() || self.recovery.is_some()
+    }
+
+    /// The robot's state.
+    pub fn robot_state(&self) -> RobotState {
+        let since_tick = self.state.1;
+        match (&self.safe_stop, self.state.0) {
+            (Some(stop), _) => match stop.fault {
+                Some((drive, error_code)) => RobotState::Fault {
+                    since_tick: stop.since_tick,
+                    drive,
+                    error_code,
+                    cause: stop.reason.clone(),
+                },
+                None => RobotState::SafeStop {
+                    since_tick: stop.since_tick,
+                    cause: stop.reason.clone(),
+                },
+            },
+            (None, 1) => RobotState::Operational { since_tick },
+            (None, _) => RobotState::Disabled { since_tick },
+        }
+    }
+
+    /// The robot state's kind now ([`RobotState::code`]).
+    fn state_code(&self) -> usize {
+        match &self.safe_stop {
+            Some(stop) if stop.fault.is_some() => 3,
+            Some(_) => 2,
+            None if self.recovery.is_none()
+                && self
+                    .actuals
+                    .iter()
+                    .all(|a| a.state == DriveState::OperationEnabled) =>
+            {
+                1
+            }
+            None => 0,
+        }
+    }
+
+    /// Notes a change of the robot state: its tick, and a line in the log with the cause.
+    fn note_state(&mut self) {
+        let code = self.state_code();
+        if code == self.state.0 {
+            return;
+        }
+        self.state = (code, self.last_tick);
+        let state = self.robot_state();
+        match code {
+            2 | 3 if !self.grid_stopped => tracing::error!("robot state: {state}"),
+            _ => tracing::info!("robot state: {state}"),
+        }
+    }
+
+    /// Injects a drive fault into `axis` of a simulated or emulated bus (or takes a lasting
+    /// cause away).
+    pub fn inject(&mut self, axis: usize, fault: DriveFault, on: bool) -> Result<(), BlockError> {
+        if axis >= self.axes() {
+            return Err(BlockError::NoSuchAxis {
+                axis,
+                axes: self.axes(),
+            });
+        }
+        self.backend.inject(axis, fault, on)
     }
 
     fn cycle(&mut self, now_ns: u64) {
         let dt = self.period_ns as f64 * 1e-9;
-        match self.backend.cycle(dt, &self.commands, &mut self.actuals) {
+        let result = self.backend.cycle(dt, &self.commands, &mut self.actuals);
+        self.bus_failure = match &result {
+            Ok(()) => None,
+            Err(fault) => Some(self.backend.describe(fault)),
+        };
+        match result {
             Ok(()) => self.silent_cycles = 0,
             Err(BusFault::NoReply) => {
                 self.lost_frames += 1;
@@ -288,6 +537,7 @@ impl Bridge {
         }
         self.cycles += 1;
         self.last_cycle_ns = now_ns;
+        self.watch_drive_faults();
         if let Some(stop) = self.safe_stop.as_mut() {
             let stopped = self.actuals.iter().all(|a| {
                 !matches!(
@@ -298,6 +548,37 @@ impl Bridge {
             if stop.all_stopped.is_none() && stopped {
                 let since = now_ns.saturating_sub(self.last_release_ns);
                 stop.all_stopped = Some((self.cycles, since));
+            }
+        }
+    }
+
+    /// A drive that reports a fault (it disabled itself) stops the others (quick stop) and
+    /// holds the robot in `fault`; during a stop it turns the stop into a fault. A reset under
+    /// way gives the drives it is resetting a few cycles to leave their fault.
+    fn watch_drive_faults(&mut self) {
+        if self.safe_stop.as_ref().is_some_and(|s| s.fault.is_some()) {
+            return;
+        }
+        if self.recovery.is_some_and(|r| r.cycles < 4) {
+            return;
+        }
+        let Some((drive, code)) = self.actuals.iter().enumerate().find_map(|(i, a)| {
+            matches!(a.state, DriveState::Fault | DriveState::FaultReactionActive)
+                .then_some((i, a.error_code))
+        }) else {
+            return;
+        };
+        let cause = robot_state::fault_cause(drive, code);
+        match self.safe_stop.as_mut() {
+            Some(stop) => {
+                tracing::debug!("{cause} (during the safe stop: {})", stop.reason);
+                stop.fault = Some((drive, code));
+            }
+            None => {
+                self.stop(cause);
+                if let Some(stop) = self.safe_stop.as_mut() {
+                    stop.fault = Some((drive, code));
+                }
             }
         }
     }
@@ -324,7 +605,7 @@ impl Bridge {
         if silent < self.lost_after_ns {
             return false;
         }
-        if self.safe_stop.is_none() {
+        if self.safe_stop.is_none() && !self.grid_stopped {
             // A drive that produces no torque needs no stop: before the grid has enabled any,
             // a silent moment (a slow start) must not latch the drives in quick stop.
             if !self
@@ -341,20 +622,50 @@ impl Bridge {
         }
         if now_ns.saturating_sub(self.last_cycle_ns) >= self.period_ns {
             self.cycle(now_ns);
+            self.note_state();
             return true;
         }
         false
     }
 
+    /// The grid stops normally (`modbot down`, its ticks done): no release follows. Drives
+    /// in operation enabled quick-stop, as at any stop, but the silence that follows is no lost
+    /// coordinator and nothing is logged as an error.
+    pub fn grid_stopping(&mut self) {
+        self.grid_stopped = true;
+        if self.safe_stop.is_some() {
+            return;
+        }
+        let enabled = self
+            .actuals
+            .iter()
+            .any(|a| a.state == DriveState::OperationEnabled);
+        if enabled {
+            let reason = "the grid stopped (a normal stop): every drive quick-stops";
+            self.hold_stopped(reason.to_owned());
+            self.note_state();
+        }
+    }
+
     /// Commands quick stop to every drive and holds it.
+    /// The log's line is the robot state's change, with the cause (see `note_state`).
     pub fn stop(&mut self, reason: String) {
-        tracing::error!("safe stop: {reason}");
+        tracing::debug!("safe stop at tick {}: {reason}", self.last_tick);
+        self.hold_stopped(reason);
+    }
+
+    fn hold_stopped(&mut self, reason: String) {
         self.backend.quick_stop_all();
+        if self.recovery.take().is_some() {
+            self.reset = Some(ResetAsk::Refused(format!("the reset failed: {reason}")));
+        }
         self.safe_stop = Some(SafeStop {
             reason,
             at_cycle: self.cycles,
             all_stopped: None,
             latched: false,
+            since_tick: self.last_tick,
+            fault: None,
         });
     }
 
@@ -442,6 +753,8 @@ pub struct BusView {
     pub actuals: Vec<AxisActual>,
     /// With distributed clocks: the frame's place in the SYNC0 cycle (last, least, most), ns.
     pub sync0_offset_ns: Option<(u64, u64, u64)>,
+    /// The robot's state.
+    pub robot: Option<RobotState>,
 }
 
 impl BusView {
@@ -467,6 +780,26 @@ impl BusView {
         self.max_velocity_step = b.max_velocity_step;
         self.actuals.clone_from(&b.actuals);
         self.sync0_offset_ns = b.backend.sync0_offset_ns();
+        // Cloned (its cause allocates) only when it changed.
+        let kind_since = |r: &RobotState| (r.code(), r.since_tick());
+        let now = (
+            b.state_code(),
+            b.safe_stop.as_ref().map_or(b.state.1, |s| s.since_tick),
+        );
+        if self.robot.as_ref().map(kind_since) != Some(now)
+            || self.robot.as_ref().is_some_and(|r| {
+                r.cause() != b.safe_stop.as_ref().map_or("", |s| s.reason.as_str())
+            })
+        {
+            self.robot = Some(b.robot_state());
+        }
+    }
+
+    /// The robot's state as last published (`disabled` before the first cycle).
+    pub fn robot_state(&self) -> RobotState {
+        self.robot
+            .clone()
+            .unwrap_or(RobotState::Disabled { since_tick: 0 })
     }
 
     /// The bus ledger, as `modbot bus` prints it.
@@ -495,6 +828,7 @@ impl BusView {
                 None => "running".to_owned(),
             }
         );
+        out.push_str(&format!("robot {}\n", self.robot_state()));
         if let Some((last, least, most)) = self.sync0_offset_ns {
             out.push_str(&format!(
                 "distributed clocks: the frame reaches the reference clock {:.1} us into the SYNC0 cycle (least {:.1}, most {:.1})\n",
@@ -630,20 +964,45 @@ mod tests {
         assert_eq!(periods_until_quick_stop(sut), Some(7));
     }
 
+    /// Serves `sut` one release at `*t` + 1 ms with `served` and CSP commands at `q`.
+    fn serve_at(sut: &mut Bridge, t: &mut u64, served: Served, q: f64) {
+        *t += MS;
+        sut.serve_release(*t, &served, |_| AxisCommand {
+            controlword: 0x0f,
+            mode: 8,
+            target_position: q,
+            ..Default::default()
+        });
+    }
+
+    fn release(tick: u64, generation: u16, safe_stop: bool) -> Served {
+        Served {
+            tick,
+            generation,
+            safe_stop,
+        }
+    }
+
     #[test]
-    fn a_release_asking_for_safe_stop_stops_the_drives_until_a_new_assembly_takes_over() {
+    fn a_safe_stop_holds_through_an_assembly_switch_and_only_a_reset_ends_it() {
         let mut sut = Bridge::new(Box::new(SimBackend::new(2, PlantParams::default())), MS);
         let mut t = 1_000 * MS;
         enabled(&mut sut, &mut t);
-        let faulted = Served {
-            tick: 10,
-            generation: 0,
-            safe_stop: true,
-        };
-        t += MS;
-        sut.serve_release(t, &faulted, |_| AxisCommand::default());
-        t += MS;
-        sut.serve_release(t, &faulted, |_| AxisCommand::default());
+        assert!(sut.robot_state().is_operational(), "{}", sut.robot_state());
+        serve_at(&mut sut, &mut t, release(10, 0, true), 0.0);
+        serve_at(&mut sut, &mut t, release(11, 0, true), 0.0);
+        assert!(sut.holding());
+        assert_eq!(
+            sut.robot_state(),
+            RobotState::SafeStop {
+                since_tick: 10,
+                cause: "the assembly faulted".into()
+            }
+        );
+        // A new assembly that enables the drives: they stay in quick stop.
+        for tick in 12..40 {
+            serve_at(&mut sut, &mut t, release(tick, 2, false), 0.0);
+        }
         assert!(
             sut.states()
                 .iter()
@@ -651,30 +1010,87 @@ mod tests {
             "{}",
             sut.ledger()
         );
-        assert!(sut.ledger().contains("the assembly faulted"));
-        let recovery = Served {
-            tick: 12,
-            generation: 2,
-            safe_stop: false,
+        assert_eq!(sut.robot_state().kind(), "safe_stop");
+        // The reset: taken at the next release, every drive enabled at once, holding.
+        sut.ask_reset(t);
+        let mut tick = 40;
+        let answer = loop {
+            serve_at(&mut sut, &mut t, release(tick, 2, false), 0.0);
+            tick += 1;
+            if let Some(a) = sut.take_reset_answer(t) {
+                break a;
+            }
+            assert!(tick < 100, "no answer: {}", sut.ledger());
         };
-        for cw in [0x00u16, 0x06, 0x07, 0x0f, 0x0f] {
-            t += MS;
-            sut.serve_release(t, &recovery, |_| AxisCommand {
-                controlword: cw,
-                mode: 8,
-                ..Default::default()
-            });
-        }
-        assert!(sut.safe_stop.is_none(), "{}", sut.ledger());
+        let done = answer.expect("the reset went through");
+        assert!(done.starts_with("every drive enabled at tick"), "{done}");
+        assert!(!sut.holding());
+        assert_eq!(
+            sut.robot_state(),
+            RobotState::Operational {
+                since_tick: tick - 1
+            }
+        );
         assert!(
-            sut.states()
-                .iter()
-                .all(|s| *s == DriveState::OperationEnabled),
+            sut.ledger().contains("robot operational since tick"),
             "{}",
             sut.ledger()
         );
-        assert_eq!(sut.switches.len(), 1);
-        assert_eq!((sut.switches[0].generation, sut.switches[0].tick), (2, 12));
+    }
+
+    #[test]
+    fn a_reset_is_refused_while_the_running_assembly_is_faulted_or_the_grid_is_silent() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(1, PlantParams::default())), MS);
+        let mut t = 1_000 * MS;
+        enabled(&mut sut, &mut t);
+        serve_at(&mut sut, &mut t, release(10, 0, true), 0.0);
+        sut.ask_reset(t);
+        serve_at(&mut sut, &mut t, release(11, 0, true), 0.0);
+        let why = sut.take_reset_answer(t).unwrap().unwrap_err();
+        assert!(why.starts_with("the running assembly faulted"), "{why}");
+        // Ten periods of silence on a real-time grid: refused at once.
+        sut.ask_reset(t + 10 * MS);
+        let why = sut.take_reset_answer(t + 10 * MS).unwrap().unwrap_err();
+        assert!(
+            why.starts_with("the grid is not ticking: no tick for 10 base periods"),
+            "{why}"
+        );
+        assert_eq!(sut.robot_state().kind(), "safe_stop");
+    }
+
+    #[test]
+    fn a_reset_takes_over_where_the_drives_stopped_without_a_jump() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(1, PlantParams::default())), MS);
+        let mut t = 1_000 * MS;
+        enabled(&mut sut, &mut t);
+        // Moving at 1 rad/s, then stopped by the assembly's fault.
+        let mut q = 0.0;
+        for tick in 5..300 {
+            q += 0.001;
+            serve_at(&mut sut, &mut t, release(tick, 0, false), q);
+        }
+        serve_at(&mut sut, &mut t, release(300, 0, true), q);
+        for tick in 301..800 {
+            serve_at(&mut sut, &mut t, release(tick, 2, false), q);
+        }
+        let stopped_at = sut.actuals()[0].motor_position;
+        sut.ask_reset(t);
+        let mut tick = 800;
+        while sut.take_reset_answer(t).is_none() {
+            // The assembly's generator tracked while the robot was held: it commands the
+            // position the drive reports as its demand.
+            let demand = sut.demand_position(0);
+            serve_at(&mut sut, &mut t, release(tick, 2, false), demand);
+            tick += 1;
+        }
+        let demand = sut.demand_position(0);
+        assert!(
+            (demand - stopped_at).abs() < 1e-3,
+            "{demand} vs {stopped_at}"
+        );
+        serve_at(&mut sut, &mut t, release(tick, 2, false), demand);
+        assert!(sut.robot_state().is_operational());
+        assert!(sut.max_step <= 0.001 + 1e-12, "step {} rad", sut.max_step);
     }
 
     #[test]
@@ -744,6 +1160,27 @@ mod tests {
         assert_eq!((sut.cycles, sut.missed), (2, 0));
         assert!(!sut.watch(600 * MS));
         assert_eq!(sut.next_look_ns(500 * MS), LOCKSTEP_LOST_AFTER_NS);
+    }
+
+    #[test]
+    fn a_grid_that_stops_normally_quick_stops_the_drives_without_judging_the_coordinator_lost() {
+        let mut sut = Bridge::new(Box::new(SimBackend::new(2, PlantParams::default())), MS);
+        let mut t = 1_000 * MS;
+        enabled(&mut sut, &mut t);
+        sut.grid_stopping();
+        for k in 1..=20 {
+            sut.watch(t + k * MS);
+        }
+        let stop = sut.safe_stop.clone().expect("the drives stop");
+        assert!(
+            stop.reason.starts_with("the grid stopped"),
+            "{}",
+            stop.reason
+        );
+        assert!(sut
+            .states()
+            .iter()
+            .all(|s| *s == DriveState::QuickStopActive));
     }
 
     #[test]

@@ -25,7 +25,9 @@
 //! ([`DriveStateMachine::new`]) and 1 ([`DriveStateMachine::complete_initialisation`]) are
 //! automatic; 13 is [`DriveStateMachine::fault`]; 12 (with [`QuickStopOption::DisableAfterStop`])
 //! and 14 follow [`DriveStateMachine::motion_stopped`], which the drive model calls at
-//! standstill.
+//! standstill. While the fault's cause persists (an encoder still lost), the drive model
+//! refuses 15 with [`DriveStateMachine::inhibit_fault_reset`]: the reset is accepted and the
+//! drive stays in fault.
 
 use std::fmt;
 
@@ -322,6 +324,8 @@ pub struct DriveStateMachine {
     /// While set, commands that would raise the power state (2, 3, 4, 16) are accepted but
     /// not executed, like a drive whose hardware enable input is off (a master's safe stop).
     enable_inhibited: bool,
+    /// While set, a fault reset (15) is accepted but not executed: the fault's cause persists.
+    fault_reset_inhibited: bool,
 }
 
 impl Default for DriveStateMachine {
@@ -339,6 +343,7 @@ impl DriveStateMachine {
             option: QuickStopOption::HoldAfterStop,
             fault: None,
             enable_inhibited: false,
+            fault_reset_inhibited: false,
         }
     }
 
@@ -379,6 +384,17 @@ impl DriveStateMachine {
         self.enable_inhibited = inhibit;
     }
 
+    pub const fn fault_reset_inhibited(&self) -> bool {
+        self.fault_reset_inhibited
+    }
+
+    /// Refuses (or allows again) the fault reset, transition 15: while the fault's cause
+    /// persists, a reset leaves the drive in fault. The command is not illegal: it is
+    /// accepted and the state kept, as a drive that checks its cause before it resets does.
+    pub fn inhibit_fault_reset(&mut self, inhibit: bool) {
+        self.fault_reset_inhibited = inhibit;
+    }
+
     /// Transition 1: the drive finished initialising. `None` in any other state.
     pub fn complete_initialisation(&mut self) -> Option<Transition> {
         (self.state == DriveState::NotReadyToSwitchOn)
@@ -393,6 +409,7 @@ impl DriveStateMachine {
         match outcome(self.state, command, self.option) {
             Outcome::Stay => Ok(None),
             Outcome::Go(2 | 3 | 4 | 16, _) if self.enable_inhibited => Ok(None),
+            Outcome::Go(15, _) if self.fault_reset_inhibited => Ok(None),
             Outcome::Go(number, to) => Ok(Some(self.go(number, to))),
             Outcome::Illegal => Err(IllegalCommand {
                 state: self.state,

@@ -22,6 +22,9 @@
 //!   backend, `modbot-ethercat`) and the EtherCAT slave emulator (`modbot-ecat-sim`).
 //! - [`bridge`]: the bus bridge: the backend served every tick, with its own watchdog that
 //!   quick-stops the drives when the coordinator is lost, and the bus ledger.
+//! - [`robot_state`]: [`RobotState`], the robot's state the bridge owns (operational, safe
+//!   stop, fault, disabled) and the values it travels as.
+//! - [`reset`]: an operator's reset: how the bridge brings the drives back without a restart.
 //! - [`robot`]: the grid components `bus` (one bus cycle per release) and `drive_enable`.
 
 pub mod backend;
@@ -29,17 +32,20 @@ pub mod bridge;
 pub mod cia402;
 pub mod link;
 pub mod plant;
+pub mod reset;
 pub mod robot;
+pub mod robot_state;
 pub mod sim;
 pub mod units;
 
 #[cfg(test)]
 mod tests;
 
-pub use backend::{AxisActual, AxisCommand, Backend, BusFault};
+pub use backend::{error_text, AxisActual, AxisCommand, Backend, BusFault, DriveFault};
 pub use cia402::{
     Command, DriveState, DriveStateMachine, FaultReason, IllegalCommand, ModeOfOperation,
     QuickStopOption, Transition, UnsupportedMode,
 };
 pub use plant::{InvalidParameter, LimitStatus, Plant, PlantParams, PlantState};
+pub use robot_state::RobotState;
 pub use sim::{DriveParams, SimBackend};

@@ -6,7 +6,11 @@
 //!   `motor_position`, `motor_velocity`, `motor_torque`, `link_position`, and
 //!   `demand_position`: the position the drive was last commanded (CiA 402's position demand
 //!   value, 0x6062) while in operation enabled in CSP, else its actual position — where a
-//!   generator taking over should start for the command not to jump. Params: `axes`
+//!   generator taking over should start for the command not to jump; and `state`, the
+//!   robot's state (0 disabled, 1 operational, 2 safe stop, 3 fault: see
+//!   [`crate::robot_state`]). While the bridge holds the robot (a stop, a fault, a reset under
+//!   way) the component says so ([`Component::holding`]) and the coordinator releases the
+//!   running assembly's components to track. Params: `axes`
 //!   (default 6), `backend` (`sim`), `watchdog` (base periods without a release after which
 //!   the coordinator is lost and the drives stop, default 3), `handover` (bool, default false:
 //!   with it, input and output `handover`, the running generator's handover forwarded one
@@ -20,8 +24,9 @@
 //!   in a mode (param `mode`, default 8, CSP), resets faults once (a rising edge of bit 7) when
 //!   param `reset_faults` is true, and never re-enables a drive held in quick stop unless
 //!   `reset_faults` is true: then it sends *disable voltage* once (CiA 402 transition 12) and
-//!   enables it again — the recovery after a safe stop. Input `statusword: f64[axes]`, outputs
-//!   `controlword`, `mode`.
+//!   enables it again. While the bus bridge holds the robot (a safe stop, a drive fault) it
+//!   obeys no assembly: only an operator's reset brings the drives back (see
+//!   [`crate::reset`]). Input `statusword: f64[axes]`, outputs `controlword`, `mode`.
 
 use std::sync::{Arc, Mutex};
 
@@ -72,6 +77,10 @@ const BUS_IN: [&str; 5] = [
     "target_velocity",
     "target_torque",
 ];
+/// The output with the robot's state: 0 disabled, 1 operational, 2 safe stop, 3 fault
+/// ([`crate::robot_state::RobotState::code`]).
+const STATE: &str = "state";
+
 const BUS_OUT: [&str; 6] = [
     "statusword",
     "motor_position",
@@ -95,6 +104,7 @@ fn bus_info(p: &Params) -> Result<ComponentInfo, ComponentError> {
         inputs.push(handover::port(n));
         outputs.push(handover::port(n));
     }
+    outputs.push(PortDecl::new(STATE, PortType::F64));
     Ok(ComponentInfo {
         type_name: "bus",
         doc: "the drives on the bus: one cycle per release (serve it every tick)",
@@ -260,6 +270,14 @@ fn slice(v: &PortValue) -> &[f64] {
 }
 
 impl Component for Bus {
+    fn holding(&self) -> bool {
+        bridge::lock(&self.bridge).holding()
+    }
+
+    fn stopping(&mut self) {
+        bridge::lock(&self.bridge).grid_stopping();
+    }
+
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let input = |port: usize, i: usize| slice(&inputs[port]).get(i).copied().unwrap_or(0.0);
         let served = Served {
@@ -275,6 +293,21 @@ impl Component for Bus {
             target_velocity: input(3, i),
             target_torque: input(4, i),
         });
+        let holding = b.holding();
+        if let Some(PortValue::F64(state)) = outputs.last_mut() {
+            *state = match (&b.safe_stop, holding) {
+                (Some(stop), _) if stop.fault.is_some() => 3.0,
+                (Some(_), _) => 2.0,
+                (None, false)
+                    if b.actuals()
+                        .iter()
+                        .all(|a| a.state == DriveState::OperationEnabled) =>
+                {
+                    1.0
+                }
+                _ => 0.0,
+            };
+        }
         let actuals = b.actuals();
         let (outputs, forwarded) = outputs.split_at_mut(BUS_OUT.len().min(outputs.len()));
         if let (Some(from), Some(to)) = (inputs.get(BUS_IN.len()), forwarded.first_mut()) {
@@ -285,7 +318,7 @@ impl Component for Bus {
                     to.copy_from_slice(slice(from));
                 }
             }
-            if b.safe_stop.is_some() {
+            if holding {
                 handover::invalidate(to);
             }
         }

@@ -3,29 +3,40 @@
 //!
 //! Each cycle, per axis: the first cycle completes initialisation (transition 1); the mode is
 //! taken if supported (else the warning bit is set and the previous mode kept); the
-//! controlword is applied; the drive computes a motor torque; the plant advances by `dt`; at
-//! standstill a quick stop or fault reaction completes; the actuals are filled.
+//! controlword is applied; the drive computes a motor torque; it checks its fault limits (a
+//! fault takes the torque away at once); the plant advances by `dt`; at standstill a quick
+//! stop or fault reaction completes; the actuals are filled.
 //!
 //! The drive's loops run at the bus rate on the motor-side measurements:
 //! - operation enabled, CSP: `v* = kp·(target_position − qm) + target_velocity`, then CSV;
 //! - operation enabled, CSV: `τ = kv·(v* − ωm) + ki·∫(v* − ωm) + target_torque`;
 //! - operation enabled, CST: `τ = target_torque`;
-//! - quick stop active and fault reaction active (when operation was enabled): a reference
-//!   that decelerates from the motor's speed to 0 at `quick_stop_deceleration`, then holds its
-//!   position, tracked as in CSP;
-//! - any other state: no torque (the brake is not modelled).
+//! - quick stop active, and the braking fault reaction of [`SimBackend::inject_fault`] (when
+//!   operation was enabled): a reference that decelerates from the motor's speed to 0 at
+//!   `quick_stop_deceleration`, then holds its position, tracked as in CSP;
+//! - any other state, and the fault reaction *disable drive* of the faults the drive detects:
+//!   no torque (the brake is not modelled).
 //!
 //! The torque saturates at the plant's `torque_limit` (statusword bit 11), and the integral
 //! stops while saturated (anti-windup). A torque that is not finite (a NaN target) becomes 0
 //! and sets the warning bit. Everything is plain `f64` arithmetic in a fixed order: the same
 //! commands give the same actuals, bit for bit. Nothing allocates after [`SimBackend::new`].
+//!
+//! The drive faults on a lasting following error in CSP and on a torque held at its limit,
+//! and a test can inject those faults and an encoder loss ([`Backend::inject`]); the
+//! submodule `faults` has the rules and the error codes (0x603F).
 
-use super::backend::{AxisActual, AxisCommand, Backend, BlockError, BusFault, MISSING_COMMAND};
+mod faults;
+
+use super::backend::{
+    AxisActual, AxisCommand, Backend, BlockError, BusFault, DriveFault, MISSING_COMMAND,
+};
 use super::cia402::{
-    sw, Command, DriveState, DriveStateMachine, FaultReason, IllegalCommand, ModeOfOperation,
-    QuickStopOption, Transition,
+    sw, Command, DriveState, DriveStateMachine, IllegalCommand, ModeOfOperation, QuickStopOption,
+    Transition,
 };
 use super::plant::{require, InvalidParameter, Plant, PlantParams};
+use faults::Faults;
 
 /// The drive's controller settings (the same for every axis).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,8 +57,16 @@ pub struct DriveParams {
     pub standstill_velocity: f64,
     pub standstill_time: f64,
     /// Following error window (0x6065), rad: beyond it, CSP sets statusword bit 13. The drive
-    /// does not fault on it: monitoring is upstream.
+    /// does not fault on it (see `following_error_limit`).
     pub following_error_window: f64,
+    /// Following error limit, rad: beyond it for longer than `following_error_timeout` (s),
+    /// CSP faults with 0x8611. Loose by default: the master's monitoring, upstream, is meant
+    /// to stop first; this is the drive's last line.
+    pub following_error_limit: f64,
+    pub following_error_timeout: f64,
+    /// The torque at its limit for longer than this (s) faults with 0x8311 (a blocked axis
+    /// the master did not stop).
+    pub torque_limit_time: f64,
     /// Quick stop option code (0x605A).
     pub quick_stop_option: QuickStopOption,
 }
@@ -55,7 +74,10 @@ pub struct DriveParams {
 impl Default for DriveParams {
     /// Tuned for [`PlantParams::default`] at 1 ms: velocity loop ≈ 600 rad/s on the motor
     /// alone (120 rad/s on the rigid joint), integral corner 20 rad/s, position loop 30 rad/s.
-    /// A CSP step of 0.01 rad settles within 2 % in ≈ 0.13 s without overshoot.
+    /// A CSP step of 0.01 rad settles within 2 % in ≈ 0.13 s without overshoot. The fault
+    /// limits are loose, a last line behind the master's monitoring: a link blocked under a
+    /// 0.5 rad/s CSP ramp saturates the torque within 35 ms and passes 0.5 rad of following
+    /// error after ≈ 1 s, and still runs after 2 s.
     fn default() -> Self {
         DriveParams {
             position_gain: 30.0,
@@ -66,6 +88,9 @@ impl Default for DriveParams {
             standstill_velocity: 1e-3,
             standstill_time: 0.02,
             following_error_window: 0.05,
+            following_error_limit: 1.5,
+            following_error_timeout: 0.05,
+            torque_limit_time: 3.0,
             quick_stop_option: QuickStopOption::HoldAfterStop,
         }
     }
@@ -97,7 +122,13 @@ impl DriveParams {
         let time = p.standstill_time;
         require("standstill_time", time, time >= 0.0, ">= 0")?;
         let window = p.following_error_window;
-        require("following_error_window", window, window > 0.0, "> 0")
+        require("following_error_window", window, window > 0.0, "> 0")?;
+        let limit = p.following_error_limit;
+        require("following_error_limit", limit, limit > 0.0, "> 0")?;
+        let timeout = p.following_error_timeout;
+        require("following_error_timeout", timeout, timeout > 0.0, "> 0")?;
+        let time = p.torque_limit_time;
+        require("torque_limit_time", time, time > 0.0, "> 0")
     }
 }
 
@@ -129,6 +160,8 @@ struct Drive {
     /// Controlwords the state machine rejected, and the last such.
     rejected: u64,
     last_rejected: Option<IllegalCommand>,
+    /// Fault detection, the injected causes and the error code.
+    faults: Faults,
 }
 
 impl Drive {
@@ -150,6 +183,7 @@ impl Drive {
             following_error_exceeded: false,
             rejected: 0,
             last_rejected: None,
+            faults: Faults::default(),
         }
     }
 
@@ -182,6 +216,7 @@ impl Drive {
             self.warning = true;
             0.0
         };
+        self.watch(p, dt, cmd);
         self.plant.step(self.torque, dt);
         self.check_standstill(p, dt);
         self.actual()
@@ -189,6 +224,7 @@ impl Drive {
 
     /// Resets the controllers on entering a state.
     fn entered(&mut self, t: Transition) {
+        self.faults.entered(t);
         self.integral = 0.0;
         self.halted = false;
         let s = self.plant.state();
@@ -302,15 +338,17 @@ impl Drive {
                 statusword |= bit;
             }
         }
+        let (motor_position, motor_velocity) =
+            self.faults.measured(s.motor_position, s.motor_velocity);
         AxisActual {
             statusword,
             mode: self.mode.map_or(0, i8::from),
-            motor_position: s.motor_position,
-            motor_velocity: s.motor_velocity,
+            motor_position,
+            motor_velocity,
             motor_torque: self.torque,
             link_position: s.link_position,
             state,
-            error_code: 0,
+            error_code: self.faults.error_code,
         }
     }
 }
@@ -371,13 +409,19 @@ impl SimBackend {
         self.drives[axis].plant.set_blocked(blocked);
     }
 
-    /// Faults `axis` (transition 13); the fault reaction brakes if operation was enabled, and
-    /// ends in fault (14) at standstill. Panics if `axis >= axes()`.
+    /// Faults `axis` (transition 13) with error code 0xFF00; the fault reaction brakes if
+    /// operation was enabled, and ends in fault (14) at standstill. Panics if
+    /// `axis >= axes()`. [`Backend::inject`] injects the faults a drive detects instead.
     pub fn inject_fault(&mut self, axis: usize) {
-        let drive = &mut self.drives[axis];
-        if let Some(t) = drive.sm.fault(FaultReason::Injected) {
-            drive.entered(t);
-        }
+        self.drives[axis].inject_braking_fault();
+    }
+
+    /// `axis`, or the error a caller gets for an axis that does not exist.
+    fn drive_mut(&mut self, axis: usize) -> Result<&mut Drive, BlockError> {
+        let axes = self.drives.len();
+        self.drives
+            .get_mut(axis)
+            .ok_or(BlockError::NoSuchAxis { axis, axes })
     }
 
     /// `axis`'s joint, for tests and scenarios. Panics if `axis >= axes()`.
@@ -434,14 +478,18 @@ impl Backend for SimBackend {
     }
 
     fn block_axis(&mut self, axis: usize, blocked: bool) -> Result<(), BlockError> {
-        if axis >= self.drives.len() {
-            return Err(BlockError::NoSuchAxis {
-                axis,
-                axes: self.drives.len(),
-            });
-        }
-        SimBackend::block_axis(self, axis, blocked);
+        self.drive_mut(axis)?.plant.set_blocked(blocked);
         Ok(())
+    }
+
+    fn inject(&mut self, axis: usize, fault: DriveFault, on: bool) -> Result<(), BlockError> {
+        self.drive_mut(axis)?.inject(fault, on);
+        Ok(())
+    }
+
+    fn fault_cause(&self, axis: usize) -> Option<&'static str> {
+        let lost = self.drives.get(axis)?.faults.encoder_lost();
+        lost.then_some(faults::ENCODER_LOST)
     }
 
     fn name(&self) -> &'static str {

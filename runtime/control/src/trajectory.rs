@@ -18,7 +18,10 @@
 //! is valid (LET). So it never moves towards those zeros, whatever `start` says then; but a
 //! first goal of exactly all zeros is not new either: it takes effect after another goal.
 //! A `ptp` that tracked (its assembly was prepared while another ran) has taken no goal yet:
-//! the first it reads live is new, all zeros included (its sources are valid by then).
+//! the first it reads live is new, all zeros included (its sources are valid by then). One
+//! that tracked because the robot was held under it (flag `HELD`: a safe stop, a drive fault,
+//! an operator's reset) keeps the goal it had: when the robot follows again it holds where it
+//! is found, and moves only for a new goal.
 //!
 //! Each axis follows a trapezoidal velocity profile (triangular when the distance is too short
 //! to reach the velocity limit). The axes are time-synchronized: the axis that needs longest at
@@ -587,8 +590,12 @@ impl Component for Ptp {
         }
         self.ahead = ahead;
         self.latched = true;
-        // No goal taken: the first one read live is new, whatever it is.
-        self.taken.fill(f64::NAN);
+        // Prepared: no goal taken, the first one read live is new, whatever it is. Held (the
+        // robot stopped under the running assembly): the goal it had stays taken, so when the
+        // robot follows again it holds where it is found instead of setting out once more.
+        if !rel.held() {
+            self.taken.fill(f64::NAN);
+        }
         rest(outputs, &self.target);
         outputs[3] = PortValue::Bool(true);
         self.write_handover(tick, &mut outputs[4]);

@@ -22,12 +22,18 @@
 //! When the slave leaves OP (the sync manager watchdog, the master's request), the drive
 //! quick-stops, as a drive whose abort connection option code (0x6007) is 3 does.
 //!
+//! Its faults are the simulator's: it faults on a lasting following error and on a torque held
+//! at its limit, and [`Cia402Drive::inject`] injects those and an encoder loss; the fault's
+//! error code is in 0x603F.
+//!
 //! Each step converts the outputs to SI units, runs one cycle of the simulated drive with the
 //! step's `dt`, and converts its actuals back (rounded to the nearest count). So the emulated
 //! drive moves as the simulator's does, to within its encoder's resolution.
 
 use modbot_bus::units::Scale;
-use modbot_bus::{AxisActual, AxisCommand, Backend, DriveParams, PlantParams, SimBackend};
+use modbot_bus::{
+    AxisActual, AxisCommand, Backend, DriveFault, DriveParams, PlantParams, SimBackend,
+};
 
 use crate::application::Application;
 use crate::dictionary::{ObjectDictionary, ObjectEntry};
@@ -84,6 +90,20 @@ impl Cia402Drive {
     /// What the drive reported at its last step.
     pub fn actual(&self) -> &AxisActual {
         &self.actual[0]
+    }
+
+    /// Injects `fault` into the drive, or, with `on` false, takes its lasting cause away (the
+    /// encoder back): the simulator's [`Backend::inject`]. The drive reports it (statusword,
+    /// 0x603F) from its next step.
+    pub fn inject(&mut self, fault: DriveFault, on: bool) {
+        // The drive is axis 0 of a one-axis simulator: the axis exists.
+        let _ = self.sim.inject(0, fault, on);
+    }
+
+    /// Why the drive cannot leave its fault yet (its encoder still lost); `None` when a
+    /// fault reset can clear it.
+    pub fn fault_cause(&self) -> Option<&'static str> {
+        self.sim.fault_cause(0)
     }
 }
 
@@ -194,5 +214,45 @@ mod tests {
             );
         }
         assert!((sut.actual().link_position - 0.2).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_lost_encoder_shows_in_the_error_code_and_freezes_the_position_actual_value() {
+        let mut sut = Cia402Drive::new(PlantParams::default(), DriveUnits::default()).unwrap();
+        let mut od = dictionary_of(&sut);
+        od.set(0x6060, 0, 9i8).unwrap();
+        od.set(0x60FF, 0, DriveUnits::default().scale().counts(1.0))
+            .unwrap();
+        for controlword in [0x06u16, 0x07, 0x0F, 0x0F, 0x0F] {
+            od.set(0x6040, 0, controlword).unwrap();
+            for _ in 0..100 {
+                sut.step(&mut od, 0.001);
+            }
+        }
+        let before = od.get::<i32>(0x6064, 0).unwrap();
+        let link = od.get::<i32>(0x20A0, 0).unwrap();
+        sut.inject(DriveFault::Encoder, true);
+        for _ in 0..10 {
+            sut.step(&mut od, 0.001);
+        }
+        assert_eq!(od.get::<u16>(0x603F, 0), Some(0x7305));
+        assert_eq!(od.get::<u16>(0x6041, 0).unwrap() & 0x004F, 0x0008, "fault");
+        assert_eq!(od.get::<i32>(0x6064, 0), Some(before), "frozen");
+        assert!(
+            od.get::<i32>(0x20A0, 0).unwrap() > link,
+            "the link moves on"
+        );
+        assert!(sut.fault_cause().is_some());
+        sut.inject(DriveFault::Encoder, false);
+        for controlword in [0x00u16, 0x80] {
+            od.set(0x6040, 0, controlword).unwrap();
+            sut.step(&mut od, 0.001);
+        }
+        assert_eq!(od.get::<u16>(0x603F, 0), Some(0));
+        assert_eq!(
+            od.get::<u16>(0x6041, 0).unwrap() & 0x004F,
+            0x0040,
+            "switch on disabled"
+        );
     }
 }

@@ -8,6 +8,9 @@
 //! - `off P`: slave P loses power (it and every slave behind it stop answering);
 //! - `on P`: slave P gets power back (it starts in INIT, as after a power cycle);
 //! - `lose N`: the next N frames are lost;
+//! - `fault P KIND`: the drive of slave P faults (KIND `following`, `torque` or `encoder`),
+//!   with the fault's error code in its 0x603F; an encoder stays lost, and the drive in
+//!   fault, until `fault P encoder off`;
 //! - `status`: every slave's AL state.
 
 use std::io::{BufRead, Write};
@@ -16,7 +19,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use clap::Parser;
-use modbot_bus::PlantParams;
+use modbot_bus::{DriveFault, PlantParams};
 use modbot_ecat_sim::chain::{Chain, ChainConfig};
 use modbot_ecat_sim::clock::MonotonicClock;
 use modbot_ecat_sim::drive::{Cia402Drive, DriveUnits};
@@ -26,7 +29,7 @@ use modbot_ecat_sim::slave::{Slave, SlaveConfig};
 
 /// A chain of emulated EtherCAT CiA 402 drives, served on a network interface.
 #[derive(Debug, Parser)]
-#[command(name = "modbot-ecat-sim", version)]
+#[command(name = "modbot-ecat-sim", version, after_help = COMMANDS)]
 struct Cli {
     /// The interface to serve on (one end of a veth pair, say).
     #[arg(long)]
@@ -63,6 +66,17 @@ struct Cli {
     #[arg(long = "joint", value_name = "NAME=VALUES", value_parser = parse_joint)]
     joints: Vec<(String, Vec<f64>)>,
 }
+
+/// The commands on standard input, for `--help`.
+const COMMANDS: &str = "\
+Commands on standard input, one per line, each answered with one line (`ok ...` or `error ...`):
+  off P                slave P loses power (it and every slave behind it stop answering)
+  on P                 slave P gets power back (in INIT)
+  lose N               the next N frames are lost
+  fault P KIND         the drive of slave P faults: following (0x8611), torque (0x8311) or
+                       encoder (0x7305: it stays in fault until the encoder is back)
+  fault P encoder off  the encoder of slave P is back (a fault reset then clears the fault)
+  status               every slave's AL state";
 
 /// The joint parameters the emulator takes, as the bus component names them.
 const JOINT_NAMES: [&str; 7] = [
@@ -203,6 +217,7 @@ fn command(chain: &Mutex<Chain>, line: &str) -> String {
             chain.lose_next_frames(n.min(u32::MAX as usize) as u32);
             format!("ok losing {n} frame(s)")
         }
+        (Some("fault"), Some(p)) if p < chain.len() => fault(&mut chain, p, &words[2..]),
         (Some("status"), _) => {
             let states: Vec<String> = (0..chain.len())
                 .map(|p| match chain.slave(p) {
@@ -212,12 +227,45 @@ fn command(chain: &Mutex<Chain>, line: &str) -> String {
                 .collect();
             format!("ok {}", states.join(" "))
         }
-        (Some("off" | "on"), _) => format!(
+        (Some("off" | "on" | "fault"), _) => format!(
             "error no such slave: the chain has {} (0 to {})",
             chain.len(),
             chain.len().saturating_sub(1)
         ),
-        _ => format!("error unknown command '{line}' (off P, on P, lose N, status)"),
+        _ => format!(
+            "error unknown command '{line}' (off P, on P, lose N, fault P KIND [off], status)"
+        ),
+    }
+}
+
+/// `fault P KIND` and `fault P encoder off` for slave `p` (which exists); `args` are the
+/// words after P.
+fn fault(chain: &mut Chain, p: usize, args: &[&str]) -> String {
+    let kinds = DriveFault::ALL.map(DriveFault::name).join(", ");
+    let (fault, on) = match args {
+        [kind] => (DriveFault::parse(kind), true),
+        [kind @ "encoder", "off"] => (DriveFault::parse(kind), false),
+        [_, "off"] => return "error only the encoder fault can be turned off".to_owned(),
+        _ => return format!("error usage: fault P KIND [off] (KIND: {kinds})"),
+    };
+    let Some(fault) = fault else {
+        return format!("error unknown fault '{}' (known: {kinds})", args[0]);
+    };
+    let Some(drive) = chain.application_as::<Cia402Drive>(p) else {
+        return format!("error slave {p} is not a drive");
+    };
+    drive.inject(fault, on);
+    match (fault, on) {
+        (DriveFault::Encoder, false) => format!("ok slave {p} encoder back"),
+        (DriveFault::Encoder, true) => format!(
+            "ok slave {p} encoder lost (error code {:#06x})",
+            fault.error_code()
+        ),
+        _ => format!(
+            "ok slave {p} fault {} (error code {:#06x})",
+            fault.name(),
+            fault.error_code()
+        ),
     }
 }
 
@@ -263,6 +311,95 @@ fn main() -> ExitCode {
         Err(e) => {
             eprintln!("modbot-ecat-sim: {e:#}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use modbot_ecat_sim::application::Application;
+    use modbot_ecat_sim::dictionary::ObjectDictionary;
+
+    fn chain_of(slaves: usize) -> Mutex<Chain> {
+        let slaves = slaves.to_string();
+        let cli = Cli::parse_from(["modbot-ecat-sim", "--interface", "x", "--slaves", &slaves]);
+        Mutex::new(chain(&cli).unwrap())
+    }
+
+    /// One step of the drive of slave `p` in a dictionary of its own: its error code.
+    fn error_code_after_a_step(chain: &Mutex<Chain>, p: usize) -> Option<u16> {
+        let mut chain = chain.lock().unwrap();
+        let drive = chain.application_as::<Cia402Drive>(p).unwrap();
+        let mut od = ObjectDictionary::new();
+        for entry in drive.objects() {
+            od.insert(entry);
+        }
+        drive.step(&mut od, 0.001);
+        od.get::<u16>(0x603F, 0)
+    }
+
+    #[test]
+    fn a_fault_command_faults_the_drive_with_the_faults_error_code() {
+        let sut = chain_of(2);
+        assert_eq!(
+            command(&sut, "fault 1 torque"),
+            "ok slave 1 fault torque (error code 0x8311)"
+        );
+        assert_eq!(error_code_after_a_step(&sut, 1), Some(0x8311));
+        assert_eq!(error_code_after_a_step(&sut, 0), Some(0));
+        assert_eq!(
+            command(&sut, "fault 0 following"),
+            "ok slave 0 fault following (error code 0x8611)"
+        );
+        assert_eq!(error_code_after_a_step(&sut, 0), Some(0x8611));
+    }
+
+    #[test]
+    fn an_encoder_is_lost_until_a_fault_command_turns_it_off() {
+        let sut = chain_of(1);
+        let cause = |sut: &Mutex<Chain>| {
+            let mut chain = sut.lock().unwrap();
+            chain
+                .application_as::<Cia402Drive>(0)
+                .unwrap()
+                .fault_cause()
+        };
+        assert_eq!(
+            command(&sut, "fault 0 encoder"),
+            "ok slave 0 encoder lost (error code 0x7305)"
+        );
+        assert_eq!(error_code_after_a_step(&sut, 0), Some(0x7305));
+        assert!(cause(&sut).is_some());
+        assert_eq!(
+            command(&sut, "fault 0 encoder off"),
+            "ok slave 0 encoder back"
+        );
+        assert_eq!(cause(&sut), None);
+    }
+
+    #[test]
+    fn a_fault_command_that_makes_no_sense_is_answered_with_the_reason() {
+        let sut = chain_of(2);
+        for (line, reason) in [
+            (
+                "fault 2 torque",
+                "error no such slave: the chain has 2 (0 to 1)",
+            ),
+            (
+                "fault 0 overheat",
+                "error unknown fault 'overheat' (known: following, torque, encoder)",
+            ),
+            (
+                "fault 0 torque off",
+                "error only the encoder fault can be turned off",
+            ),
+            (
+                "fault 0",
+                "error usage: fault P KIND [off] (KIND: following, torque, encoder)",
+            ),
+        ] {
+            assert_eq!(command(&sut, line), reason, "{line}");
         }
     }
 }

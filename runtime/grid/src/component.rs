@@ -350,6 +350,13 @@ pub struct Released {
 }
 
 impl Released {
+    /// Whether the component is released to track because the robot is held under its
+    /// assembly (a safe stop, a drive fault, a reset under way), not because its assembly is
+    /// being prepared (flag `HELD`).
+    pub fn held(&self) -> bool {
+        self.flags & modbot_ipc_schema::grid::Release::HELD != 0
+    }
+
     /// A release at `tick` and nothing more (generation 0, no flags, the clock at 0).
     pub fn at(tick: u64) -> Released {
         Released {
@@ -388,6 +395,19 @@ pub trait Component: Send {
     fn unsafe_state(&self) -> bool {
         false
     }
+
+    /// Whether the component holds the robot after its last step: the drives it owns are
+    /// stopped, faulted or being brought back, and do not follow the running assembly (the
+    /// bus, see `modbot_bus::bridge`). The coordinator then releases the running assembly's
+    /// components to [`Component::track`] (flags `TRACK | HELD`) until it no longer does, so
+    /// that they take over from where the robot is when it follows again.
+    fn holding(&self) -> bool {
+        false
+    }
+
+    /// The grid stops (a normal stop: `modbot down`, its ticks done): no release follows.
+    /// The bus quick-stops its drives here without taking the silence for a lost coordinator.
+    fn stopping(&mut self) {}
 
     /// Called once when the instance is no longer stepped.
     fn terminate(&mut self) {}

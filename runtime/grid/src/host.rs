@@ -17,7 +17,7 @@ use core::time::Duration;
 
 use modbot_ipc_schema::grid::{
     record_len, write_record, Done, OutHeader, PortValue, Prepare, Release, OUT_HEADER_LEN, PING,
-    READY,
+    READY, STOPPING,
 };
 use zerocopy::IntoBytes;
 
@@ -471,6 +471,13 @@ impl Host {
             let done = Done::new(n, PING, Done::OK, 0, 0).of_generation(self.generation.0);
             return self.push_done(&done);
         }
+        if release.component.get() == STOPPING {
+            tracing::info!("the grid stops after tick {n}");
+            for h in &mut self.hosted {
+                h.component.stopping();
+            }
+            return Ok(());
+        }
         let c = usize::from(release.component.get());
         let Some(h) = self.hosted.iter_mut().find(|h| h.index == c) else {
             tracing::warn!(
@@ -563,7 +570,12 @@ impl Host {
             end.saturating_sub(start),
             start.saturating_sub(release.released_ns.get()),
         )
-        .of_generation(generation.0);
+        .of_generation(generation.0)
+        .with_flags(if h.component.holding() {
+            Done::HOLDING
+        } else {
+            0
+        });
         self.push_done(&done)
     }
 }

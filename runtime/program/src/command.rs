@@ -6,7 +6,7 @@
 //! | `doc` | what it does (`help` shows it) |
 //! | `params` | `{ name = "what it is", ... }`: the parameters it takes; others are refused |
 //! | `pre(p)` | the precondition: `false, "why"` (or an error) stops the program |
-//! | `run(p)` | the execution: `{ assembly = "goto", args = { q = ... }, timeout = 60 }` — each arg is written to assembly data as `<assembly>.<name>` (where the assembly file reads it with `data`), then the assembly is prepared and switched to; without `assembly` the running one goes on |
+//! | `run(p)` | the execution: `{ assembly = "goto", args = { q = ... }, timeout = 60 }` — each arg is written to assembly data as `<assembly>.<name>` (where the assembly file reads it with `data`), then the assembly is prepared and switched to; without `assembly` the running one goes on. A command with an assembly is a motion (`motion = false` says it is not) |
 //! | `done(p, r)` | the finish condition, asked until it holds (about every millisecond): `r.start_tick`, `r.tick`, `r.elapsed` (s of grid time since the start); without it, done at once |
 //! | `eval(p, r)` | the evaluation, once done (`r.end_tick` too): a table of results, or `false, "why"` to stop the program |
 //!
@@ -18,11 +18,18 @@
 //! its precondition or evaluation fails, when it does not finish within `timeout` seconds of
 //! grid time, when its assembly cannot be switched to or faults (a monitor's breach), and on
 //! Ctrl-C.
+//!
+//! Nothing pretends to move: a motion is refused while the robot is not operational (a safe
+//! stop, a drive fault: the bus bridge's robot state says why and since when), and one during
+//! which the robot left operational fails with the cause, whatever its finish condition says.
+//! A robot whose drives are still being enabled (disabled, no stop) is given
+//! [`ENABLING`] to become operational first.
 
 use std::time::{Duration, Instant};
 
 use mlua::{Function, Lua, MultiValue, Table, Value};
 
+use modbot_bus::RobotState;
 use modbot_data::Run;
 use modbot_ipc_schema::OwnedValue;
 use modbot_system::sandbox::{self, from_lua, to_lua};
@@ -34,7 +41,17 @@ use super::ProgramError;
 const FIELDS: &[&str] = &["doc", "params", "pre", "run", "done", "eval"];
 /// Names a command may not take: the program's own functions.
 const RESERVED: &[&str] = &[
-    "command", "read", "call", "data", "require", "help", "absolute", "recorded", "plot",
+    "command",
+    "read",
+    "call",
+    "data",
+    "require",
+    "help",
+    "absolute",
+    "recorded",
+    "plot",
+    "robot_state",
+    "robot_reset",
 ];
 /// How long a command may run when its `run` does not say, s of grid time.
 const DEFAULT_TIMEOUT_S: f64 = 60.0;
@@ -44,6 +61,8 @@ const POLL: Duration = Duration::from_millis(1);
 const FAULT_POLL: Duration = Duration::from_millis(100);
 /// A grid that has not ticked for this long (wall time) is not running.
 const STALLED: Duration = Duration::from_secs(30);
+/// How long a motion waits for a robot whose drives are being enabled (wall time).
+pub(crate) const ENABLING: Duration = Duration::from_secs(2);
 
 /// The registry name of the metatable of a command's results (the REPL does not print them
 /// again: the run was reported).
@@ -170,6 +189,54 @@ impl Call<'_> {
             self.shared,
             ProgramError::new(&self.file, Some(self.line), message),
         )
+    }
+
+    /// The robot's state when it matters for a motion: `None` for a system without a bus.
+    fn robot_state(&self) -> mlua::Result<Option<RobotState>> {
+        let state = self.shared.borrow_mut().robot.robot_state();
+        state.map_err(|e| self.fail(e))
+    }
+
+    /// Refuses a motion while the robot is not operational (waiting [`ENABLING`] for drives
+    /// being enabled); `Ok(false)`: the system has no bus, nothing to look at.
+    fn require_operational(&self) -> mlua::Result<bool> {
+        let until = Instant::now() + ENABLING;
+        loop {
+            let Some(state) = self.robot_state()? else {
+                return Ok(false);
+            };
+            match state {
+                RobotState::Operational { .. } => return Ok(true),
+                RobotState::Disabled { .. } if Instant::now() < until => {
+                    std::thread::sleep(POLL);
+                }
+                other => return Err(self.fail(self.not_operational("is", &other))),
+            }
+        }
+    }
+
+    /// Fails a motion that began at tick `start` if the robot has left operational since.
+    fn still_operational(&self, start: u64) -> mlua::Result<()> {
+        match self.robot_state()? {
+            Some(RobotState::Operational { since_tick }) if since_tick <= start => Ok(()),
+            Some(state) => Err(self
+                .fail(self.not_operational("left operational during the motion: it is", &state))),
+            None => Ok(()),
+        }
+    }
+
+    fn not_operational(&self, verb: &str, state: &RobotState) -> String {
+        let domain = self.shared.borrow().robot.domain().to_owned();
+        let what = match state {
+            RobotState::Disabled { since_tick } => {
+                format!("disabled since tick {since_tick} (not every drive is enabled)")
+            }
+            RobotState::Operational { since_tick } => {
+                format!("operational again since tick {since_tick}, after a stop")
+            }
+            RobotState::SafeStop { .. } | RobotState::Fault { .. } => format!("in {state}"),
+        };
+        format!("the robot {verb} {what}; `modbot robot reset --domain {domain}` (or `reset {{}}`) brings it back")
     }
 
     /// A hook's error, as the program's failure at the line that called the command, with
@@ -307,6 +374,8 @@ fn execute_call(
             )))
         }
     };
+    let motion = assembly.is_some() && !matches!(field("motion")?, Value::Boolean(false));
+    let watched = motion && call.require_operational()?;
     let start = match &assembly {
         Some(assembly) => {
             let mut entries = Vec::new();
@@ -364,9 +433,15 @@ fn execute_call(
                 !matches!(v, Value::Nil | Value::Boolean(false))
             }
         };
+        if watched {
+            call.still_operational(start)?;
+        }
         if finished {
             // The condition was read after the tick: the grid's tick when it held.
             let now = shared.borrow_mut().robot.tick().map_err(|e| call.fail(e))?;
+            if watched {
+                call.still_operational(start)?;
+            }
             break now.max(tick);
         }
         if elapsed > timeout {

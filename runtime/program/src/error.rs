@@ -44,4 +44,6 @@ pub enum RobotError {
     Call { target: String, why: String },
     #[error("the grid: {0}")]
     Grid(String),
+    #[error("the robot: {0}")]
+    Robot(String),
 }

@@ -69,10 +69,21 @@ command "ptp" {
 }
 
 command "hold" {
-  doc = "holds the robot where it is commanded to be (and recovers it from a safe stop)",
+  doc = "holds the robot where it is commanded to be",
   params = {},
   run = function(p)
     return { assembly = "hold" }
+  end,
+}
+
+command "reset" {
+  doc = "acknowledges a safe stop or a drive fault and brings the robot back, holding where it is (as `modbot robot reset`); refused while the cause persists",
+  params = {},
+  run = function(p)
+    p.done = robot_reset()
+  end,
+  eval = function(p, r)
+    return { done = p.done }
   end,
 }
 

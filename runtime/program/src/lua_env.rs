@@ -31,6 +31,8 @@ pub(crate) fn open(shared: &Shared) -> mlua::Result<Lua> {
     globals.raw_set("read", read_fn(&lua, shared)?)?;
     globals.raw_set("call", call_fn(&lua, shared)?)?;
     globals.raw_set("data", data_fn(&lua, shared)?)?;
+    globals.raw_set("robot_state", robot_state_fn(&lua, shared)?)?;
+    globals.raw_set("robot_reset", robot_reset_fn(&lua, shared)?)?;
     globals.raw_set("require", require_fn(&lua, shared)?)?;
     globals.raw_set("command", super::command::command_fn(&lua, shared)?)?;
     super::recordings::register(&lua, &globals, shared)?;
@@ -104,6 +106,40 @@ fn call_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
             .iter()
             .map(|v| to_lua(lua, v))
             .collect::<mlua::Result<MultiValue>>()
+    })
+}
+
+/// `robot_state()`: the robot's state as a table (`kind`: disabled, operational, safe_stop or
+/// fault; `since_tick`; `cause`; for a fault `drive` and `error_code`), nil without a bus.
+fn robot_state_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
+    let shared = shared.clone();
+    lua.create_function(move |lua, ()| {
+        let state = shared.borrow_mut().robot.robot_state();
+        let Some(state) = state.map_err(|e| fail_here(lua, &shared, e.to_string()))? else {
+            return Ok(mlua::Value::Nil);
+        };
+        let t = lua.create_table()?;
+        t.raw_set("kind", state.kind())?;
+        t.raw_set("since_tick", state.since_tick())?;
+        t.raw_set("cause", state.cause())?;
+        if let modbot_bus::RobotState::Fault {
+            drive, error_code, ..
+        } = state
+        {
+            t.raw_set("drive", drive)?;
+            t.raw_set("error_code", error_code)?;
+        }
+        Ok(mlua::Value::Table(t))
+    })
+}
+
+/// `robot_reset()`: an operator's reset (the library's `reset {}`); what it did, or the
+/// program stops with why it was refused.
+fn robot_reset_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
+    let shared = shared.clone();
+    lua.create_function(move |lua, ()| {
+        let done = shared.borrow_mut().robot.reset();
+        done.map_err(|e| fail_here(lua, &shared, format!("reset refused: {e}")))
     })
 }
 

@@ -4,6 +4,7 @@
 //!
 //! [`SystemRobot`]: super::SystemRobot
 
+use modbot_bus::RobotState;
 use modbot_ipc_schema::OwnedValue;
 
 use super::RobotError;
@@ -24,4 +25,10 @@ pub trait Robot {
     fn call(&mut self, target: &str, args: &[OwnedValue]) -> Result<Vec<OwnedValue>, RobotError>;
     /// Why the running assembly faulted, if it did (a monitor's breach, an overrun).
     fn fault(&mut self) -> Result<Option<String>, RobotError>;
+    /// The robot's state as the bus bridge owns it; `None` for a system without a bus.
+    fn robot_state(&mut self) -> Result<Option<RobotState>, RobotError>;
+    /// An operator's reset (`modbot robot reset`): what it did, or why it was refused.
+    fn reset(&mut self) -> Result<String, RobotError>;
+    /// The domain, for the commands a message suggests.
+    fn domain(&self) -> &str;
 }

@@ -31,6 +31,7 @@ const LOOK_AGAIN: Duration = Duration::from_secs(2);
 /// A running system in a domain.
 pub struct SystemRobot {
     tool: Tool,
+    domain: String,
     /// The running assembly's generation, once known.
     generation: Option<u16>,
     /// Where components were found: (generation, component, host module).
@@ -47,6 +48,7 @@ impl SystemRobot {
             .map_err(|e| RobotError::Grid(format!("cannot join the domain: {e}")))?;
         Ok(SystemRobot {
             tool,
+            domain: domain.name().to_owned(),
             generation: None,
             hosts: Vec::new(),
             clock: None,
@@ -258,5 +260,18 @@ impl Robot for SystemRobot {
         );
         let row = row.map_err(|e| RobotError::Grid(format!("the coordinator's ledger: {e}")))?;
         Ok((row.state == "faulted").then_some(row.fault))
+    }
+
+    fn robot_state(&mut self) -> Result<Option<modbot_bus::RobotState>, RobotError> {
+        super::robot_state::robot_state(&mut self.tool, CALL_TIMEOUT).map_err(RobotError::Robot)
+    }
+
+    fn reset(&mut self) -> Result<String, RobotError> {
+        super::robot_state::reset(&mut self.tool, super::robot_state::RESET_TIMEOUT)
+            .map_err(RobotError::Robot)
+    }
+
+    fn domain(&self) -> &str {
+        &self.domain
     }
 }

@@ -21,6 +21,11 @@ struct FakeRobot {
     switched_at: u64,
     assembly: String,
     fault: Option<String>,
+    /// A safe stop: since tick, cause.
+    stop: Option<(u64, String)>,
+    operational_since: u64,
+    /// Stops the robot 50 ticks into the next motion.
+    stop_during: bool,
 }
 
 impl Robot for FakeRobot {
@@ -51,6 +56,13 @@ impl Robot for FakeRobot {
     }
 
     fn read(&mut self, what: &str) -> Result<OwnedValue, RobotError> {
+        if self.stop_during
+            && self.switched_at > 0
+            && self.stop.is_none()
+            && self.tick >= self.switched_at + 50
+        {
+            self.stop = Some((self.tick, "the assembly faulted".into()));
+        }
         let settled = self.tick >= self.switched_at + 200;
         Ok(match what {
             "robot.link_position" => OwnedValue::F64s(vec![0.0; 6]),
@@ -79,11 +91,45 @@ impl Robot for FakeRobot {
         if target == "fake.fault" {
             self.fault = Some("monitor watch: following error".into());
         }
+        if target == "fake.stop_during" {
+            self.stop_during = true;
+        }
+        if target == "fake.stop" {
+            self.stop = Some((
+                self.tick,
+                "coordinator lost: no tick for 3 base periods".into(),
+            ));
+        }
         Ok(args.to_vec())
     }
 
     fn fault(&mut self) -> Result<Option<String>, RobotError> {
         Ok(self.fault.clone())
+    }
+
+    fn robot_state(&mut self) -> Result<Option<modbot_bus::RobotState>, RobotError> {
+        Ok(Some(match &self.stop {
+            Some((since_tick, cause)) => modbot_bus::RobotState::SafeStop {
+                since_tick: *since_tick,
+                cause: cause.clone(),
+            },
+            None => modbot_bus::RobotState::Operational {
+                since_tick: self.operational_since,
+            },
+        }))
+    }
+
+    fn reset(&mut self) -> Result<String, RobotError> {
+        self.log.borrow_mut().push("reset".into());
+        if self.stop.take().is_none() {
+            return Err(RobotError::Robot("nothing to reset".into()));
+        }
+        self.operational_since = self.tick;
+        Ok("every drive enabled".into())
+    }
+
+    fn domain(&self) -> &str {
+        "fake"
     }
 }
 
@@ -106,6 +152,9 @@ fn fixture(test: &str) -> Fixture {
         switched_at: 0,
         assembly: "hold".into(),
         fault: None,
+        stop: None,
+        operational_since: 0,
+        stop_during: false,
     };
     let store = Store::open(&dir.path().join("data.redb")).unwrap();
     let to = reports.clone();
@@ -470,5 +519,58 @@ fn a_faulted_assembly_stops_its_command() {
     assert_eq!(
         e.message,
         "boom: the assembly faulted: monitor watch: following error"
+    );
+}
+
+#[test]
+fn a_motion_while_the_robot_is_in_safe_stop_is_refused_with_the_cause_and_moves_nothing() {
+    let mut f = fixture("refused");
+    let program = f.dir.write(
+        "stopped.lua",
+        "call(\"fake.stop\")\nptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}:2: ptp: the robot is in safe stop since tick 1000 (coordinator lost: no tick for 3 base periods); `modbot robot reset --domain fake` (or `reset {{}}`) brings it back",
+            program.display()
+        )
+    );
+    assert!(switches(&f.log).is_empty(), "nothing was switched to");
+    assert_eq!(f.sut.left(), Left::Untouched);
+}
+
+#[test]
+fn a_reset_in_the_program_brings_the_robot_back_and_the_next_motion_runs() {
+    let mut f = fixture("reset");
+    let program = f.dir.write(
+        "reset.lua",
+        "call(\"fake.stop\")\nassert(robot_state().kind == \"safe_stop\")\nreset {}\nassert(robot_state().kind == \"operational\")\nptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n",
+    );
+    f.sut.run_file(&program).unwrap();
+    assert_eq!(switches(&f.log), ["goto"]);
+    assert!(f.log.borrow().iter().any(|l| l == "reset"));
+}
+
+#[test]
+fn a_motion_during_which_the_robot_stops_fails_with_the_cause_never_ok() {
+    let mut f = fixture("stopped_during");
+    let program = f.dir.write(
+        "during.lua",
+        "call(\"fake.stop_during\")\nptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n",
+    );
+    let e = f.sut.run_file(&program).unwrap_err();
+    assert_eq!(e.line, Some(2));
+    assert!(
+        e.message.starts_with(
+            "ptp: the robot left operational during the motion: it is in safe stop since tick"
+        ) && e.message.contains("(the assembly faulted)"),
+        "{e}"
+    );
+    let runs = store_of(f.dir.path()).runs().unwrap();
+    assert!(
+        runs.iter().all(|(_, r)| r.outcome != "ok"),
+        "no run reported ok: {runs:?}"
     );
 }

@@ -13,7 +13,7 @@ use modbot_grid_processes::host_process::{HostArgs, HostProcess};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
-use modbot_runtime::bus::{robot, Backend, DriveParams, SimBackend};
+use modbot_runtime::bus::{robot, Backend, DriveFault, DriveParams, SimBackend};
 use modbot_runtime::clock::{Clock, MonotonicClock};
 use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
 use modbot_runtime::{Ctx, MethodError, ModuleBuilder, Reply};
@@ -25,7 +25,12 @@ use modbot_runtime::{Ctx, MethodError, ModuleBuilder, Reply};
 /// assembly, then per switch its generation, tick, the largest change of commanded position
 /// at that cycle, rad, the cycles missed within five ticks of it, and the largest change of
 /// commanded velocity, rad/s; see `modbot bus --switches`); `block(axis, on)` blocks or frees
-/// an axis's link in the simulation.
+/// an axis's link in the simulation; `robot()` → the robot's state (kind, since tick, faulted
+/// drive or −1, error code, cause: `modbot_bus::robot_state`); `reset()` → the number of the
+/// reset it asked for (an operator's reset, `modbot robot reset`), whose answer
+/// `reset_answer(n)` gives once there is one (not ready until then): ok (bool) and what
+/// happened or why it was refused; `inject(axis, fault, on)` injects a drive fault
+/// (`following`, `torque`, `encoder`) in the simulation, or takes a lasting one away.
 #[derive(Debug, Parser)]
 #[command(name = "modbot-bus", version)]
 struct Cli {
@@ -42,8 +47,24 @@ struct Cli {
 /// ask it to block an axis. Nothing here is locked by the real-time thread but with `try_lock`.
 struct Ledger {
     view: Arc<Mutex<BusView>>,
-    block: std::sync::mpsc::Sender<(usize, bool)>,
+    ask: std::sync::mpsc::Sender<Ask>,
     axes: usize,
+    resets: Arc<Mutex<Resets>>,
+}
+
+/// What the module asks the real-time thread to do to the drives.
+enum Ask {
+    Block(usize, bool),
+    Inject(usize, DriveFault, bool),
+}
+
+/// Operators' resets: how many were asked for, how many the real-time thread took, and the
+/// answer to the last it took.
+#[derive(Default)]
+struct Resets {
+    asked: u64,
+    taken: u64,
+    answer: Option<(u64, Result<String, String>)>,
 }
 
 impl Ledger {
@@ -77,15 +98,10 @@ fn switches_method(
     Ok(())
 }
 
-fn block_method(
-    l: &mut Ledger,
-    _: &mut Ctx,
-    args: &Args<'_>,
-    _: &mut Reply,
-) -> Result<(), MethodError> {
+/// Argument 0 as an axis of the bus.
+fn axis_arg(l: &Ledger, args: &Args<'_>) -> Result<usize, MethodError> {
     let axis = args.i64(0)?;
-    let on = if args.len() > 1 { args.bool(1)? } else { true };
-    let axis = usize::try_from(axis)
+    usize::try_from(axis)
         .ok()
         .filter(|a| *a < l.axes)
         .ok_or_else(|| {
@@ -94,10 +110,100 @@ fn block_method(
                 l.axes,
                 l.axes - 1
             ))
-        })?;
-    l.block
-        .send((axis, on))
+        })
+}
+
+fn send(l: &Ledger, ask: Ask) -> Result<(), MethodError> {
+    l.ask
+        .send(ask)
         .map_err(|_| MethodError::Failed("the bus bridge's cycle has ended".into()))
+}
+
+fn block_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let axis = axis_arg(l, args)?;
+    let on = if args.len() > 1 { args.bool(1)? } else { true };
+    send(l, Ask::Block(axis, on))
+}
+
+fn inject_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let axis = axis_arg(l, args)?;
+    let name = args.text(1)?;
+    let fault = DriveFault::parse(name).ok_or_else(|| {
+        let known: Vec<&str> = DriveFault::ALL.iter().map(|f| f.name()).collect();
+        MethodError::Failed(format!(
+            "no drive fault named '{name}' (known: {})",
+            known.join(", ")
+        ))
+    })?;
+    let on = if args.len() > 2 { args.bool(2)? } else { true };
+    send(l, Ask::Inject(axis, fault, on))
+}
+
+fn robot_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let state = l.view().robot_state();
+    for v in &state.to_values() {
+        reply.push(v.as_value());
+    }
+    Ok(())
+}
+
+fn lock_resets(l: &Ledger) -> std::sync::MutexGuard<'_, Resets> {
+    l.resets.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+fn reset_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    _: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let mut r = lock_resets(l);
+    r.asked += 1;
+    reply.push(Value::I64(r.asked as i64));
+    Ok(())
+}
+
+fn reset_answer_method(
+    l: &mut Ledger,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let n = u64::try_from(args.i64(0)?).unwrap_or(0);
+    let r = lock_resets(l);
+    match &r.answer {
+        Some((m, answer)) if *m == n => {
+            let (ok, text) = match answer {
+                Ok(what) => (true, what.as_str()),
+                Err(why) => (false, why.as_str()),
+            };
+            reply.push(Value::Bool(ok));
+            reply.push(Value::Text(text));
+            Ok(())
+        }
+        _ if n >= 1 && n <= r.asked => {
+            Err(MethodError::NotReady(format!("reset {n} is under way")))
+        }
+        _ => Err(MethodError::Failed(format!(
+            "no reset number {n} was asked for (the last is {})",
+            r.asked
+        ))),
+    }
 }
 
 fn main() -> std::process::ExitCode {
@@ -176,17 +282,23 @@ fn run() -> anyhow::Result<()> {
     // Its module (the ledger, switches and block methods) on a thread of its own, so a method
     // call never delays a cycle.
     let view = Arc::new(Mutex::new(BusView::default()));
-    let (block, blocks) = std::sync::mpsc::channel();
+    let (ask, asks) = std::sync::mpsc::channel();
+    let resets = Arc::new(Mutex::new(Resets::default()));
     let ledger = Ledger {
         view: view.clone(),
-        block,
+        ask,
         axes,
+        resets: resets.clone(),
     };
     let declare = |module: ModuleBuilder<Ledger>| {
         module
             .method("bus", bus_method)
             .method("switches", switches_method)
             .method("block", block_method)
+            .method("inject", inject_method)
+            .method("robot", robot_method)
+            .method("reset", reset_method)
+            .method("reset_answer", reset_answer_method)
     };
     let service = p.serve(host_module(p.host_name()), 199, declare, ledger)?;
     let now = || MonotonicClock.now_ns();
@@ -199,9 +311,30 @@ fn run() -> anyhow::Result<()> {
             let next = {
                 let mut b = bridge::lock(&shared);
                 b.watch(now());
-                while let Ok((axis, on)) = blocks.try_recv() {
-                    if let Err(e) = b.block_axis(axis, on) {
+                while let Ok(ask) = asks.try_recv() {
+                    let done = match ask {
+                        Ask::Block(axis, on) => b.block_axis(axis, on),
+                        Ask::Inject(axis, fault, on) => {
+                            tracing::warn!(
+                                "drive fault '{}' {} on axis {axis} by command",
+                                fault.name(),
+                                if on { "injected" } else { "taken away" }
+                            );
+                            b.inject(axis, fault, on)
+                        }
+                    };
+                    if let Err(e) = done {
                         tracing::warn!("{e}");
+                    }
+                }
+                // Never waits for the module's thread: a reset asked for is seen next time.
+                if let Ok(mut r) = resets.try_lock() {
+                    if r.asked > r.taken {
+                        r.taken = r.asked;
+                        b.ask_reset(now());
+                    }
+                    if let Some(answer) = b.take_reset_answer(now()) {
+                        r.answer = Some((r.taken, answer));
                     }
                 }
                 b.publish_due(now(), &view);

@@ -398,6 +398,29 @@ fn an_inhibited_drive_accepts_but_does_not_execute_commands_that_raise_power() {
 }
 
 #[test]
+fn a_drive_whose_fault_persists_accepts_the_reset_and_stays_in_fault() {
+    let mut sut = reach(S::SwitchOnDisabled);
+    sut.fault(FaultReason::ErrorCode(0x7305));
+    sut.motion_stopped();
+    sut.inhibit_fault_reset(true);
+    assert_eq!(sut.apply(FAULT_RESET), Ok(None), "15 refused, not illegal");
+    assert_eq!(sut.state(), S::Fault);
+    assert_eq!(sut.fault_reason(), Some(FaultReason::ErrorCode(0x7305)));
+    sut.inhibit_fault_reset(false);
+    assert_eq!(
+        sut.apply(FAULT_RESET),
+        Ok(None),
+        "bit 7 held high is no edge"
+    );
+    assert_eq!(sut.apply(DISABLE_VOLTAGE), Ok(None));
+    assert_eq!(
+        sut.apply(FAULT_RESET),
+        Ok(t(15, S::Fault, S::SwitchOnDisabled))
+    );
+    assert_eq!(sut.fault_reason(), None);
+}
+
+#[test]
 fn every_state_is_read_back_from_its_statusword_with_the_standards_masks() {
     for state in S::ALL {
         let statusword = state.statusword();

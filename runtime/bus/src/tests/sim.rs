@@ -2,46 +2,10 @@
 //! faults, a blocked link, determinism.
 
 use crate::cia402::{sw, DriveState, ModeOfOperation};
-use crate::{AxisActual, AxisCommand, Backend, PlantParams, SimBackend};
+use crate::{AxisActual, AxisCommand, Backend, PlantParams};
 
+use super::drives::*;
 use DriveState as S;
-
-const DT: f64 = 1e-3;
-const CSP: i8 = 8;
-const CSV: i8 = 9;
-const CST: i8 = 10;
-
-fn backend(axes: usize) -> SimBackend {
-    SimBackend::new(axes, PlantParams::default())
-}
-
-/// One cycle with `commands`; the actuals.
-fn cycle(sut: &mut SimBackend, commands: &[AxisCommand]) -> Vec<AxisActual> {
-    let mut actuals = vec![AxisActual::default(); sut.axes()];
-    sut.cycle(DT, commands, &mut actuals).unwrap();
-    actuals
-}
-
-fn command(controlword: u16, mode: i8) -> AxisCommand {
-    AxisCommand {
-        controlword,
-        mode,
-        ..AxisCommand::default()
-    }
-}
-
-/// Shutdown, switch on, enable operation, all axes in `mode` with zero targets.
-fn enable(sut: &mut SimBackend, mode: i8) -> Vec<AxisActual> {
-    let mut actuals = Vec::new();
-    for controlword in [0x06, 0x07, 0x0F] {
-        actuals = cycle(sut, &vec![command(controlword, mode); sut.axes()]);
-    }
-    assert!(
-        actuals.iter().all(|a| a.state == S::OperationEnabled),
-        "{actuals:?}"
-    );
-    actuals
-}
 
 fn has(actual: &AxisActual, bit: u16) -> bool {
     actual.statusword & bit != 0

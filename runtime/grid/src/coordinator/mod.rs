@@ -24,7 +24,7 @@
 
 use std::io::Write;
 
-use modbot_ipc_schema::grid::{Done, Generation, Release, MAX_SOURCES, PING, READY};
+use modbot_ipc_schema::grid::{Done, Generation, Release, MAX_SOURCES, PING, READY, STOPPING};
 use zerocopy::IntoBytes;
 
 use super::ledger::{self, ComponentRow, GridRow};
@@ -92,6 +92,10 @@ struct Comp {
     exec_min: u64,
     exec: Histogram,
     latency: Histogram,
+    /// Its last done notice said it holds the robot (`Done::HOLDING`: the bus in safe stop).
+    holding: bool,
+    /// Its pending release was one to track because the robot is held (`Release::HELD`).
+    held_release: bool,
 }
 
 impl Comp {
@@ -125,6 +129,8 @@ fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
             exec_min: u64::MAX,
             exec: Histogram::new(),
             latency: Histogram::new(),
+            holding: false,
+            held_release: false,
         })
         .collect()
 }
@@ -421,6 +427,8 @@ impl<W: Write> Coordinator<W> {
             return;
         }
         comp.pending = None;
+        comp.holding = done.has(Done::HOLDING);
+        let held_release = std::mem::take(&mut comp.held_release);
         comp.exec.record(done.exec_ns.get());
         comp.exec_min = comp.exec_min.min(done.exec_ns.get());
         comp.latency.record(done.latency_ns.get());
@@ -438,7 +446,9 @@ impl<W: Write> Coordinator<W> {
         } else {
             comp.late += 1;
         }
-        if status == Done::UNSAFE {
+        // A component that tracked while the robot was held does not fault its assembly:
+        // the robot is stopped already, and what it saw was not the assembly's doing.
+        if status == Done::UNSAFE && !held_release {
             let name = &spec.components[c].name;
             let why = format!("component {name} reports an unsafe state at tick {m}");
             if incoming {
@@ -540,6 +550,11 @@ impl<W: Write> Coordinator<W> {
         let base = self.base();
         let generation = self.spec.generation();
         let mut versions = [0u64; MAX_SOURCES];
+        // The robot is held (the bus in safe stop or being reset): the running assembly's
+        // components track, to take over from where the robot is when it follows again.
+        let held = self.comps[..base.min(self.comps.len())]
+            .iter()
+            .any(|c| c.holding);
         for c in 0..self.comps.len() {
             let comp = &self.comps[c];
             if !n.is_multiple_of(comp.period) || (self.fault.is_some() && c >= base) {
@@ -570,9 +585,12 @@ impl<W: Write> Coordinator<W> {
             }
             let flags = if self.fault.is_some() {
                 Release::SAFE_STOP
+            } else if held && c >= base {
+                Release::TRACK | Release::HELD
             } else {
                 0
             };
+            self.comps[c].held_release = flags & Release::HELD != 0;
             let at = ReleaseAt {
                 n,
                 now_ns,
@@ -581,6 +599,18 @@ impl<W: Write> Coordinator<W> {
             };
             release(&mut self.comps[c], c, &at, &versions, &mut self.hosts);
         }
+    }
+
+    /// Tells every host the grid stops (a normal stop): no release follows. The bus then stops
+    /// the drives without taking the silence for a lost coordinator.
+    pub fn announce_stop(&mut self) {
+        let Ok(notice) = Release::new(self.tick, 0, STOPPING, &[]) else {
+            return;
+        };
+        for h in &mut self.hosts {
+            send_release(h, &notice);
+        }
+        self.wake_hosts();
     }
 
     /// The grid as it runs now.

@@ -90,6 +90,7 @@ pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSend
         return;
     }
     let pending = coord.drain(&|| MonotonicClock.now_ns(), 200_000_000);
+    coord.announce_stop();
     let _ = out.send(FromTick::Ledger(encoded_ledger(&mut coord, true)));
     let (g, rows) = coord.ledger(true);
     println!("{}", ledger::render(&g, &rows));
