@@ -41,7 +41,7 @@ component "robot" { type = "bus", host = "bus", period = 1,
 -- by a process of its own. It runs when `modbot up --record FILE` names the file.
 record {
   signals = { "robot.link_position", "robot.demand_position", "robot.motor_position",
-              "robot.motor_velocity", "robot.motor_torque", "robot.statusword" },
+              "robot.motor_velocity", "robot.motor_torque", "robot.statusword", "robot.state" },
   units = { ["robot.link_position"] = "rad", ["robot.demand_position"] = "rad",
             ["robot.motor_position"] = "rad", ["robot.motor_velocity"] = "rad/s",
             ["robot.motor_torque"] = "N m" },

@@ -54,7 +54,7 @@ component "robot" { type = "bus", host = "bus", period = 1,
 -- `modbot up --record FILE` records from the start.
 record {
   signals = { "robot.link_position", "robot.demand_position", "robot.motor_position",
-              "robot.motor_torque" },
+              "robot.motor_torque", "robot.state" },
   units = { ["robot.link_position"] = "rad", ["robot.demand_position"] = "rad",
             ["robot.motor_position"] = "rad", ["robot.motor_torque"] = "N m" },
   on_demand = true,

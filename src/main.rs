@@ -116,7 +116,8 @@ enum Command {
         record: Option<PathBuf>,
     },
     /// A live table of the grid: per component its host, period, execution time, overruns
-    /// and jitter, and the measured tick rate. Refreshes in place until Ctrl-C.
+    /// and jitter, the measured tick rate, and the robot's state. Refreshes in place until
+    /// Ctrl-C.
     Top {
         /// Print one table and exit.
         #[arg(long)]

@@ -403,7 +403,8 @@ pub fn bb(
     }
 }
 
-/// `modbot top`: the coordinator's ledger as a table, refreshed in place.
+/// `modbot top`: the coordinator's ledger as a table, and the robot's state, refreshed in
+/// place.
 pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
     use modbot_runtime::grid::ledger;
     let mut tool = open(domain)?;
@@ -420,13 +421,19 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
                 Ok(ledger::render(&grid, &rows))
             },
         );
-        let frame = match frame {
+        let mut frame = match frame {
             Ok(f) => f,
             Err(e) => {
                 eprintln!("modbot top: no ledger from the coordinator of '{domain}': {e}");
                 return Ok(ExitCode::from(1));
             }
         };
+        // The robot's state, from the bus bridge (a grid without a bus has none).
+        if let Ok(Some(state)) =
+            modbot_program::robot_state::robot_state(&mut tool, Duration::from_millis(500))
+        {
+            frame.push_str(&format!("robot {state}\n"));
+        }
         if once {
             print!("{frame}");
             return Ok(ExitCode::SUCCESS);

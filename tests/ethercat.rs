@@ -420,6 +420,59 @@ fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_rest
     sut.wait_exit(up, Duration::from_secs(60));
 }
 
+/// A drive fault of an emulated slave (`fault 2 following` on the emulator's standard input)
+/// is a fault of the robot with the drive's error code; `modbot bus inject` is refused on real
+/// (EtherCAT) drives, naming the emulator's command; `modbot robot reset` clears the fault
+/// through the process data and every drive is enabled again.
+#[test]
+fn an_emulated_drive_fault_is_the_robots_fault_and_a_reset_clears_it_through_the_process_data() {
+    let mut segment = Segment::new(6, &[]);
+    let mut sut = TestDomain::new("ecfault");
+    sut.run_in_netns(&segment.netns.0);
+    let up = arm_on(&mut sut, &segment, &["--lockstep"]);
+    sut.wait_for(
+        "every drive in operation enabled",
+        Duration::from_secs(60),
+        || ledger(&sut).matches("operation enabled").count() == 6,
+    );
+    let refused = sut.modbot(&["bus", "inject", "--axis", "2", "--fault", "following"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the ethercat backend's drives are real"),
+        "{err}"
+    );
+    let said = segment.command("fault 2 following");
+    assert!(said.contains("0x8611"), "{said}");
+    sut.wait_for("the robot in fault", Duration::from_secs(30), || {
+        sut.modbot_ok(&["robot"]).starts_with("fault since tick")
+    });
+    let state = sut.modbot_ok(&["robot"]);
+    assert!(
+        state.contains("drive 2 fault 0x8611: following error"),
+        "{state}"
+    );
+    let text = ledger(&sut);
+    let row = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("2 "))
+        .unwrap_or_default();
+    assert!(row.contains("fault") && row.ends_with("0x8611"), "{text}");
+    let out = sut.modbot_ok(&["robot", "reset"]);
+    assert!(out.starts_with("reset: every drive enabled"), "{out}");
+    assert_eq!(
+        ledger(&sut).matches("operation enabled").count(),
+        6,
+        "{}",
+        ledger(&sut)
+    );
+    assert!(sut
+        .modbot_ok(&["robot"])
+        .starts_with("operational since tick"));
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+}
+
 #[test]
 fn a_slave_of_another_identity_is_refused_at_start_naming_it() {
     let segment = Segment::new(6, &["--product-at", "2=0x999"]);

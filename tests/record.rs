@@ -41,7 +41,8 @@ impl Drop for Recording {
 /// 10 s of the arm (10 000 ticks of 1 ms, in lockstep), holding and then moving (`ptp` from
 /// tick 300), recorded with `--record`: h5py opens the file and finds the tick, time and
 /// generation of every tick as (ticks,), each recorded signal as a 2-D dataset of ticks × 6
-/// f64 (chunked, growing along the ticks) with its unit, the base
+/// f64 (chunked, growing along the ticks) with its unit, the robot's state (operational once
+/// the drives are enabled), the base
 /// period and the description's text; the robot moved, within the monitor's following error;
 /// and the plot script's numbers come from it.
 #[test]
@@ -76,7 +77,10 @@ import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1], "r")
 signals = ["robot.link_position", "robot.demand_position", "robot.motor_position",
            "robot.motor_velocity", "robot.motor_torque", "robot.statusword"]
-assert sorted(f.keys()) == sorted(signals + ["tick", "time", "generation"]), list(f.keys())
+assert sorted(f.keys()) == sorted(signals + ["robot.state", "tick", "time", "generation"]), list(f.keys())
+# The robot's state: disabled (0) while the drives are enabled, then operational (1) throughout.
+state = f["robot.state"][:]
+assert state.shape == (10000,) and state[-1] == 1.0 and set(np.unique(state)) <= {0.0, 1.0}, np.unique(state)
 tick = f["tick"][:]
 assert (tick == np.arange(10000)).all(), (tick[:3], tick[-3:], len(tick))
 assert np.allclose(f["time"][:], tick * 0.001, rtol=0, atol=1e-12)

@@ -12,7 +12,8 @@
 //! [`grid_args`]: the options they share (the description, its variables, an assembly);
 //! [`host_process`]: what a host process does around its clocked work (shared by the two hosts);
 //! [`service_thread`]: a module served on a thread of normal priority beside the real-time one;
-//! [`board`]: a host's blackboard, its components' latest outputs.
+//! [`board`]: a host's blackboard, its components' latest outputs;
+//! [`watchdog_check`]: whether the machine gives the grid what the bus watchdog assumes.
 //! The module programs that use no grid are in `modbot-modules`, which links no grid, bus or
 //! Lua.
 
@@ -20,3 +21,4 @@ pub mod board;
 pub mod grid_args;
 pub mod host_process;
 pub mod service_thread;
+pub mod watchdog_check;

@@ -641,7 +641,7 @@ impl Bridge {
             .iter()
             .any(|a| a.state == DriveState::OperationEnabled);
         if enabled {
-            let reason = "the grid stopped (a normal stop): every drive quick-stops";
+            let reason = "the grid stopped normally: every drive quick-stops";
             self.hold_stopped(reason.to_owned());
             self.note_state();
         }
@@ -793,6 +793,11 @@ impl BusView {
         {
             self.robot = Some(b.robot_state());
         }
+    }
+
+    /// The backend's name (`sim`, `ethercat`).
+    pub fn backend(&self) -> &'static str {
+        self.backend
     }
 
     /// The robot's state as last published (`disabled` before the first cycle).

@@ -71,6 +71,13 @@ pub fn real_time_thread(priority: Option<u8>, what: &str) {
     }
 }
 
+/// Whether the calling thread runs under SCHED_FIFO.
+pub fn runs_fifo() -> bool {
+    // SAFETY: sched_getscheduler only reads the scheduling policy of thread 0 (this one).
+    let policy = unsafe { libc::sched_getscheduler(0) };
+    policy >= 0 && policy & !libc::SCHED_RESET_ON_FORK == libc::SCHED_FIFO
+}
+
 /// Why an affinity mask cannot be made of the CPUs asked for.
 #[derive(Debug, thiserror::Error)]
 enum AffinityError {

@@ -10,6 +10,7 @@ use modbot_ethercat::EthercatConfig;
 use modbot_grid_processes::grid_args::load_assembly;
 use modbot_grid_processes::grid_args::GridArgs;
 use modbot_grid_processes::host_process::{HostArgs, HostProcess};
+use modbot_grid_processes::watchdog_check::{self, Budget, Seen};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 use modbot_runtime::bus::bridge::{self, Bridge, BusView};
@@ -137,6 +138,12 @@ fn inject_method(
     _: &mut Reply,
 ) -> Result<(), MethodError> {
     let axis = axis_arg(l, args)?;
+    let backend = l.view().backend();
+    if backend != "sim" {
+        return Err(MethodError::Failed(format!(
+            "the {backend} backend's drives are real: a fault cannot be injected from here (the EtherCAT emulator takes `fault P KIND` on its standard input)"
+        )));
+    }
     let name = args.text(1)?;
     let fault = DriveFault::parse(name).ok_or_else(|| {
         let known: Vec<&str> = DriveFault::ALL.iter().map(|f| f.name()).collect();
@@ -206,6 +213,32 @@ fn reset_answer_method(
     }
 }
 
+/// Looks, on a thread of its own at the grid's priority, whether the machine gives the grid
+/// what the watchdog's `budget` assumes, and warns if not (see `watchdog_check`).
+fn check_watchdog(budget: Budget, priority: Option<u8>) {
+    let looked = std::thread::Builder::new()
+        .name("watchdog check".into())
+        .spawn(move || {
+            modbot_runtime::supervisor::rt::real_time_thread(priority, "watchdog check");
+            let fifo = modbot_runtime::supervisor::rt::runs_fifo();
+            let period = Duration::from_nanos(budget.period_ns);
+            let (late_p99_ns, late_max_ns) =
+                watchdog_check::measure(period, watchdog_check::SAMPLES);
+            let seen = Seen {
+                fifo,
+                late_p99_ns,
+                late_max_ns,
+            };
+            match watchdog_check::verdict(budget, seen) {
+                Some(warning) => tracing::warn!("{warning}"),
+                None => tracing::debug!("the machine keeps the watchdog's budget: {seen:?}"),
+            }
+        });
+    if let Err(e) = looked {
+        tracing::debug!("the watchdog check did not start: {e}");
+    }
+}
+
 fn main() -> std::process::ExitCode {
     modbot_modules::common::finish("modbot-bus", run())
 }
@@ -221,6 +254,7 @@ fn run() -> anyhow::Result<()> {
     };
     let mut axes = 0;
     let mut shared = None;
+    let mut watchdog_budget = None;
     // The drives are made first: the grid's `bus` component drives them.
     let mut p = HostProcess::start(args, |grid| {
         let bus = grid
@@ -266,8 +300,11 @@ fn run() -> anyhow::Result<()> {
                     Box::new(SimBackend::with_joints(&joints, DriveParams::default())?)
                 }
             };
-        let bridge = Bridge::new(backend, period_ns)
-            .watchdog_periods(robot::watchdog_periods(&bus.params).map_err(anyhow::Error::msg)?);
+        let periods = robot::watchdog_periods(&bus.params).map_err(anyhow::Error::msg)?;
+        if !lockstep {
+            watchdog_budget = Some(Budget { periods, period_ns });
+        }
+        let bridge = Bridge::new(backend, period_ns).watchdog_periods(periods);
         let made = Arc::new(Mutex::new(if lockstep {
             bridge.lockstep()
         } else {
@@ -301,6 +338,9 @@ fn run() -> anyhow::Result<()> {
             .method("reset_answer", reset_answer_method)
     };
     let service = p.serve(host_module(p.host_name()), 199, declare, ledger)?;
+    if let Some(budget) = watchdog_budget {
+        check_watchdog(budget, p.grid.host_priority());
+    }
     let now = || MonotonicClock.now_ns();
     // The bus sleeps on its wake-up until released, or until its watchdog must look (the
     // silence reaching three periods; a deadline to the microsecond), whichever comes first.
