@@ -28,11 +28,19 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "modbot", version, about)]
 struct Cli {
-    /// The system's domain (its shared-memory namespace).
-    #[arg(long, global = true, env = "MODBOT_DOMAIN", default_value = "default")]
-    domain: String,
+    /// The system's domain (its shared-memory namespace) [default: default]. For `modbot up`
+    /// it overrides the domain the description declares.
+    #[arg(long, global = true, env = "MODBOT_DOMAIN")]
+    domain: Option<String>,
     #[command(subcommand)]
     command: Command,
+}
+
+impl Cli {
+    /// The domain given, or `default`.
+    fn domain(&self) -> String {
+        self.domain.clone().unwrap_or_else(|| "default".to_owned())
+    }
 }
 
 /// `modbot bus` subcommands.
@@ -85,7 +93,9 @@ enum Command {
     ///
     /// Shows the modules' logs, prefixed with their names, and their status; stops on
     /// Ctrl-C, SIGTERM, `modbot down`, or after `--for`. Exits 0 if every module stopped
-    /// cleanly, 1 with a summary otherwise, 2 if the description is invalid.
+    /// cleanly, 1 with a summary otherwise, 2 if the description is invalid. `--domain` (or
+    /// MODBOT_DOMAIN) overrides the domain the description declares: a second system from the
+    /// same description runs beside the first.
     Up {
         /// The system description (a Lua file).
         file: PathBuf,
@@ -247,6 +257,8 @@ fn main() -> ExitCode {
         .with_target(false)
         .init();
     let cli = Cli::parse();
+    let domain = cli.domain();
+    let given_domain = cli.domain.clone();
     let result = match cli.command {
         Command::Rvmf { command } => return rvmf_cmd::run(command),
         Command::Check { file, vars } => return check_cmd::run(&file, &vars),
@@ -261,6 +273,7 @@ fn main() -> ExitCode {
             record,
         } => up_cmd::up(
             &file,
+            given_domain.as_deref(),
             run_for,
             &with_record(vars, record),
             &modbot_runtime::supervisor::processes::GridRun {
@@ -270,7 +283,7 @@ fn main() -> ExitCode {
                 switches,
             },
         ),
-        Command::Top { once } => tool::top(&cli.domain, once),
+        Command::Top { once } => tool::top(&domain, once),
         Command::Bus {
             command: Some(BusCommand::Scan { interface }),
             ..
@@ -279,39 +292,35 @@ fn main() -> ExitCode {
             command: Some(BusCommand::Inject { axis, fault, off }),
             timeout_ms,
             ..
-        } => robot_cmd::inject(&cli.domain, axis, &fault, off, timeout_ms),
-        Command::Robot { command } => robot_cmd::run(&cli.domain, command),
+        } => robot_cmd::inject(&domain, axis, &fault, off, timeout_ms),
+        Command::Robot { command } => robot_cmd::run(&domain, command),
         Command::Bus {
             command: None,
             switches,
             timeout_ms,
-        } => tool::bus(&cli.domain, switches, timeout_ms),
-        Command::Assembly { command } => assembly_cmd::run(&cli.domain, command),
-        Command::Program { command } => program_cmd::run(&cli.domain, command),
-        Command::Data { command } => data_cmd::run(&cli.domain, command),
-        Command::Down => tool::down(&cli.domain),
-        Command::Ls { tsv } => tool::ls(&cli.domain, tsv),
+        } => tool::bus(&domain, switches, timeout_ms),
+        Command::Assembly { command } => assembly_cmd::run(&domain, command),
+        Command::Program { command } => program_cmd::run(&domain, command),
+        Command::Data { command } => data_cmd::run(&domain, command),
+        Command::Down => tool::down(&domain),
+        Command::Ls { tsv } => tool::ls(&domain, tsv),
         Command::Call {
             target,
             args,
             timeout_ms,
             wait,
-        } => tool::call(&cli.domain, &target, &args, timeout_ms, wait),
+        } => tool::call(&domain, &target, &args, timeout_ms, wait),
         Command::Activate { module } => {
-            tool::call(&cli.domain, &format!("{module}.activate"), &[], 2000, false)
+            tool::call(&domain, &format!("{module}.activate"), &[], 2000, false)
         }
-        Command::Deactivate { module } => tool::call(
-            &cli.domain,
-            &format!("{module}.deactivate"),
-            &[],
-            2000,
-            false,
-        ),
+        Command::Deactivate { module } => {
+            tool::call(&domain, &format!("{module}.deactivate"), &[], 2000, false)
+        }
         Command::Bb {
             module,
             item,
             value,
-        } => tool::bb(&cli.domain, &module, item.as_deref(), value.as_deref()),
+        } => tool::bb(&domain, &module, item.as_deref(), value.as_deref()),
     };
     match result {
         Ok(code) => code,

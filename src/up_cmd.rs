@@ -10,9 +10,11 @@ use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError
 use modbot_runtime::system::{self, DefaultResolver};
 use modbot_runtime::{Domain, IpcTransport};
 
-/// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]... [--ticks N] [--trace OUT]`.
+/// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]... [--ticks N] [--trace OUT]`; `domain`,
+/// when the command line (or MODBOT_DOMAIN) gives one, overrides the description's.
 pub fn up(
     file: &Path,
+    domain: Option<&str>,
     run_for: Option<f64>,
     vars: &[(String, String)],
     grid_run: &GridRun,
@@ -25,6 +27,13 @@ pub fn up(
             return Ok(ExitCode::from(2));
         }
     };
+    if let Some(given) = domain.filter(|d| *d != spec.domain) {
+        tracing::info!(
+            "domain '{given}' from the command line, not the description's '{}'",
+            spec.domain
+        );
+        spec.domain = given.to_owned();
+    }
     if let Err(e) = processes::add_processes(&mut spec, &resolver, file, vars, grid_run) {
         eprintln!("modbot up: {e}");
         return Ok(ExitCode::from(2));

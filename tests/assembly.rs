@@ -537,3 +537,62 @@ fn a_fault_component_that_stalls_after_the_switch_still_faults_the_assembly() {
     assert!(top.contains("component slow overran its deadline"), "{top}");
     down(&mut sut, up);
 }
+
+/// `modbot up --ticks N` is a run meant to complete: when its grid faulted (here the monitor
+/// of `ptp`, given a following-error limit no motion keeps) or it was stopped before its N
+/// ticks, `modbot up` exits 1 and says why — never "every module stopped cleanly".
+#[test]
+fn a_run_of_n_ticks_whose_grid_faulted_or_that_stopped_short_exits_non_zero_with_the_reason() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("runfails");
+    let file = arm();
+    let domain = format!("domain={}", sut.name());
+    let faulted = sut.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            file.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--var",
+            "following_max=0.000001",
+            "--lockstep",
+            "--ticks",
+            "3000",
+            "--switch",
+            "300:ptp",
+        ],
+    );
+    let status = sut.wait_exit(faulted, Duration::from_secs(120));
+    let output = sut.output_of(faulted);
+    assert_eq!(status.code(), Some(1), "{output}");
+    assert!(
+        output.contains("the grid faulted, so the run of 3000 ticks failed")
+            && output.contains("component watch reports an unsafe state"),
+        "{output}"
+    );
+    assert!(!output.contains("every module stopped cleanly"), "{output}");
+    let stopped = sut.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            file.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--lockstep",
+            "--ticks",
+            "100000000",
+        ],
+    );
+    wait_enabled(&sut, stopped);
+    sut.modbot_ok(&["down"]);
+    let status = sut.wait_exit(stopped, Duration::from_secs(60));
+    let output = sut.output_of(stopped);
+    assert_eq!(status.code(), Some(1), "{output}");
+    assert!(
+        output.contains("the run stopped at tick ")
+            && output.contains(" of the 100000000 it was to run"),
+        "{output}"
+    );
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}

@@ -72,3 +72,38 @@ fn a_lost_coordinator_brings_every_drive_to_quick_stop() {
     );
     assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
 }
+
+/// `modbot up` takes its domain from the command line (`--domain`, or MODBOT_DOMAIN) over the
+/// one the description declares (`examples/arm.lua` says "arm"): two arms from the one
+/// description run side by side, each in its own domain, each with its drives enabled.
+#[test]
+fn two_arms_from_one_description_run_side_by_side_in_the_domains_the_command_line_gives() {
+    let _arm = one_arm_at_a_time();
+    let mut first = TestDomain::new("armone");
+    let mut second = TestDomain::new("armtwo");
+    let file = arm();
+    let file = file.to_str().unwrap();
+    // The first through MODBOT_DOMAIN (the test's environment), the second through --domain.
+    let up_first = first.spawn_logged("modbot", &["up", file, "--lockstep"]);
+    let second_name = second.name().to_owned();
+    let up_second = second.spawn_logged(
+        "modbot",
+        &["up", file, "--domain", &second_name, "--lockstep"],
+    );
+    wait_enabled(&first, up_first);
+    wait_enabled(&second, up_second);
+    for (sut, up) in [(&mut first, up_first), (&mut second, up_second)] {
+        assert!(sut
+            .modbot_ok(&["robot"])
+            .starts_with("operational since tick"));
+        sut.modbot_ok(&["down"]);
+        sut.wait_exit(up, Duration::from_secs(60));
+        let output = sut.output_of(up);
+        assert!(
+            output.contains("modbot up: ran ")
+                && output.contains(&format!("in domain '{}'", sut.name())),
+            "{output}"
+        );
+        assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+    }
+}

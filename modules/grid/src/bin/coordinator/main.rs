@@ -206,6 +206,9 @@ fn run() -> anyhow::Result<()> {
     let mut last_look = Instant::now();
     let mut result = Ok(());
     let mut ended = None;
+    // Why a run of `--ticks N` failed: the system still stops as after a run that succeeded,
+    // and the coordinator then exits with it.
+    let mut run_failed = None;
     while !shutdown.requested() {
         let mut busy = false;
         for _ in 0..16 {
@@ -247,7 +250,13 @@ fn run() -> anyhow::Result<()> {
                 FromTick::Current(name, generation) => {
                     switching.current(&mut module, name, generation)
                 }
-                FromTick::Ended(reached) => ended = Some(reached),
+                FromTick::Ended(reached, failed) => {
+                    ended = Some(reached);
+                    if let Some(why) = failed {
+                        tracing::error!("{why}");
+                        run_failed = Some(why);
+                    }
+                }
                 FromTick::Script(name) => {
                     if let Err(e) = request_switch(module.state_mut(), &name) {
                         tracing::error!("the scripted switch to {name} cannot be made: {e}");
@@ -292,10 +301,29 @@ fn run() -> anyhow::Result<()> {
     }
     drop(to_tick);
     drop(switching);
+    // The tick thread's last word (how a run of `--ticks N` ended) may come after the loop
+    // ended on a stop; it is read while the thread finishes, so it never waits on a full
+    // channel.
+    let last_word = |run_failed: &mut Option<String>| {
+        while let Ok(message) = from_tick.try_recv() {
+            if let FromTick::Ended(_, Some(why)) = message {
+                tracing::error!("{why}");
+                *run_failed = Some(why);
+            }
+        }
+    };
+    while !ticker.is_finished() {
+        last_word(&mut run_failed);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    last_word(&mut run_failed);
     if ticker.join().is_err() {
         anyhow::bail!("the tick thread panicked");
     }
-    result
+    match run_failed {
+        Some(why) if result.is_ok() => Err(anyhow::anyhow!("{why}")),
+        _ => result,
+    }
 }
 
 /// Host modules whose process changed since the last look (the phone book, refreshed by the
@@ -340,7 +368,10 @@ fn wait_for_hosts(
         if missing.is_empty() {
             return Ok(());
         }
-        if Instant::now() > deadline || shutdown.requested() {
+        if shutdown.requested() {
+            anyhow::bail!("the system stops before host(s) {missing:?} came up");
+        }
+        if Instant::now() > deadline {
             anyhow::bail!("host(s) {missing:?} did not come up within 30 s");
         }
         module.housekeeping();

@@ -60,8 +60,9 @@ pub enum FromTick {
     Hosts(Vec<(String, String)>),
     /// The running assembly: name and generation.
     Current(String, u16),
-    /// The grid stopped: after the requested number of ticks (true), or on a signal.
-    Ended(bool),
+    /// The grid stopped: after the requested number of ticks (true), or on a signal; and
+    /// why a run of `--ticks N` failed (the grid faulted, or it stopped before N).
+    Ended(bool, Option<String>),
     /// The tick thread failed.
     Failed(String),
     /// A scripted switch to this assembly is due (`--switch TICK:NAME`).
@@ -85,6 +86,7 @@ pub struct Run {
 pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSender<FromTick>) {
     modbot_runtime::supervisor::rt::real_time_thread(coord.spec().priority, "tick thread");
     let shutdown = run.shutdown.clone();
+    let wanted = run.max_ticks;
     if let Err(e) = tick(&mut coord, run, &commands, &out) {
         let _ = out.send(FromTick::Failed(e.to_string()));
         return;
@@ -92,6 +94,7 @@ pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSend
     let pending = coord.drain(&|| MonotonicClock.now_ns(), 200_000_000);
     coord.announce_stop();
     let _ = out.send(FromTick::Ledger(encoded_ledger(&mut coord, true)));
+    let failed = wanted.and_then(|n| run_failure(n, coord.ticks(), coord.fault()));
     let (g, rows) = coord.ledger(true);
     println!("{}", ledger::render(&g, &rows));
     if pending > 0 {
@@ -108,7 +111,41 @@ pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSend
         }
     }
     let reached = !shutdown.requested();
-    let _ = out.send(FromTick::Ended(reached));
+    let _ = out.send(FromTick::Ended(reached, failed));
+}
+
+/// Why a run of `wanted` ticks failed, if it did: the grid faulted (`fault`), or it stopped
+/// at tick `ran` before the `wanted` (a stop was asked for).
+fn run_failure(wanted: u64, ran: u64, fault: Option<&str>) -> Option<String> {
+    match fault {
+        Some(why) => Some(format!(
+            "the grid faulted, so the run of {wanted} ticks failed: {why}"
+        )),
+        None if ran < wanted => Some(format!(
+            "the run stopped at tick {ran} of the {wanted} it was to run"
+        )),
+        None => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::run_failure;
+
+    #[test]
+    fn a_run_of_n_ticks_fails_when_the_grid_faulted_or_it_stopped_short() {
+        assert_eq!(run_failure(120, 120, None), None);
+        assert_eq!(
+            run_failure(120, 90, None).as_deref(),
+            Some("the run stopped at tick 90 of the 120 it was to run")
+        );
+        let faulted = run_failure(120, 120, Some("component stair failed at tick 90")).unwrap();
+        assert!(faulted.starts_with("the grid faulted"), "{faulted}");
+        assert!(
+            faulted.ends_with("component stair failed at tick 90"),
+            "{faulted}"
+        );
+    }
 }
 
 /// Where a scripted switch stands on the tick thread.
