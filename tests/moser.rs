@@ -50,6 +50,12 @@ fn assert_scenario_completed(output: &str) {
         summary_line(output, "alert ").starts_with("at "),
         "{output}"
     );
+    // A clean run has no failed call (the patrol asked for before the base's first pose is
+    // taken, not refused).
+    assert!(
+        summary_line(output, "calls ").contains("(0 failed)"),
+        "{output}"
+    );
     assert!(output.contains("every module stopped cleanly"), "{output}");
 }
 
@@ -66,6 +72,26 @@ fn moser_patrols_detects_the_intruder_without_a_collision_and_ends_cleanly() {
     assert!(
         output.contains("replan"),
         "the box in the server room was found and avoided:\n{output}"
+    );
+    // Found in the server room, where the robot goes round the box first.
+    let alert = output
+        .lines()
+        .find(|l| l.contains("*** ALERT"))
+        .unwrap_or_default();
+    let at = |what: &str| -> f64 {
+        let rest = &alert[alert.find(what).map_or(0, |i| i + what.len())..];
+        rest.trim_start()
+            .split(|c: char| c == ',' || c == ')')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .parse()
+            .unwrap_or(f64::NAN)
+    };
+    let (x, y) = (at("intruder at ("), at(", "));
+    assert!(
+        (20.0..30.0).contains(&x) && (0.0..8.0).contains(&y),
+        "the alert places the intruder in the server room: {alert}\n{output}"
     );
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }

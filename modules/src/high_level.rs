@@ -76,6 +76,8 @@ pub struct HighLevel {
     next_summary_s: f64,
     /// Whether a pose has arrived from the mobility module yet.
     located: bool,
+    /// A patrol asked for before the first pose arrived: it begins with that pose.
+    waiting: Option<(u8, Vec<P>)>,
 }
 
 impl HighLevel {
@@ -105,6 +107,7 @@ impl HighLevel {
             laps: 0,
             next_summary_s: 0.0,
             located: false,
+            waiting: None,
         }
     }
 
@@ -130,22 +133,43 @@ impl HighLevel {
             .ok()
             .flatten()
             .flatten();
+        let ahead = |r: f64, bearing: f64| {
+            // Ahead within 30°, or in the base's path (what the collision sonar watches: the
+            // robot's width, straight on), up to 1.2 m.
+            let b = bearing.to_radians();
+            r < 1.2
+                && (bearing.abs() <= 30.0
+                    || (b.cos() > 0.0 && (r * b.sin()).abs() <= crate::sonar::PATH_HALF_WIDTH_M))
+        };
+        let (at, heading_deg) = (self.odo.at, self.odo.heading_deg);
+        let mark = |grid: &mut Grid, r: f64, bearing: f64| {
+            let a = (heading_deg + bearing).to_radians();
+            let hit = P {
+                x: at.x + (r + 0.1) * a.cos(),
+                y: at.y + (r + 0.1) * a.sin(),
+            };
+            grid.mark_blocked(hit, 0.25);
+        };
         let mut marked = 0;
         for (i, r) in ranges.unwrap_or_default().into_iter().enumerate() {
             let bearing = self.nav_ring.bearing_deg(i);
-            if r < 1.2 && bearing.abs() <= 30.0 {
-                let a = (self.odo.heading_deg + bearing).to_radians();
-                let hit = P {
-                    x: self.odo.at.x + (r + 0.1) * a.cos(),
-                    y: self.odo.at.y + (r + 0.1) * a.sin(),
-                };
-                self.grid.mark_blocked(hit, 0.25);
+            if ahead(r, bearing) {
+                mark(&mut self.grid, r, bearing);
                 marked += 1;
             }
         }
+        if marked == 0 {
+            // The collision sonar stopped the base for something within two feet ahead that
+            // the navigation sonar's beams missed: mark it there, so the new plan differs.
+            mark(&mut self.grid, crate::mobility::TWO_FEET_M, 0.0);
+        }
         self.replans += 1;
+        let what = match marked {
+            0 => "no sonar hit ahead, the spot two feet ahead marked on the map".to_owned(),
+            n => format!("{n} sonar hit(s) marked on the map"),
+        };
         tracing::info!(
-            "blocked at ({:.2}, {:.2}) in {}: {marked} sonar hit(s) marked on the map, replanning",
+            "blocked at ({:.2}, {:.2}) in {}: {what}, replanning",
             self.odo.at.x,
             self.odo.at.y,
             self.room_name(self.odo.at)
@@ -265,15 +289,25 @@ pub fn patrol(
         planner::patrol_route(&h.building, wing).map_err(|e| MethodError::Failed(e.to_string()))?;
     h.read_odometry(ctx);
     if !h.located {
-        return Err(MethodError::NotReady(format!(
-            "no pose from {} yet",
+        // Taken: it begins with the first pose (the mobility module's first snapshot).
+        tracing::info!(
+            "patrol of wing {wing} taken: it begins with the first pose from {}",
             h.mobility
-        )));
+        );
+        h.waiting = Some((wing, goals));
+        let _ = ctx.bb.write("state", Value::Text("waiting for a pose"));
+        return Ok(());
     }
+    begin_patrol(h, ctx, wing, goals).map_err(MethodError::Failed)
+}
+
+/// Begins patrolling `wing` along `goals` from where the base is.
+fn begin_patrol(h: &mut HighLevel, ctx: &mut Ctx, wing: u8, goals: Vec<P>) -> Result<(), String> {
+    h.waiting = None;
     h.wing = wing;
     h.goals = goals;
     h.goal = 0;
-    h.plan_to_goal().map_err(MethodError::Failed)?;
+    h.plan_to_goal()?;
     h.patrolling = true;
     h.step = Step::Ready;
     tracing::info!(
@@ -294,6 +328,7 @@ pub fn stop(
     _: &mut Reply,
 ) -> Result<(), MethodError> {
     h.patrolling = false;
+    h.waiting = None;
     h.step = Step::Ready;
     let mobility = h.mobility.clone();
     ctx.call(&mobility, "stop", &[])
@@ -342,6 +377,13 @@ pub fn tick(h: &mut HighLevel, ctx: &mut Ctx) {
     let now_s = h.sim.seconds(ctx.now_ns());
     h.read_odometry(ctx);
     h.summary(ctx, now_s);
+    if h.located {
+        if let Some((wing, goals)) = h.waiting.take() {
+            if let Err(e) = begin_patrol(h, ctx, wing, goals) {
+                tracing::error!("the patrol of wing {wing} cannot begin: {e}");
+            }
+        }
+    }
     if !h.patrolling {
         return;
     }

@@ -201,6 +201,66 @@ mod tests {
         );
     }
 
+    /// The demo's promise, whatever the simulation's speed: the intruder is found only in
+    /// the server room (where the robot goes round the box first), never from the corridor
+    /// or another room on the way there. The robot's way is the planner's route through
+    /// wing 3 on the known map; it can be at a point `s` metres along it from `s / 0.5` s on
+    /// (the base's top speed) — at any later time, if it is slower.
+    #[test]
+    fn the_demo_intruder_is_above_the_threshold_only_for_a_robot_in_the_server_room() {
+        use crate::moser::planner::{self, Grid};
+        let building = moser_building();
+        let it = moser_intruder();
+        let threshold = 0.8;
+        let server_room = building
+            .rooms
+            .iter()
+            .find(|r| r.name == "server room")
+            .expect("a server room")
+            .rect;
+        let grid = Grid::from_building(&building, 0.2, crate::mobility::RADIUS_M);
+        let goals = planner::patrol_route(&building, 3).unwrap();
+        let mut way = vec![building.start];
+        for goal in goals {
+            let from = *way.last().unwrap();
+            way.extend(planner::plan(&grid, from, goal).unwrap());
+            if server_room.contains(goal) {
+                break;
+            }
+        }
+        let (mut s, mut worst) = (0.0, (0.0, building.start, 0.0));
+        for leg in way.windows(2) {
+            let steps = (leg[0].dist(leg[1]) / 0.1).ceil().max(1.0) as usize;
+            for i in 0..steps {
+                let robot = leg[0].add(leg[1].sub(leg[0]).scale(i as f64 / steps as f64));
+                let here = s + leg[0].dist(robot);
+                if server_room.contains(robot) {
+                    continue;
+                }
+                let mut t = here / 0.5;
+                while t <= 200.0 {
+                    let intruder = it.position(t).map(|now| {
+                        let before = it.position(t - 0.2).unwrap_or(now);
+                        (now, now.dist(before) > 0.01)
+                    });
+                    let p = sense(&building, robot, intruder, &it).fused();
+                    if p > worst.0 {
+                        worst = (p, robot, t);
+                    }
+                    t += 0.5;
+                }
+            }
+            s += leg[0].dist(leg[1]);
+        }
+        assert!(
+            worst.0 < threshold,
+            "p = {:.2} for a robot at {:?} at t = {} s",
+            worst.0,
+            worst.1,
+            worst.2
+        );
+    }
+
     #[test]
     fn readings_fuse_as_independent_witnesses() {
         let sut = Readings {

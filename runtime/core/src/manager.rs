@@ -110,7 +110,10 @@ pub(crate) fn dispatch<S>(
                     }
                     match &result {
                         Ok(_) => ctx.stats.answered += 1,
-                        Err(_) => ctx.stats.failed += 1,
+                        Err(e) => {
+                            tracing::debug!("a call to {src} failed: {e}");
+                            ctx.stats.failed += 1
+                        }
                     }
                     let result = result.as_ref().map(|a| *a);
                     match waiter {

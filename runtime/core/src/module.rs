@@ -250,6 +250,7 @@ impl<S> Module<S> {
 
     fn deliver_failures(&mut self, waiter: &mut Waiter<'_>) {
         while let Some((handle, err)) = self.ctx.out.failures.pop() {
+            tracing::debug!("a call failed: {err}");
             self.ctx.stats.failed += 1;
             match waiter {
                 Some((h, f)) if *h == handle => f(Err(&err)),
