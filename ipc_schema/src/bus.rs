@@ -20,8 +20,10 @@
 //! 32     8    velocity step: the same for the commanded velocity, rad/s (f64 LE)
 //! ```
 //!
-//! Steps are magnitudes: a step that is NaN or negative is malformed, as is a record count
-//! that disagrees with the length. Reserved bytes are written 0 and ignored by readers.
+//! Steps are magnitudes: a step that is NaN, infinite or negative is malformed, as is a record
+//! count that disagrees with the length (no byte may follow the last record). Reserved bytes
+//! are written 0 and ignored by readers. The records' order is the bridge's (oldest first) and
+//! is not checked: a coordinator that restarts counts its ticks from 0 again.
 
 use thiserror::Error;
 use zerocopy::byteorder::little_endian::{F64, U16, U64};
@@ -105,14 +107,14 @@ pub enum SwitchesError {
         expected: usize,
         len: usize,
     },
-    #[error("{what} {value} is not a magnitude (NaN or negative)")]
+    #[error("{what} {value} is not a magnitude (NaN, infinite or negative)")]
     Step { what: &'static str, value: String },
     #[error("{0} switches do not fit in one record (at most {MAX_SWITCHES})")]
     TooMany(usize),
 }
 
 fn magnitude(what: &'static str, value: f64) -> Result<f64, SwitchesError> {
-    if value >= 0.0 {
+    if value.is_finite() && value >= 0.0 {
         Ok(value)
     } else {
         Err(SwitchesError::Step {

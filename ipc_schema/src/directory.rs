@@ -22,7 +22,7 @@
 //! ```
 //!
 //! The image always has room for 254 entries ([`IMAGE_LEN`] bytes); the bytes after the last
-//! entry are zero. A module that is not in the image is not running.
+//! entry are written zero and not read. A module that is not in the image is not running.
 
 use thiserror::Error;
 use zerocopy::byteorder::little_endian::{U16, U32, U64};
@@ -30,13 +30,14 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use crate::addr::Addr;
 use crate::heartbeat::ModuleState;
+use crate::names::is_module_name;
 
 /// The image's first four bytes.
 pub const MAGIC: [u8; 4] = *b"MBDR";
 /// The format version this crate writes and reads.
 pub const VERSION: u8 = 1;
 /// The longest module name.
-pub const NAME_MAX: usize = 48;
+pub const NAME_MAX: usize = crate::names::MODULE_NAME_MAX;
 /// The most entries an image holds: one per module address.
 pub const MAX_ENTRIES: usize = 254;
 /// Header size.
@@ -97,10 +98,29 @@ pub enum DirectoryError {
     Version(u8),
     #[error("directory of {count} entries does not fit in {len} bytes")]
     Count { count: usize, len: usize },
-    #[error("directory entry {index}: {why}")]
-    Entry { index: usize, why: String },
+    #[error("directory entry {index}: {problem}")]
+    Entry { index: usize, problem: EntryError },
     #[error("directory has no room for another module (254 entries)")]
     Full,
+}
+
+/// What is wrong with one entry of an image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum EntryError {
+    #[error("address {0} is not a module address (1..=254)")]
+    Address(u8),
+    #[error("address {addr} comes after address {after}: entries are in strictly increasing address order")]
+    Order { addr: u8, after: u8 },
+    #[error("receive mode {0:#04x} is neither 'p' nor 'b'")]
+    Mode(u8),
+    #[error("unknown state {0} (1 starting, 2 running, 3 stopping)")]
+    State(u8),
+    #[error("name length {0} is not 1..={NAME_MAX}")]
+    NameLength(usize),
+    #[error("the name has bytes other than a-z A-Z 0-9 _ -")]
+    NameBytes,
+    #[error("the name's padding is not zero")]
+    NamePadding,
 }
 
 impl Entry {
@@ -142,28 +162,25 @@ impl Entry {
         }
     }
 
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), EntryError> {
         if !self.addr().is_module() {
-            return Err(format!("address {} is not a module address", self.addr));
+            return Err(EntryError::Address(self.addr));
         }
         if !matches!(self.mode, b'p' | b'b') {
-            return Err(format!(
-                "receive mode {:#04x} is neither 'p' nor 'b'",
-                self.mode
-            ));
+            return Err(EntryError::Mode(self.mode));
         }
         if ModuleState::from_u8(self.state).is_none() {
-            return Err(format!("unknown state {}", self.state));
+            return Err(EntryError::State(self.state));
         }
         let len = usize::from(self.name_len);
         if !(1..=NAME_MAX).contains(&len) {
-            return Err(format!("name length {len} is not 1..={NAME_MAX}"));
+            return Err(EntryError::NameLength(len));
         }
-        let ok = self.name[..len]
-            .iter()
-            .all(|b| b.is_ascii_alphanumeric() || *b == b'_' || *b == b'-');
-        if !ok || self.name[len..].iter().any(|&b| b != 0) {
-            return Err("the name has bytes other than a-z A-Z 0-9 _ - and zero padding".into());
+        if !is_module_name(&self.name[..len]) {
+            return Err(EntryError::NameBytes);
+        }
+        if self.name[len..].iter().any(|&b| b != 0) {
+            return Err(EntryError::NamePadding);
         }
         Ok(())
     }
@@ -201,11 +218,14 @@ impl<'a> View<'a> {
         let mut last = 0u8;
         for (index, e) in entries.iter().enumerate() {
             e.check()
-                .map_err(|why| DirectoryError::Entry { index, why })?;
+                .map_err(|problem| DirectoryError::Entry { index, problem })?;
             if e.addr <= last {
                 return Err(DirectoryError::Entry {
                     index,
-                    why: format!("address {} out of order or twice", e.addr),
+                    problem: EntryError::Order {
+                        addr: e.addr,
+                        after: last,
+                    },
                 });
             }
             last = e.addr;
@@ -262,9 +282,13 @@ pub fn write(
     sorted.sort_by_key(|l| l.addr);
     for (index, l) in sorted.into_iter().enumerate() {
         let bytes = l.name.as_bytes();
+        if !(1..=NAME_MAX).contains(&bytes.len()) {
+            let problem = EntryError::NameLength(bytes.len());
+            return Err(DirectoryError::Entry { index, problem });
+        }
         let mut name = [0u8; NAME_MAX];
-        let n = bytes.len().min(NAME_MAX);
-        name[..n].copy_from_slice(&bytes[..n]);
+        let n = bytes.len();
+        name[..n].copy_from_slice(bytes);
         let entry = Entry {
             addr: l.addr.0,
             mode: l.mode,
@@ -277,17 +301,12 @@ pub fn write(
         };
         entry
             .check()
-            .map_err(|why| DirectoryError::Entry { index, why })?;
+            .map_err(|problem| DirectoryError::Entry { index, problem })?;
         let at = HEADER_LEN + ENTRY_LEN * index;
         image[at..at + ENTRY_LEN].copy_from_slice(entry.as_bytes());
     }
-    let view = View::parse(&image[..len])?;
-    if view.entries.windows(2).any(|w| w[0].addr == w[1].addr) {
-        return Err(DirectoryError::Entry {
-            index: 0,
-            why: "an address appears twice".into(),
-        });
-    }
+    // The reader's checks, among them one entry per address.
+    View::parse(&image[..len])?;
     Ok(len)
 }
 

@@ -1,5 +1,5 @@
 //! Answers laid out as a run of values in the payload encoding (the supervisor's status rows,
-//! the coordinator's switch status): written field by field, and read field by field with
+//! the coordinator's switch status and ledger): written field by field, and read field by field with
 //! each field named in the error when it is missing, of another kind or out of range.
 
 use thiserror::Error;
@@ -64,6 +64,13 @@ impl<'a> Fields<'a> {
         match self.next(what)? {
             Value::Text(t) => Ok(t),
             other => Err(kind(what, ValueKind::Text, other)),
+        }
+    }
+
+    pub(crate) fn f64(&mut self, what: &'static str) -> Result<f64, FieldError> {
+        match self.next(what)? {
+            Value::F64(x) => Ok(x),
+            other => Err(kind(what, ValueKind::F64, other)),
         }
     }
 

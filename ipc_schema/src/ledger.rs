@@ -1,13 +1,21 @@
 //! The time grid's overrun ledger, the answer to the coordinator's method `ledger`: one bytes
 //! value holding a sequence of values (the frame payload encoding) — a grid row, then one row
 //! per component.
-//! - grid ([`GRID_FIELDS`] values): state (text: running, faulted, done), fault (text), ticks,
+//! - grid ([`GRID_FIELDS`] values): state (text: `running`, `faulted` or `done`, then perhaps
+//!   a description such as ` in lockstep (assembly ptp, generation 3)`), fault (text), ticks,
 //!   missed ticks, tick rate (f64, Hz over the last second), tick error p50, p99, max (ns);
-//! - per component ([`FIELDS`] values): name, host, period (ticks), policy, releases, overruns,
-//!   late completions, failed steps, stale releases (not executed: an input's version was
-//!   gone), exec min, p50, p99, max (ns), release latency p50, p99 (ns).
+//! - per component ([`FIELDS`] values): name, host, period (ticks, ≥ 1), policy (`hold` or
+//!   `fault`), releases, overruns, late completions, failed steps, stale releases (not
+//!   executed: an input's version was gone), exec min, p50, p99, max (ns), release latency
+//!   p50, p99 (ns).
+//!
+//! Numbers are i64 ≥ 0 (an encoder writes a count past `i64::MAX` as `i64::MAX`). The
+//! percentiles are bucket estimates and are not checked against each other or the max.
 
-use crate::value::Values;
+use thiserror::Error;
+
+use crate::fields::{push, push_u64, FieldError, Fields};
+use crate::value::{ValueError, Values};
 use crate::Value;
 
 /// Values per component row.
@@ -48,12 +56,8 @@ pub struct GridRow {
     pub tick_err_max: u64,
 }
 
-fn push(out: &mut Vec<u8>, v: Value<'_>) {
-    // Names and counts are small: far below any encoding limit.
-    let _ = v.encode_to_vec(out);
-}
-
-/// Encodes the ledger.
+/// Encodes the ledger, as given: a state, policy, rate or period that breaks the rules of
+/// [`decode`] is refused there.
 pub fn encode(grid: &GridRow, rows: &[ComponentRow], out: &mut Vec<u8>) {
     encode_grid(
         out,
@@ -99,11 +103,11 @@ pub fn encode_grid(
     push(out, Value::Text(state));
     push(out, Value::Text(fault));
     for n in counts {
-        push(out, Value::I64(n as i64));
+        push_u64(out, n);
     }
     push(out, Value::F64(rate_hz));
     for n in tick_error {
-        push(out, Value::I64(n as i64));
+        push_u64(out, n);
     }
 }
 
@@ -119,63 +123,118 @@ pub fn encode_component(
 ) {
     push(out, Value::Text(names[0]));
     push(out, Value::Text(names[1]));
-    push(out, Value::I64(period as i64));
+    push_u64(out, period);
     push(out, Value::Text(policy));
     for n in numbers {
-        push(out, Value::I64(n as i64));
+        push_u64(out, n);
     }
 }
 
-/// Decodes a ledger.
-pub fn decode(bytes: &[u8]) -> Result<(GridRow, Vec<ComponentRow>), String> {
-    let values = Values::new(bytes, 0)
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| e.to_string())?;
-    if values.len() < GRID_FIELDS || !(values.len() - GRID_FIELDS).is_multiple_of(FIELDS) {
-        return Err(format!("ledger of {} values is malformed", values.len()));
+/// The states the grid row's state text starts with.
+pub const STATES: [&str; 3] = ["running", "faulted", "done"];
+/// A component's policy on an overrun.
+pub const POLICIES: [&str; 2] = ["hold", "fault"];
+
+/// Why bytes are not a ledger.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum LedgerError {
+    #[error("{0}")]
+    Values(#[from] ValueError),
+    #[error("a ledger is {GRID_FIELDS} values and {FIELDS} per component, got {0}")]
+    Count(usize),
+    #[error("the ledger's grid row: {0}")]
+    Grid(FieldError),
+    #[error("the ledger's row {row}: {why}")]
+    Row { row: usize, why: FieldError },
+    #[error("the grid's state '{0}' does not start with running, faulted or done")]
+    State(String),
+    #[error("the grid's tick rate {0} Hz is not a finite number ≥ 0")]
+    Rate(f64),
+    #[error("the ledger's row {row}: policy '{policy}' is neither hold nor fault")]
+    Policy { row: usize, policy: String },
+    #[error("the ledger's row {row}: a period of 0 ticks")]
+    Period { row: usize },
+}
+
+/// For callers that gather errors as text (`?` in a closure that returns `Result<_, String>`).
+impl From<LedgerError> for String {
+    fn from(e: LedgerError) -> String {
+        e.to_string()
     }
-    let text = |v: &Value<'_>| match v {
-        Value::Text(t) => Ok((*t).to_owned()),
-        other => Err(format!("expected text, found {other}")),
-    };
-    let num = |v: &Value<'_>| match v {
-        Value::I64(n) => Ok((*n).max(0) as u64),
-        other => Err(format!("expected an integer, found {other}")),
-    };
-    let grid = GridRow {
-        state: text(&values[0])?,
-        fault: text(&values[1])?,
-        ticks: num(&values[2])?,
-        missed: num(&values[3])?,
-        rate_hz: match values[4] {
-            Value::F64(x) => x,
-            ref other => return Err(format!("expected f64, found {other}")),
-        },
-        tick_err_p50: num(&values[5])?,
-        tick_err_p99: num(&values[6])?,
-        tick_err_max: num(&values[7])?,
-    };
-    let rows = values[GRID_FIELDS..]
-        .chunks(FIELDS)
-        .map(|r| {
-            Ok(ComponentRow {
-                name: text(&r[0])?,
-                host: text(&r[1])?,
-                period: num(&r[2])?,
-                policy: text(&r[3])?,
-                releases: num(&r[4])?,
-                overruns: num(&r[5])?,
-                late: num(&r[6])?,
-                failed: num(&r[7])?,
-                stale: num(&r[8])?,
-                exec_min: num(&r[9])?,
-                exec_p50: num(&r[10])?,
-                exec_p99: num(&r[11])?,
-                exec_max: num(&r[12])?,
-                latency_p50: num(&r[13])?,
-                latency_p99: num(&r[14])?,
-            })
+}
+
+impl GridRow {
+    fn decode(fields: &mut Fields<'_>) -> Result<GridRow, FieldError> {
+        Ok(GridRow {
+            state: fields.text("the state")?.to_owned(),
+            fault: fields.text("the fault")?.to_owned(),
+            ticks: fields.int("the ticks")?,
+            missed: fields.int("the missed ticks")?,
+            rate_hz: fields.f64("the tick rate")?,
+            tick_err_p50: fields.int("the tick error p50")?,
+            tick_err_p99: fields.int("the tick error p99")?,
+            tick_err_max: fields.int("the tick error max")?,
         })
-        .collect::<Result<Vec<_>, String>>()?;
+    }
+}
+
+impl ComponentRow {
+    fn decode(fields: &mut Fields<'_>) -> Result<ComponentRow, FieldError> {
+        Ok(ComponentRow {
+            name: fields.text("the name")?.to_owned(),
+            host: fields.text("the host")?.to_owned(),
+            period: fields.int("the period")?,
+            policy: fields.text("the policy")?.to_owned(),
+            releases: fields.int("the releases")?,
+            overruns: fields.int("the overruns")?,
+            late: fields.int("the late completions")?,
+            failed: fields.int("the failed steps")?,
+            stale: fields.int("the stale releases")?,
+            exec_min: fields.int("the exec min")?,
+            exec_p50: fields.int("the exec p50")?,
+            exec_p99: fields.int("the exec p99")?,
+            exec_max: fields.int("the exec max")?,
+            latency_p50: fields.int("the latency p50")?,
+            latency_p99: fields.int("the latency p99")?,
+        })
+    }
+}
+
+/// Decodes a ledger: 8 + 15·n well-formed values, each of its field's kind; numbers ≥ 0; the
+/// state's first word one of [`STATES`]; a finite rate ≥ 0; each policy one of [`POLICIES`];
+/// each period ≥ 1.
+pub fn decode(bytes: &[u8]) -> Result<(GridRow, Vec<ComponentRow>), LedgerError> {
+    let mut count = 0;
+    for value in Values::new(bytes, 0) {
+        value?;
+        count += 1;
+    }
+    if count < GRID_FIELDS || !(count - GRID_FIELDS).is_multiple_of(FIELDS) {
+        return Err(LedgerError::Count(count));
+    }
+    let mut fields = Fields::new(bytes);
+    let grid = GridRow::decode(&mut fields).map_err(LedgerError::Grid)?;
+    let first_word = grid.state.split(' ').next().unwrap_or_default();
+    if !STATES.contains(&first_word) {
+        return Err(LedgerError::State(grid.state));
+    }
+    if !(grid.rate_hz.is_finite() && grid.rate_hz >= 0.0) {
+        return Err(LedgerError::Rate(grid.rate_hz));
+    }
+    let mut rows = Vec::with_capacity((count - GRID_FIELDS) / FIELDS);
+    while !fields.is_done() {
+        let row = rows.len();
+        let r = ComponentRow::decode(&mut fields).map_err(|why| LedgerError::Row { row, why })?;
+        if !POLICIES.contains(&r.policy.as_str()) {
+            return Err(LedgerError::Policy {
+                row,
+                policy: r.policy,
+            });
+        }
+        if r.period == 0 {
+            return Err(LedgerError::Period { row });
+        }
+        rows.push(r);
+    }
     Ok((grid, rows))
 }

@@ -26,6 +26,7 @@
 //! - [`status`]: the supervisor's status rows (its `status` answer, `modbot ls`).
 //! - [`latency`]: the call latency histogram of the `stats` answer: its buckets and layout.
 //! - [`fields`]: answers laid out as a run of values, read field by field with named errors.
+//! - [`names`]: the rules for the module and assembly names the formats carry.
 //! - [`hex`]: hex helpers for the command line and the golden vectors.
 //!
 //! The byte layouts are written down in `ipc_schema/README.md`, with golden vectors that the
@@ -45,6 +46,7 @@ pub mod heartbeat;
 pub mod hex;
 pub mod latency;
 pub mod ledger;
+pub mod names;
 pub mod relay;
 pub mod rvmf;
 pub mod snapshot;

@@ -14,11 +14,12 @@
 
 use thiserror::Error;
 
-use crate::args::Args;
+use crate::args::{ArgError, Args};
+use crate::names::is_module_name;
 use crate::value::{self, Value, Values};
 
 /// The longest module or method name.
-pub const NAME_MAX: usize = 48;
+pub const NAME_MAX: usize = crate::names::MODULE_NAME_MAX;
 
 /// A request, read in place.
 #[derive(Debug, Clone, Copy)]
@@ -50,8 +51,8 @@ pub enum RelayError {
     Status(u8),
     #[error("relay response: the reason is not UTF-8")]
     Text,
-    #[error("relay arguments: {0}")]
-    Values(String),
+    #[error("relay values: {0}")]
+    Values(#[from] ArgError),
 }
 
 fn name<'a>(bytes: &'a [u8], what: &'static str) -> Result<(&'a str, &'a [u8]), RelayError> {
@@ -61,11 +62,7 @@ fn name<'a>(bytes: &'a [u8], what: &'static str) -> Result<(&'a str, &'a [u8]), 
         return Err(RelayError::Truncated(what));
     }
     let (text, rest) = rest.split_at(len);
-    let ok = (1..=NAME_MAX).contains(&len)
-        && text
-            .iter()
-            .all(|b| b.is_ascii_alphanumeric() || *b == b'_' || *b == b'-');
-    if !ok {
+    if !is_module_name(text) {
         return Err(RelayError::BadName { what });
     }
     // Checked above: ASCII.
@@ -82,7 +79,7 @@ impl<'a> Request<'a> {
         }
         let (timeout, args) = rest.split_at(4);
         let timeout_ms = u32::from_le_bytes([timeout[0], timeout[1], timeout[2], timeout[3]]);
-        Args::decode(Values::new(args, 0)).map_err(|e| RelayError::Values(e.to_string()))?;
+        Args::decode(Values::new(args, 0))?;
         Ok(Request {
             module,
             method,
@@ -93,7 +90,7 @@ impl<'a> Request<'a> {
 
     /// The arguments, decoded.
     pub fn values(&self) -> Result<Args<'a>, RelayError> {
-        Args::decode(Values::new(self.args, 0)).map_err(|e| RelayError::Values(e.to_string()))
+        Ok(Args::decode(Values::new(self.args, 0))?)
     }
 }
 
@@ -106,7 +103,7 @@ pub fn encode_request(
 ) -> Result<Vec<u8>, RelayError> {
     let mut out = Vec::with_capacity(6 + module.len() + method.len() + value::encoded_len(args));
     for (text, what) in [(module, "module"), (method, "method")] {
-        if text.is_empty() || text.len() > NAME_MAX {
+        if !is_module_name(text.as_bytes()) {
             return Err(RelayError::BadName { what });
         }
         out.push(text.len() as u8);
@@ -114,8 +111,7 @@ pub fn encode_request(
     }
     out.extend_from_slice(&timeout_ms.to_le_bytes());
     for v in args {
-        v.encode_to_vec(&mut out)
-            .map_err(|e| RelayError::Values(e.to_string()))?;
+        v.encode_to_vec(&mut out).map_err(ArgError::from)?;
     }
     Request::parse(&out)?;
     Ok(out)
@@ -126,8 +122,7 @@ impl<'a> Response<'a> {
         let (&status, rest) = bytes.split_first().ok_or(RelayError::Truncated("status"))?;
         match status {
             0 => {
-                Args::decode(Values::new(rest, 1))
-                    .map_err(|e| RelayError::Values(e.to_string()))?;
+                Args::decode(Values::new(rest, 1))?;
                 Ok(Response::Answered(rest))
             }
             1 => Ok(Response::Failed(
@@ -142,9 +137,9 @@ impl<'a> Response<'a> {
 pub fn encode_answered(values: &[Value<'_>]) -> Result<Vec<u8>, RelayError> {
     let mut out = vec![0u8];
     for v in values {
-        v.encode_to_vec(&mut out)
-            .map_err(|e| RelayError::Values(e.to_string()))?;
+        v.encode_to_vec(&mut out).map_err(ArgError::from)?;
     }
+    Response::parse(&out)?;
     Ok(out)
 }
 

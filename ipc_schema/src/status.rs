@@ -1,16 +1,18 @@
 //! The supervisor's status rows: its answer to the method `status` (`modbot ls`).
 //!
 //! One bytes value holding a run of values in the payload encoding, [`FIELDS`] per module:
-//! name (text), address (i64, 0..=255), state (text: starting, running, restarting, down,
-//! failed, stopped), pid (i64, u32; 0 when not running), restarts (i64, u32), last exit (text,
-//! empty if none), then the frames the module dropped, rejected and replayed (i64 ≥ 0, from its
-//! heartbeats). A run whose last row is incomplete, or a value of another kind or out of
-//! range, is malformed.
+//! name (text, a module name), address (i64, 1..=254), state (text, one of [`STATES`]), pid
+//! (i64, u32; 0 when not running), restarts (i64, u32), last exit (text, empty if none), then
+//! the frames the module dropped, rejected and replayed (i64 ≥ 0, from its heartbeats). A run
+//! whose last row is incomplete, a value of another kind or out of range, a name that is not
+//! a module name or an unknown state is malformed.
 
 use thiserror::Error;
 
+use crate::addr::Addr;
 use crate::fields::{push, push_u64, FieldError, Fields};
 use crate::heartbeat::Counters;
+use crate::names::is_module_name;
 use crate::value::Value;
 
 /// Values per module.
@@ -32,11 +34,27 @@ pub struct Row {
     pub counters: Counters,
 }
 
+/// The states a row names.
+pub const STATES: [&str; 6] = [
+    "starting",
+    "running",
+    "restarting",
+    "down",
+    "failed",
+    "stopped",
+];
+
 /// Why bytes are not status rows.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 pub enum StatusError {
     #[error("status row {row}: {why}")]
     Row { row: usize, why: FieldError },
+    #[error("status row {row}: '{name}' is not a module name (1 to 48 of a-z A-Z 0-9 _ -)")]
+    Name { row: usize, name: String },
+    #[error("status row {row}: address {addr} is not a module address (1..=254)")]
+    Address { row: usize, addr: u8 },
+    #[error("status row {row}: unknown state '{state}'")]
+    State { row: usize, state: String },
 }
 
 impl Row {
@@ -70,7 +88,9 @@ impl Row {
     }
 }
 
-/// Encodes the answer to `status`.
+/// Encodes the answer to `status`. The rows are written as given: a row whose name, address
+/// or state breaks the rules above is refused by [`decode`] (the supervisor's rows follow them:
+/// its modules' names and addresses are checked when the system is read).
 pub fn encode(rows: &[Row], out: &mut Vec<u8>) {
     for r in rows {
         r.encode(out);
@@ -83,7 +103,20 @@ pub fn decode(bytes: &[u8]) -> Result<Vec<Row>, StatusError> {
     let mut rows = Vec::new();
     while !fields.is_done() {
         let row = rows.len();
-        rows.push(Row::decode(&mut fields).map_err(|why| StatusError::Row { row, why })?);
+        let r = Row::decode(&mut fields).map_err(|why| StatusError::Row { row, why })?;
+        if !is_module_name(r.name.as_bytes()) {
+            return Err(StatusError::Name { row, name: r.name });
+        }
+        if !Addr(r.addr).is_module() {
+            return Err(StatusError::Address { row, addr: r.addr });
+        }
+        if !STATES.contains(&r.state.as_str()) {
+            return Err(StatusError::State {
+                row,
+                state: r.state,
+            });
+        }
+        rows.push(r);
     }
     Ok(rows)
 }

@@ -17,8 +17,10 @@
 //!                                   2 failed: generation, name, reason (text)
 //! ```
 //!
-//! Ticks are i64 ≥ 0. A tag other than these, a value of another kind, a generation outside
-//! u16 or a run that ends inside an entry is malformed.
+//! Names are assembly names (1 to 32 of `a-z 0-9 _`; `none` is one), ticks are i64 ≥ 0. A tag
+//! other than these, a value of another kind, a generation outside u16, a name that is not an
+//! assembly name, more than [`MAX_OUTCOMES`] outcomes or a run that ends inside an entry is
+//! malformed. The order of generations and ticks is the coordinator's and is not checked.
 
 use core::fmt;
 
@@ -26,6 +28,7 @@ use thiserror::Error;
 
 use crate::args::ArgError;
 use crate::fields::{push, push_u64, FieldError, Fields};
+use crate::names::is_assembly_name;
 use crate::value::{Value, ValueKind};
 
 const IDLE: i64 = 0;
@@ -93,6 +96,25 @@ pub enum SwitchAnswerError {
     Args(#[from] ArgError),
     #[error("{count} values after the generation")]
     Trailing { count: usize },
+    #[error("{what} '{name}' is not an assembly name (1 to 32 of a-z 0-9 _)")]
+    Name { what: &'static str, name: String },
+    #[error("more than {MAX_OUTCOMES} outcomes")]
+    TooManyOutcomes,
+}
+
+/// The most outcomes an answer lists.
+pub const MAX_OUTCOMES: usize = 64;
+
+/// Reads an assembly name.
+fn assembly_name(fields: &mut Fields<'_>, what: &'static str) -> Result<String, SwitchAnswerError> {
+    let name = fields.text(what)?;
+    if !is_assembly_name(name.as_bytes()) {
+        return Err(SwitchAnswerError::Name {
+            what,
+            name: name.to_owned(),
+        });
+    }
+    Ok(name.to_owned())
 }
 
 impl Default for Status {
@@ -149,7 +171,9 @@ fn push_entry(out: &mut Vec<u8>, tag: i64, generation: u16, assembly: &str) {
 }
 
 impl Status {
-    /// Appends the answer to `assembly()` to `out`.
+    /// Appends the answer to `assembly()` to `out`, as given: names that are not assembly
+    /// names or more than [`MAX_OUTCOMES`] outcomes are refused by [`decode`] (the coordinator
+    /// checks a name before it switches, and keeps the last 64 outcomes).
     pub fn encode(&self, out: &mut Vec<u8>) {
         push(out, Value::Text(&self.assembly));
         push_u64(out, u64::from(self.generation));
@@ -194,26 +218,29 @@ impl Status {
 /// Reads the answer to `assembly()`.
 pub fn decode(bytes: &[u8]) -> Result<Status, SwitchAnswerError> {
     let mut fields = Fields::new(bytes);
-    let assembly = fields.text("the running assembly")?.to_owned();
+    let assembly = assembly_name(&mut fields, "the running assembly")?;
     let generation = fields.int("the running generation")?;
     let state = match fields.int::<i64>("the state's tag")? {
         IDLE => State::Idle,
         PREPARING => State::Preparing {
             generation: fields.int("the preparing generation")?,
-            assembly: fields.text("the preparing assembly")?.to_owned(),
+            assembly: assembly_name(&mut fields, "the preparing assembly")?,
         },
         ANNOUNCED => State::Announced {
             generation: fields.int("the announced generation")?,
-            assembly: fields.text("the announced assembly")?.to_owned(),
+            assembly: assembly_name(&mut fields, "the announced assembly")?,
             tick: fields.int("the announced tick")?,
         },
         tag => return Err(SwitchAnswerError::Tag { what: "state", tag }),
     };
     let mut outcomes = Vec::new();
     while !fields.is_done() {
+        if outcomes.len() == MAX_OUTCOMES {
+            return Err(SwitchAnswerError::TooManyOutcomes);
+        }
         let tag = fields.int::<i64>("an outcome's tag")?;
         let generation = fields.int("an outcome's generation")?;
-        let assembly = fields.text("an outcome's assembly")?.to_owned();
+        let assembly = assembly_name(&mut fields, "an outcome's assembly")?;
         outcomes.push(match tag {
             SWITCHED => Outcome::Switched {
                 generation,

@@ -44,8 +44,19 @@ fn spec() -> impl Strategy<Value = FrameSpec> {
     })
 }
 
-fn name() -> impl Strategy<Value = String> {
+/// Any text: a reason, a last exit.
+fn text() -> impl Strategy<Value = String> {
     "[a-z_]{0,12}|.{0,8}"
+}
+
+/// An assembly name (`modbot_ipc_schema::names`).
+fn assembly_name() -> impl Strategy<Value = String> {
+    "[a-z0-9_]{1,32}"
+}
+
+/// A module name (`modbot_ipc_schema::names`).
+fn module_name() -> impl Strategy<Value = String> {
+    "[a-zA-Z0-9_-]{1,48}"
 }
 
 fn switch_status() -> impl Strategy<Value = modbot_ipc_schema::switch::Status> {
@@ -53,11 +64,11 @@ fn switch_status() -> impl Strategy<Value = modbot_ipc_schema::switch::Status> {
     let tick = 0..=i64::MAX as u64;
     let state = prop_oneof![
         Just(State::Idle),
-        (any::<u16>(), name()).prop_map(|(generation, assembly)| State::Preparing {
+        (any::<u16>(), assembly_name()).prop_map(|(generation, assembly)| State::Preparing {
             generation,
             assembly
         }),
-        (any::<u16>(), name(), tick.clone()).prop_map(|(generation, assembly, tick)| {
+        (any::<u16>(), assembly_name(), tick.clone()).prop_map(|(generation, assembly, tick)| {
             State::Announced {
                 generation,
                 assembly,
@@ -66,7 +77,7 @@ fn switch_status() -> impl Strategy<Value = modbot_ipc_schema::switch::Status> {
         }),
     ];
     let outcome = prop_oneof![
-        (any::<u16>(), name(), tick.clone(), tick).prop_map(
+        (any::<u16>(), assembly_name(), tick.clone(), tick).prop_map(
             |(generation, assembly, announced, tick)| Outcome::Switched {
                 generation,
                 assembly,
@@ -74,7 +85,7 @@ fn switch_status() -> impl Strategy<Value = modbot_ipc_schema::switch::Status> {
                 tick
             }
         ),
-        (any::<u16>(), name(), name()).prop_map(|(generation, assembly, reason)| {
+        (any::<u16>(), assembly_name(), text()).prop_map(|(generation, assembly, reason)| {
             Outcome::Failed {
                 generation,
                 assembly,
@@ -83,7 +94,7 @@ fn switch_status() -> impl Strategy<Value = modbot_ipc_schema::switch::Status> {
         }),
     ];
     (
-        name(),
+        assembly_name(),
         any::<u16>(),
         state,
         proptest::collection::vec(outcome, 0..5),
@@ -101,12 +112,12 @@ fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
     let count = 0..=i64::MAX as u64;
     (
         (
-            name(),
-            any::<u8>(),
-            name(),
+            module_name(),
+            1..=254u8,
+            proptest::sample::select(&modbot_ipc_schema::status::STATES[..]),
             any::<u32>(),
             any::<u32>(),
-            name(),
+            text(),
         ),
         (count.clone(), count.clone(), count),
     )
@@ -115,7 +126,7 @@ fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
                 modbot_ipc_schema::status::Row {
                     name,
                     addr,
-                    state,
+                    state: state.to_owned(),
                     pid,
                     restarts,
                     last_exit,

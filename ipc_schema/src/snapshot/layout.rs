@@ -7,7 +7,7 @@ use zerocopy::{FromBytes, IntoBytes};
 
 use super::{
     ItemEntry, SnapshotError, SnapshotHeader, BULK_ALIGN, ENTRY_LEN, FLAG_BULK, FLAG_WRITABLE,
-    HEADER_LEN, MAGIC, VERSION,
+    HEADER_LEN, MAGIC, NAME_MAX, VERSION,
 };
 use crate::addr::Addr;
 use crate::value::{AsValue, Value, ValueKind};
@@ -93,7 +93,7 @@ impl SnapshotLayout {
         }
         items.sort_by(|a, b| a.name.as_bytes().cmp(b.name.as_bytes()));
         for (i, item) in items.iter().enumerate() {
-            if item.name.is_empty() || item.name.len() > 255 {
+            if item.name.is_empty() || item.name.len() > NAME_MAX {
                 return Err(SnapshotError::BadItemName(item.name.clone()));
             }
             if i > 0 && items[i - 1].name == item.name {

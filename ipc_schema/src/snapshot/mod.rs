@@ -16,8 +16,10 @@
 //!              name offset u32, name length u16, kind u8, flags u8 (bit 0: writable,
 //!              bit 1: bulk), value offset u32, value length u32 (offsets from the start of
 //!              the snapshot)
-//! ...          names (UTF-8), then values in table order; a bulk item's value starts at an
-//!              offset that is a multiple of 64 (zero bytes before it)
+//! ...          names (1..=255 bytes of UTF-8) back to back in table order, then the values
+//!              back to back in table order, except that a bulk item's value starts at the
+//!              next offset that is a multiple of 64 (zero bytes before it); the total length
+//!              ends where the last value ends
 //! ```
 //!
 //! Values are little-endian: f64 and i64 8 bytes, bool 1 byte (0 or 1), text UTF-8, bytes raw,
@@ -54,6 +56,8 @@ pub const FLAG_WRITABLE: u8 = 1;
 pub const FLAG_BULK: u8 = 2;
 /// The alignment of a bulk item's value within the snapshot, and of the snapshot in a sample.
 pub const BULK_ALIGN: usize = 64;
+/// The longest item name, in bytes.
+pub const NAME_MAX: usize = 255;
 
 /// The snapshot header, read in place.
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
@@ -108,7 +112,27 @@ pub enum SnapshotError {
         kind: ValueKind,
         len: usize,
     },
-    #[error("item {index} has a name that is not UTF-8, or empty")]
+    #[error("bool item '{name}' holds {byte}, not 0 or 1")]
+    BadBool { name: String, byte: u8 },
+    #[error("text item '{name}' is not UTF-8")]
+    BadText { name: String },
+    #[error("item {index} is bulk but of kind {kind}: a bulk item is bytes")]
+    BulkNotBytes { index: usize, kind: ValueKind },
+    #[error("item {index}'s name is at offset {found}; names follow the item table back to back in table order, so it is at {expected}")]
+    NameMisplaced {
+        index: usize,
+        expected: usize,
+        found: usize,
+    },
+    #[error("item {index}'s value is at offset {found}; values follow the names back to back in table order (a bulk value at the next multiple of 64), so it is at {expected}")]
+    ValueMisplaced {
+        index: usize,
+        expected: usize,
+        found: usize,
+    },
+    #[error("snapshot says it is {declared} bytes long, its last value ends at {end}")]
+    TrailingBytes { end: usize, declared: usize },
+    #[error("item {index} has a name that is empty, longer than 255 bytes or not UTF-8")]
     BadName { index: usize },
     #[error("item {index} is out of order or a duplicate: items are sorted by name")]
     Unsorted { index: usize },

@@ -7,8 +7,8 @@ use zerocopy::FromBytes;
 
 use super::layout::layout_hash;
 use super::{
-    ItemEntry, SnapshotError, SnapshotHeader, ENTRY_LEN, FLAG_BULK, FLAG_WRITABLE, HEADER_LEN,
-    MAGIC, VERSION,
+    ItemEntry, SnapshotError, SnapshotHeader, BULK_ALIGN, ENTRY_LEN, FLAG_BULK, FLAG_WRITABLE,
+    HEADER_LEN, MAGIC, NAME_MAX, VERSION,
 };
 use crate::addr::Addr;
 use crate::value::{F64s, Value, ValueKind};
@@ -89,19 +89,14 @@ impl<'a> SnapshotView<'a> {
             entries,
             bytes,
         };
-        let mut previous: Option<&str> = None;
-        for index in 0..count {
-            let (name, value, _) = view.entry(index)?;
-            if previous.is_some_and(|p| p.as_bytes() >= name.as_bytes()) {
-                return Err(SnapshotError::Unsorted { index });
-            }
-            previous = Some(name);
-            let _ = value;
+        let end = view.check_entries()?;
+        if end != declared {
+            return Err(SnapshotError::TrailingBytes { end, declared });
         }
-        let computed = layout_hash((0..count).map(|i| {
-            let (name, value, _) = view.entry(i).expect("checked above");
-            (name, value.kind())
-        }));
+        // Every entry was checked above: none is left out.
+        let computed = layout_hash(
+            (0..count).filter_map(|i| view.entry(i).ok().map(|(name, v, _)| (name, v.kind()))),
+        );
         if computed != header.layout.get() {
             return Err(SnapshotError::HashMismatch {
                 declared: header.layout.get(),
@@ -109,6 +104,64 @@ impl<'a> SnapshotView<'a> {
             });
         }
         Ok(view)
+    }
+
+    /// Checks every entry: its kind, that a bulk item is bytes, that its name and value are
+    /// where a writer puts them (names back to back after the table, values back to back after
+    /// the names, a bulk value at the next multiple of [`BULK_ALIGN`]: so nothing overlaps and
+    /// nothing is left between them but a bulk value's padding), that both lie in the buffer,
+    /// that its value is well-formed, and that the names ascend. Returns where the last value
+    /// ends.
+    fn check_entries(&self) -> Result<usize, SnapshotError> {
+        // At most 65535 names of at most 65535 bytes: no overflow in a usize of 64 bits, nor
+        // in the offsets below (each a u32 plus a u32).
+        let table_end = HEADER_LEN + ENTRY_LEN * self.entries.len();
+        let names_len: usize = self
+            .entries
+            .iter()
+            .map(|e| usize::from(e.name_len.get()))
+            .sum();
+        let (mut name_at, mut value_at) = (table_end, table_end + names_len);
+        let mut previous: Option<&str> = None;
+        for (index, e) in self.entries.iter().enumerate() {
+            let kind = ValueKind::from_code(e.kind).ok_or(SnapshotError::BadItemKind {
+                index,
+                code: e.kind,
+            })?;
+            let bulk = e.flags & FLAG_BULK != 0;
+            if bulk && kind != ValueKind::Bytes {
+                return Err(SnapshotError::BulkNotBytes { index, kind });
+            }
+            let found = e.name_off.get() as usize;
+            if found != name_at {
+                return Err(SnapshotError::NameMisplaced {
+                    index,
+                    expected: name_at,
+                    found,
+                });
+            }
+            name_at += usize::from(e.name_len.get());
+            let expected = if bulk {
+                value_at.next_multiple_of(BULK_ALIGN)
+            } else {
+                value_at
+            };
+            let found = e.val_off.get() as usize;
+            if found != expected {
+                return Err(SnapshotError::ValueMisplaced {
+                    index,
+                    expected,
+                    found,
+                });
+            }
+            value_at = expected + e.val_len.get() as usize;
+            let (name, _, _) = self.entry(index)?;
+            if previous.is_some_and(|p| p.as_bytes() >= name.as_bytes()) {
+                return Err(SnapshotError::Unsorted { index });
+            }
+            previous = Some(name);
+        }
+        Ok(value_at)
     }
 
     /// Parses and checks that the layout is `expected`.
@@ -138,7 +191,7 @@ impl<'a> SnapshotView<'a> {
         let name = slice(e.name_off, usize::from(e.name_len.get()))?;
         let name = core::str::from_utf8(name)
             .ok()
-            .filter(|n| !n.is_empty())
+            .filter(|n| (1..=NAME_MAX).contains(&n.len()))
             .ok_or(SnapshotError::BadName { index })?;
         let kind = ValueKind::from_code(e.kind).ok_or(SnapshotError::BadItemKind {
             index,
@@ -159,9 +212,21 @@ impl<'a> SnapshotView<'a> {
             ValueKind::Bool => match raw {
                 [0] => Value::Bool(false),
                 [1] => Value::Bool(true),
+                [byte] => {
+                    return Err(SnapshotError::BadBool {
+                        name: name.to_owned(),
+                        byte: *byte,
+                    })
+                }
                 _ => return Err(bad_size()),
             },
-            ValueKind::Text => Value::Text(core::str::from_utf8(raw).map_err(|_| bad_size())?),
+            ValueKind::Text => {
+                Value::Text(
+                    core::str::from_utf8(raw).map_err(|_| SnapshotError::BadText {
+                        name: name.to_owned(),
+                    })?,
+                )
+            }
             ValueKind::Bytes => Value::Bytes(raw),
             ValueKind::F64s => Value::F64s(F64s::from_le_bytes(raw).ok_or_else(bad_size)?),
         };

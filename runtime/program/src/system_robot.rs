@@ -259,7 +259,7 @@ impl Robot for SystemRobot {
             },
         );
         let row = row.map_err(|e| RobotError::Grid(format!("the coordinator's ledger: {e}")))?;
-        Ok((row.state == "faulted").then_some(row.fault))
+        Ok(row.state.starts_with("faulted").then_some(row.fault))
     }
 
     fn robot_state(&mut self) -> Result<Option<modbot_bus::RobotState>, RobotError> {
