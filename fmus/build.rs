@@ -1,8 +1,10 @@
 //! Builds the project's FMUs from source and bundles each as a .fmu (a zip archive of its
 //! modelDescription.xml and its binary for this platform):
 //!
-//! - `modbot_ff2`: compiles `ff2/ff2.c` into a shared library with the C compiler the `cc`
-//!   crate finds;
+//! - `modbot_ff2`, `modbot_stair2` (FMI 2) and `modbot_ss3` (FMI 3): compiles each one's C
+//!   source (`ff2/ff2.c`, `stair2/stair2.c`, `ss3/ss3.c`, against the FMI headers in
+//!   `ff2/include` and `ss3/include`) into a shared library with the C compiler the `cc`
+//!   crate finds, and bundles it with the modelDescription.xml beside it;
 //! - `modbot_filter3`: builds `filter3/` (a cdylib and the program that writes its
 //!   modelDescription.xml) with cargo, in a target directory of its own — cargo cannot hand
 //!   a cdylib of this workspace to a build script.
@@ -32,15 +34,20 @@ fn build() -> Result<()> {
         .ok_or("OUT_DIR is not in a target directory")?;
     let target = programs.parent().ok_or("no target directory")?;
 
-    let ff2 = out.join("modbot_ff2.fmu");
-    let library = out.join("modbot_ff2.so");
-    compile_c(&here.join("ff2"), &library)?;
-    bundle(
-        &ff2,
-        &fs::read(here.join("ff2/modelDescription.xml"))?,
-        &format!("binaries/{}/modbot_ff2.so", platform(2)?),
-        &fs::read(&library)?,
-    )?;
+    let mut fmus = Vec::new();
+    for c in C_FMUS {
+        let fmu = out.join(format!("{}.fmu", c.name));
+        let library = out.join(format!("{}.so", c.name));
+        compile_c(&here.join(c.source), &here.join(c.include), &library)?;
+        bundle(
+            &fmu,
+            &fs::read(here.join(c.dir).join("modelDescription.xml"))?,
+            &format!("binaries/{}/{}.so", platform(c.fmi)?, c.name),
+            &fs::read(&library)?,
+        )?;
+        println!("cargo:rustc-env={}={}", c.env, fmu.display());
+        fmus.push(fmu);
+    }
 
     let filter3 = out.join("modbot_filter3.fmu");
     let (library, description) = cargo_build(&here.join("filter3"), &target.join("fmu-build"))?;
@@ -51,14 +58,16 @@ fn build() -> Result<()> {
         &fs::read(library)?,
     )?;
 
-    for fmu in [&ff2, &filter3] {
+    fmus.push(filter3.clone());
+    for fmu in &fmus {
         let name = fmu.file_name().ok_or("no file name")?;
         fs::copy(fmu, programs.join(name))?;
     }
-    println!("cargo:rustc-env=MODBOT_FF2_FMU={}", ff2.display());
     println!("cargo:rustc-env=MODBOT_FILTER3_FMU={}", filter3.display());
     for watched in [
         "ff2",
+        "stair2",
+        "ss3",
         "filter3/src",
         "filter3/Cargo.toml",
         "filter3/Cargo.lock",
@@ -67,6 +76,44 @@ fn build() -> Result<()> {
     }
     Ok(())
 }
+
+/// An FMU written in C: its name (the model identifier), FMI version, folder (with its
+/// modelDescription.xml), source, headers, and the variable that tells the crate where it is.
+struct CFmu {
+    name: &'static str,
+    fmi: u8,
+    dir: &'static str,
+    source: &'static str,
+    include: &'static str,
+    env: &'static str,
+}
+
+const C_FMUS: [CFmu; 3] = [
+    CFmu {
+        name: "modbot_ff2",
+        fmi: 2,
+        dir: "ff2",
+        source: "ff2/ff2.c",
+        include: "ff2/include",
+        env: "MODBOT_FF2_FMU",
+    },
+    CFmu {
+        name: "modbot_stair2",
+        fmi: 2,
+        dir: "stair2",
+        source: "stair2/stair2.c",
+        include: "ff2/include",
+        env: "MODBOT_STAIR2_FMU",
+    },
+    CFmu {
+        name: "modbot_ss3",
+        fmi: 3,
+        dir: "ss3",
+        source: "ss3/ss3.c",
+        include: "ss3/include",
+        env: "MODBOT_SS3_FMU",
+    },
+];
 
 /// The folder of an FMU's binaries for this platform: FMI 2 names it `linux64`, FMI 3
 /// `x86_64-linux` (or `aarch64-linux`).
@@ -81,8 +128,9 @@ fn platform(fmi: u8) -> Result<&'static str> {
     }
 }
 
-/// Compiles the C FMU in `dir` into the shared library `library`.
-fn compile_c(dir: &Path, library: &Path) -> Result<()> {
+/// Compiles the C FMU `source`, against the headers in `include`, into the shared library
+/// `library`.
+fn compile_c(source: &Path, include: &Path, library: &Path) -> Result<()> {
     let compiler = cc::Build::new()
         .cargo_metadata(false)
         .opt_level(2)
@@ -94,12 +142,12 @@ fn compile_c(dir: &Path, library: &Path) -> Result<()> {
         ])
         .arg(library)
         .arg("-I")
-        .arg(dir.join("include"))
-        .arg(dir.join("ff2.c"))
+        .arg(include)
+        .arg(source)
         .arg("-lm")
         .status()?;
     if !status.success() {
-        return Err(format!("the C compiler failed ({status}) on {}", dir.display()).into());
+        return Err(format!("the C compiler failed ({status}) on {}", source.display()).into());
     }
     Ok(())
 }

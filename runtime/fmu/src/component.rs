@@ -13,18 +13,29 @@
 //! refuses at initialisation is an error when the component is made, not at its first
 //! release, `make` first initialises a probe instance of the FMU (at time 0) and frees it.
 //!
-//! A failing FMI call is an unsafe state ([`Component::unsafe_state`]): the coordinator faults
-//! the assembly and the bus stops the drives, as for a monitor's breach; the outputs keep their
-//! last values. A crash of the FMU's code takes its host process down, and the grid's fault
-//! policy applies.
+//! Before its first outputs are valid, the component's outputs are its *initial outputs*
+//! ([`Component::initial_outputs`]): the probe's outputs after initialisation at time 0 with
+//! its parameters and its inputs at their start values (what a master such as FMPy reports at
+//! t = 0).
+//!
+//! A failing FMI call — one that returns fmi2Discard/fmi3Discard or worse, or a step after
+//! which the FMU asks to terminate — is an unsafe state ([`Component::unsafe_state`]): the
+//! coordinator faults the assembly and the bus stops the drives, as for a monitor's breach;
+//! the outputs keep their last values. The host logs which call failed, with what status, at
+//! what time, and the last messages the FMU logged. A crash of the FMU's code takes its host
+//! process down, and the grid's fault policy applies.
+//!
+//! An i64 port into an FMI `Int32` input is clamped to what an Int32 holds; the first clamped
+//! value of each input is logged ([`crate::values`]).
 
 use modbot_grid::component::{
     Component, ComponentError, Params, PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
 };
 
+use super::call::CallError;
 use super::component_type::{self, FMU};
 use super::error::{FmuError, FmuErrorKind};
-use super::running::{CallError, Running};
+use super::running::Running;
 use super::values::Values;
 
 /// Adds `fmu`, made by this process, to `registry` (the program `modbot-fmu-host`).
@@ -44,12 +55,12 @@ fn build(p: &Params) -> Result<FmuComponent, ComponentError> {
     let path = p.text(FMU)?;
     let refused = |e| ComponentError::param_refused(FMU, e);
     let mut probe = Running::start(path, &interface, &interface.model_name, p).map_err(refused)?;
-    probe.initialise(0.0).map_err(|call| {
-        refused(FmuError::new(
-            path,
-            FmuErrorKind::Import(format!("{call} failed")),
-        ))
-    })?;
+    let mut initial = Values::new(&interface.outputs);
+    let probed = probe.initialise(0.0).and_then(|()| probe.get(&mut initial));
+    if let Err(call) = probed {
+        let why = format!("{call}{}", probe.said());
+        return Err(refused(FmuError::new(path, FmuErrorKind::Import(why))));
+    }
     probe.terminate();
     drop(probe);
     let running = Running::start(path, &interface, &interface.model_name, p).map_err(refused)?;
@@ -63,7 +74,10 @@ fn build(p: &Params) -> Result<FmuComponent, ComponentError> {
     Ok(FmuComponent {
         running,
         inputs: Values::new(&interface.inputs),
-        outputs: Values::new(&interface.outputs),
+        input_names: interface.inputs.iter().map(|i| i.name.clone()).collect(),
+        // The last outputs got: the initial ones until the first step's.
+        outputs: initial.clone(),
+        initial,
         time: None,
         base_period: p.f64(BASE_PERIOD_S)?,
         step: p.f64(PERIOD_S)?,
@@ -74,15 +88,20 @@ fn build(p: &Params) -> Result<FmuComponent, ComponentError> {
 struct FmuComponent {
     running: Running,
     inputs: Values,
+    /// The inputs' names, to say which one a value was clamped on.
+    input_names: Vec<String>,
     outputs: Values,
+    /// The outputs after initialisation (the probe's): valid before its first outputs are.
+    initial: Values,
     /// The FMU's time at the next release; `None` until it is initialised, at its first.
     time: Option<f64>,
     /// The grid's base period, s: the time of a tick.
     base_period: f64,
     /// The communication step: the component's period, in seconds.
     step: f64,
-    /// The first FMI call that failed: the FMU is not stepped again.
-    failed: Option<CallError>,
+    /// Why the FMU failed — which call, its status, the time and what the FMU logged: it is
+    /// not stepped again.
+    failed: Option<String>,
 }
 
 // SAFETY: an FMU instance may be called from any thread as long as no two calls overlap (FMI
@@ -93,31 +112,44 @@ unsafe impl Send for FmuComponent {}
 
 impl FmuComponent {
     /// Initialises the FMU at the first release (at the release's time), then steps it one
-    /// period: inputs set, `doStep`, outputs got.
-    fn advance(&mut self, rel: &Released, inputs: &[PortValue]) -> Result<(), CallError> {
+    /// period: inputs set, `doStep`, outputs got. A failure says at what time.
+    fn advance(&mut self, rel: &Released, inputs: &[PortValue]) -> Result<(), (CallError, f64)> {
         let time = match self.time {
             Some(time) => time,
             None => {
                 let start = rel.tick.0 as f64 * self.base_period;
-                self.running.initialise(start)?;
+                self.running.initialise(start).map_err(|c| (c, start))?;
                 *self.time.insert(start)
             }
         };
-        self.inputs.take(inputs);
-        self.running.set(&mut self.inputs)?;
-        self.running.do_step(time, self.step)?;
-        self.running.get(&mut self.outputs)?;
+        if let Some(c) = self.inputs.take(inputs) {
+            tracing::warn!(
+                "input '{}' is an FMI Int32: {} is clamped to {} (said once for this input)",
+                self.input_names[c.port],
+                c.value,
+                c.to
+            );
+        }
+        let at = |c| (c, time);
+        self.running.set(&mut self.inputs).map_err(at)?;
+        self.running.do_step(time, self.step).map_err(at)?;
+        self.running.get(&mut self.outputs).map_err(at)?;
         self.time = Some(time + self.step);
         Ok(())
     }
 }
 
 impl Component for FmuComponent {
+    fn initial_outputs(&mut self, outputs: &mut [PortValue]) {
+        self.initial.give(outputs);
+    }
+
     fn step(&mut self, rel: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         if self.failed.is_none() {
-            if let Err(call) = self.advance(rel, inputs) {
-                tracing::error!("{call} failed: the FMU is stepped no more");
-                self.failed = Some(call);
+            if let Err((call, time)) = self.advance(rel, inputs) {
+                let why = format!("{call} at t = {} s{}", seconds(time), self.running.said());
+                tracing::error!("{why}: the FMU is stepped no more");
+                self.failed = Some(why);
             }
         }
         self.outputs.give(outputs);
@@ -135,52 +167,13 @@ impl Component for FmuComponent {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use modbot_grid::component::Component as _;
-    use modbot_grid::component::{ParamValue, PortType};
-
-    use super::*;
-
-    /// The params of the FMI 2 feed-forward at 1 ms, with `Jm`.
-    fn ff2(jm: f64) -> Params {
-        let mut p = Params::new()
-            .with(FMU, ParamValue::Text(modbot_fmus::FF2.into()))
-            .with("Jm", ParamValue::F64(jm));
-        p.set_timing(0.001, 1);
-        p
-    }
-
-    #[test]
-    fn an_fmu_first_released_at_tick_500_starts_its_co_simulation_at_0_5_s() {
-        let mut sut = build(&ff2(0.5)).unwrap();
-        assert_eq!(sut.time, None, "initialised at its first release");
-        let inputs = vec![PortValue::F64s(vec![0.1; 6]); 3];
-        let mut outputs = vec![PortType::F64s(6).zero(); 2];
-        for tick in 500..503 {
-            sut.step(&Released::at(tick), &inputs, &mut outputs);
-            assert!(!sut.unsafe_state(), "the FMU took the step at tick {tick}");
-        }
-        let time = sut.time.expect("initialised");
-        assert!(
-            (time - 0.503).abs() < 1e-12,
-            "its next step starts at {time}"
-        );
-        let PortValue::F64s(qm) = &outputs[1] else {
-            panic!("qm is f64[6]");
-        };
-        // qm = q + Jl/k q'' with Jl = 2, k = 2e4 (the FMU's start values).
-        assert!((qm[0] - 0.10001).abs() < 1e-12, "qm {qm:?}");
-        sut.terminate();
-    }
-
-    #[test]
-    fn a_parameter_the_fmu_refuses_at_initialisation_refuses_the_component_when_it_is_made() {
-        let err = build(&ff2(-1.0)).err().expect("Jm = -1 is refused");
-        let text = err.to_string();
-        assert!(
-            text.contains("fmi2EnterInitializationMode failed"),
-            "{text}"
-        );
-    }
+/// A time for people: `0.05`, not the `0.05000000000000004` a sum of steps makes (to the
+/// nanosecond).
+fn seconds(t: f64) -> String {
+    let text = format!("{t:.9}");
+    let text = text.trim_end_matches('0');
+    text.strip_suffix('.').unwrap_or(text).to_owned()
 }
+
+#[cfg(test)]
+mod tests;

@@ -5,24 +5,26 @@
 //! Its parameters are the FMU's (their defaults its start values), beside `fmu` (the file, an
 //! absolute path: the description's loader makes it one from the component's `fmu` field).
 //! The registry passes parameters it does not know on ([`Registry::declare_open`]); this
-//! type's description checks them against the FMU: an unknown one, or one of the wrong type,
-//! is refused, naming the FMU's.
+//! type's description checks them against the FMU ([`crate::params`]): an unknown one, one of
+//! the wrong type or shape, or one outside its declared range is refused, naming the FMU's.
+//! Its structural parameters size its arrays first ([`Interface::sized`]), so a port's length
+//! is the one the description makes.
 
 use std::path::Path;
 
 use modbot_grid::component::{
-    intern, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, Params, PortDecl,
-    Registry, AUTOMATIC_PARAMS,
+    intern, ComponentError, ComponentInfo, ParamDecl, ParamType, Params, PortDecl, Registry,
 };
 
+use super::error::FmuError;
 use super::interface::Interface;
+use super::params::{self, Which};
 
 /// The type's name in descriptions.
 pub const TYPE: &str = "fmu";
 /// The host program that steps FMU components.
 pub const PROGRAM: &str = "modbot-fmu-host";
-/// The param (and component field) that names the FMU.
-pub const FMU: &str = "fmu";
+pub use super::params::FMU;
 
 /// Adds `fmu` to `registry` as a type [`PROGRAM`] makes (unless this process registered it).
 pub fn declare(registry: &mut Registry) {
@@ -42,7 +44,7 @@ pub fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
         });
     };
     let interface = read(p)?;
-    check_params(p, &interface)?;
+    params::check(p, &interface, Which::All)?;
     let ports = |ports: &[super::interface::Port]| {
         ports
             .iter()
@@ -74,38 +76,14 @@ pub fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
     })
 }
 
-/// The interface of the FMU `p` names.
+/// The interface of the FMU `p` names, its arrays sized by the structural parameters `p` sets
+/// (checked first).
 pub fn read(p: &Params) -> Result<Interface, ComponentError> {
     let path = p.text(FMU)?;
-    Interface::read(Path::new(path)).map_err(|e| ComponentError::param_refused(FMU, e))
-}
-
-/// Every param of `p` is the FMU's and of its type (or `fmu`, or an automatic one).
-fn check_params(p: &Params, interface: &Interface) -> Result<(), ParamError> {
-    for (name, value) in p.iter() {
-        if name == FMU || AUTOMATIC_PARAMS.contains(&name) {
-            continue;
-        }
-        let Some(q) = interface.params.iter().find(|q| q.name == name) else {
-            return Err(ParamError::Unknown {
-                name: name.to_owned(),
-                type_name: format!("fmu ({})", interface.model_name),
-                known: interface.params.iter().map(|q| intern(&q.name)).collect(),
-            });
-        };
-        let fits = match (value.coerce(q.ty), &q.start) {
-            (Some(modbot_grid::ParamValue::F64s(xs)), modbot_grid::ParamValue::F64s(n)) => {
-                xs.len() == n.len()
-            }
-            (coerced, _) => coerced.is_some(),
-        };
-        if !fits {
-            return Err(ParamError::WrongType {
-                name: name.to_owned(),
-                expected: q.ty,
-                got: value.clone(),
-            });
-        }
-    }
-    Ok(())
+    let interface =
+        Interface::read(Path::new(path)).map_err(|e| ComponentError::param_refused(FMU, e))?;
+    params::check(p, &interface, Which::Structural)?;
+    interface
+        .sized(p)
+        .map_err(|kind| ComponentError::param_refused(FMU, FmuError::new(path, kind)))
 }

@@ -1,20 +1,24 @@
 //! The values a component exchanges with its FMU at every release, laid out once: per FMI type,
 //! the value references and a buffer, and per port where its values are in it — so a release
 //! moves them without allocating.
+//!
+//! An i64 port into an FMI `Int32` input is converted visibly: a value beyond what an Int32
+//! holds is clamped to its nearest (`i32::MIN` or `i32::MAX`), and [`Values::take`] reports
+//! the first time it happens on each port, so the component logs it once.
 
 use modbot_grid::component::PortValue;
 
 use super::interface::{Kind, Port};
 
 /// One FMI type's value references and values.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct Typed<T> {
     pub refs: Vec<u32>,
     pub values: Vec<T>,
 }
 
 /// The values of one direction (the inputs, or the outputs), by FMI type.
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct Values {
     pub real: Typed<f64>,
     pub int32: Typed<i32>,
@@ -22,6 +26,19 @@ pub struct Values {
     pub boolean: Typed<bool>,
     /// Port by port: its FMI type, where its values start in that type's buffer, how many.
     slots: Vec<(Kind, usize, usize)>,
+    /// Port by port: whether a value was clamped on it already (and reported).
+    clamped: Vec<bool>,
+}
+
+/// A value clamped to what an FMI `Int32` holds, the first time on its port.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Clamped {
+    /// The port, in input port order.
+    pub port: usize,
+    /// The value it had.
+    pub value: i64,
+    /// The value the FMU is given.
+    pub to: i32,
 }
 
 impl Values {
@@ -35,15 +52,20 @@ impl Values {
                 Kind::Int32 => grow(&mut v.int32, &p.refs, len),
                 Kind::Int64 => grow(&mut v.int64, &p.refs, len),
                 Kind::Bool => grow(&mut v.boolean, &p.refs, len),
+                // No port has it (structural parameters only).
+                Kind::UInt64 => 0,
             };
             v.slots.push((p.kind, at, len));
+            v.clamped.push(false);
         }
         v
     }
 
-    /// Copies `ports` (the component's inputs, in port order) into the buffers.
-    pub fn take(&mut self, ports: &[PortValue]) {
-        for (&(kind, at, len), value) in self.slots.iter().zip(ports) {
+    /// Copies `ports` (the component's inputs, in port order) into the buffers. Returns the
+    /// first value clamped to an Int32 on a port where none was before.
+    pub fn take(&mut self, ports: &[PortValue]) -> Option<Clamped> {
+        let mut first = None;
+        for (port, (&(kind, at, len), value)) in self.slots.iter().zip(ports).enumerate() {
             match (kind, value) {
                 (Kind::Real, PortValue::F64(x)) => self.real.values[at] = *x,
                 (Kind::Real, PortValue::F64s(xs)) => {
@@ -51,7 +73,16 @@ impl Values {
                     self.real.values[at..at + n].copy_from_slice(&xs[..n]);
                 }
                 (Kind::Int32, PortValue::I64(i)) => {
-                    self.int32.values[at] = (*i).clamp(i32::MIN.into(), i32::MAX.into()) as i32
+                    let to = (*i).clamp(i32::MIN.into(), i32::MAX.into()) as i32;
+                    self.int32.values[at] = to;
+                    if i64::from(to) != *i && !self.clamped[port] {
+                        self.clamped[port] = true;
+                        first = first.or(Some(Clamped {
+                            port,
+                            value: *i,
+                            to,
+                        }));
+                    }
                 }
                 (Kind::Int64, PortValue::I64(i)) => self.int64.values[at] = *i,
                 (Kind::Bool, PortValue::Bool(b)) => self.boolean.values[at] = *b,
@@ -59,6 +90,7 @@ impl Values {
                 _ => {}
             }
         }
+        first
     }
 
     /// Copies the buffers into `ports` (the component's outputs, in port order).
@@ -98,6 +130,7 @@ mod tests {
             ty,
             kind,
             refs: refs.to_vec(),
+            shape: Vec::new(),
         }
     }
 
@@ -120,13 +153,23 @@ mod tests {
             PortValue::Bool(true),
             PortValue::F64s(vec![8.0, 9.0]),
         ];
-        sut.take(&inputs);
+        let clamped = sut.take(&inputs);
         assert_eq!(sut.real.values, [1.0, 2.0, 3.0, -1.5, 8.0, 9.0]);
         assert_eq!(
             sut.int32.values,
             [i32::MAX],
             "an i64 beyond Int32 is clamped"
         );
+        assert_eq!(
+            clamped,
+            Some(Clamped {
+                port: 1,
+                value: 1 << 40,
+                to: i32::MAX
+            }),
+            "and the first time is reported"
+        );
+        assert_eq!(sut.take(&inputs), None, "once per port");
         let mut outputs: Vec<PortValue> = ports.iter().map(|p| p.ty.zero()).collect();
         sut.give(&mut outputs);
         assert_eq!(outputs[0], inputs[0]);

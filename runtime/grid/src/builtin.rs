@@ -17,6 +17,10 @@
 //! | `vec_gain` | `u: f64[n]` | `y: f64[n]` = k · u | `n` (i64 1..=64, required), `k` (f64, required) |
 //! | `pack` | `a: f64`, `b: f64` | `v: f64[2]` = [a, b] | |
 //! | `sleeper` | `u: f64` | `y: f64` = u | `sleep_ms` (f64 ≥ 0, 0), `sleep_at` (i64, -1: never), `sleep_tracking` (i64: its first n tracking releases sleep, 0), `sleep_live` (bool: every release that is not tracking sleeps, false) |
+//!
+//! Until its first release's outputs are valid, a type puts out its declared start value
+//! ([`Component::initial_outputs`]): `counter` its `start`, `integrator` and `delay` their
+//! `initial`; the others 0.
 
 use std::f64::consts::PI;
 use std::time::Duration;
@@ -146,6 +150,11 @@ struct Counter {
 }
 
 impl Component for Counter {
+    /// `start`: no release has counted yet.
+    fn initial_outputs(&mut self, outputs: &mut [PortValue]) {
+        outputs[0] = PortValue::I64(self.y);
+    }
+
     fn step(&mut self, _: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
         self.y = self.y.wrapping_add(1);
         outputs[0] = PortValue::I64(self.y);
@@ -236,6 +245,11 @@ struct Integrator {
 }
 
 impl Component for Integrator {
+    /// `initial`: nothing integrated yet.
+    fn initial_outputs(&mut self, outputs: &mut [PortValue]) {
+        put(&mut outputs[0], self.y);
+    }
+
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         self.y += inputs[0].as_f64() * self.h;
         put(&mut outputs[0], self.y);
@@ -288,6 +302,11 @@ struct Delay {
 }
 
 impl Component for Delay {
+    /// `initial`: what its first release puts out too.
+    fn initial_outputs(&mut self, outputs: &mut [PortValue]) {
+        put(&mut outputs[0], self.last);
+    }
+
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         put(&mut outputs[0], self.last);
         self.last = inputs[0].as_f64();
@@ -432,6 +451,27 @@ mod tests {
         let mut p = Params::new();
         p.set_timing(0.5, period);
         p
+    }
+
+    #[test]
+    fn a_declared_start_value_is_the_initial_output_and_zero_otherwise() {
+        let initial = |type_name: &str, params: Params| {
+            let registry = grid_registry();
+            let info = registry.info(type_name, &params).unwrap();
+            let mut sut = registry.instantiate(type_name, &params).unwrap();
+            let mut outputs = info.zero_outputs();
+            sut.initial_outputs(&mut outputs);
+            outputs[0].clone()
+        };
+        let start = Params::new().with("start", ParamValue::I64(10));
+        assert_eq!(initial("counter", start), PortValue::I64(10));
+        for type_name in ["integrator", "delay"] {
+            let mut p = timing(1).with("initial", ParamValue::F64(-2.5));
+            p.set_timing(0.5, 1);
+            assert_eq!(initial(type_name, p), PortValue::F64(-2.5), "{type_name}");
+        }
+        let gain = timing(1).with("k", ParamValue::F64(3.0));
+        assert_eq!(initial("gain", gain), PortValue::F64(0.0));
     }
 
     #[test]

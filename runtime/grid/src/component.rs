@@ -376,6 +376,14 @@ pub trait Component: Send {
         Ok(())
     }
 
+    /// Called once after [`Component::initialise`], before any release: writes the outputs
+    /// valid until its first release's are (`outputs` hold the declared types, as zeros) —
+    /// its *initial outputs*: a declared start value, an FMU's outputs after initialisation.
+    /// By default they stay zeros. Not on the real-time path.
+    fn initial_outputs(&mut self, outputs: &mut [PortValue]) {
+        let _ = outputs;
+    }
+
     /// Released at `rel.tick`: `inputs` are the values valid then (in input port order, of
     /// the declared types); write every output (`outputs` hold the declared types, arrays at
     /// their lengths). Runs in the real-time path: must not allocate, block or read a clock

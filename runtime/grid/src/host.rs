@@ -12,6 +12,13 @@
 //! ([`Host::prepare_step`]), and switches to them at the first release of that generation.
 //! A release marked TRACK is stepped with [`Component::track`]; a component that reports an
 //! unsafe state afterwards answers with status UNSAFE.
+//!
+//! Before its first release's outputs are valid, a reader reads a component's *initial
+//! outputs* ([`Component::initial_outputs`], zeros unless the component says otherwise): the
+//! host publishes them as the version valid from 0 whenever it answers a warm-up release
+//! (PING), so every reader that subscribed by then — the coordinator's recorder, the hosts
+//! that answered the round before — holds them before tick 0 ([`Versions`] keeps them apart
+//! from the released versions).
 
 use core::time::Duration;
 
@@ -54,6 +61,8 @@ struct Hosted {
     component: Box<dyn Component>,
     inputs: Vec<PortValue>,
     outputs: Vec<PortValue>,
+    /// Its initial outputs: published as the version valid from 0.
+    initial: Vec<PortValue>,
     binding: Binding,
     /// The binding of the assembly being prepared: it replaces `binding` at the first release
     /// of its generation.
@@ -188,13 +197,16 @@ impl Host {
         let mut hosted = Vec::new();
         for c in mine {
             let cs = &spec.components[c];
-            let component = registry
-                .instantiate(&cs.type_name, &cs.params)
-                .map_err(|error| HostError::Instantiate {
-                    name: cs.name.clone(),
-                    error,
-                })?;
+            let mut component =
+                registry
+                    .instantiate(&cs.type_name, &cs.params)
+                    .map_err(|error| HostError::Instantiate {
+                        name: cs.name.clone(),
+                        error,
+                    })?;
             let out_types = spec.output_types(c);
+            let mut initial: Vec<PortValue> = out_types.iter().map(|t| t.zero()).collect();
+            component.initial_outputs(&mut initial);
             let sources = spec
                 .sources(c)
                 .into_iter()
@@ -207,7 +219,8 @@ impl Host {
                 period: cs.period.max(1),
                 component,
                 inputs: cs.info.inputs.iter().map(|p| p.ty.zero()).collect(),
-                outputs: out_types.iter().map(|t| t.zero()).collect(),
+                outputs: initial.clone(),
+                initial,
                 binding: Binding {
                     generation: spec.generation(),
                     sources,
@@ -468,6 +481,10 @@ impl Host {
         let n = release.tick.get();
         let generation = Generation(release.generation.get());
         if release.component.get() == PING {
+            // Before tick 0: the initial outputs reach every reader subscribed by now.
+            for h in &self.hosted {
+                publish(h, 0, 0)?;
+            }
             let done = Done::new(n, PING, Done::OK, 0, 0).of_generation(self.generation.0);
             return self.push_done(&done);
         }
@@ -547,17 +564,7 @@ impl Host {
             h.component.step(&rel, &h.inputs, &mut h.outputs);
         }
         let end = now();
-        let outputs = &h.outputs;
-        h.out.send(h.out_len, &mut |buf| {
-            let header = OutHeader {
-                valid_from: (n + h.period).into(),
-                release: n.into(),
-            };
-            buf[..OUT_HEADER_LEN].copy_from_slice(header.as_bytes());
-            if let Err(e) = write_record(outputs, &mut buf[OUT_HEADER_LEN..]) {
-                tracing::error!("outputs of component {c} not written: {e}");
-            }
-        })?;
+        publish(h, n + h.period, n)?;
         let status = if h.component.unsafe_state() {
             Done::UNSAFE
         } else {
@@ -578,6 +585,26 @@ impl Host {
         });
         self.push_done(&done)
     }
+}
+
+/// Publishes `h`'s outputs — its initial ones for version 0 — as valid from `valid_from`,
+/// released at `release`.
+fn publish(h: &Hosted, valid_from: u64, release: u64) -> Result<(), TransportError> {
+    let outputs = if valid_from == 0 {
+        &h.initial
+    } else {
+        &h.outputs
+    };
+    h.out.send(h.out_len, &mut |buf| {
+        let header = OutHeader {
+            valid_from: valid_from.into(),
+            release: release.into(),
+        };
+        buf[..OUT_HEADER_LEN].copy_from_slice(header.as_bytes());
+        if let Err(e) = write_record(outputs, &mut buf[OUT_HEADER_LEN..]) {
+            tracing::error!("outputs of component {} not written: {e}", h.index);
+        }
+    })
 }
 
 impl Drop for Host {

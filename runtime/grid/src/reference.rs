@@ -6,9 +6,11 @@
 //! The base tick is n = 0, 1, 2, …. A component of period k is released at every n with
 //! n % k == 0. Released at n, it reads for each input the output of its source that is valid
 //! at n, and its own outputs become valid at n + k, never earlier. Before its first outputs
-//! become valid (n < k), a component's outputs are the zero values of their types. So at tick
+//! become valid (n < k), a component's outputs are its *initial outputs*
+//! ([`Component::initial_outputs`]: a declared start value, an FMU's outputs after
+//! initialisation; the zero values of their types unless it says otherwise). So at tick
 //! n the valid outputs of X are those computed by X's release at the largest m with
-//! m + k_X ≤ n, or zeros if there is none.
+//! m + k_X ≤ n, or X's initial outputs if there is none.
 //!
 //! Within a tick the order of the releases does not matter: a release at n writes outputs
 //! valid from n + k > n, which no release at n can read. The run keeps two output buffers per
@@ -217,7 +219,7 @@ pub fn run(
     let base_ns = u64::try_from(spec.base_period.as_nanos()).unwrap_or(u64::MAX);
     let mut slots = Vec::with_capacity(spec.components.len());
     for (index, c) in spec.components.iter().enumerate() {
-        let component = registry
+        let mut component = registry
             .instantiate(&c.type_name, &c.params)
             .map_err(|error| ReferenceError::Instantiate {
                 component: c.name.clone(),
@@ -233,11 +235,13 @@ pub fn run(
                     })
             })
             .collect::<Result<Vec<_>, _>>()?;
+        let mut initial = c.info.zero_outputs();
+        component.initial_outputs(&mut initial);
         slots.push(Slot {
             component,
             period: c.period.max(1),
-            valid: c.info.zero_outputs(),
-            pending: c.info.zero_outputs(),
+            valid: initial.clone(),
+            pending: initial,
             pending_from: None,
             inputs: c.info.zero_inputs(),
             bindings,

@@ -7,6 +7,10 @@
 //! lockstep a reader is at most its own period behind, so twice the longest period of the two
 //! plus a margin covers it; a reader held up for longer (SIGSTOP, a starved process) finds
 //! the version gone and says so ([`Versions::get`] is `None`) instead of reading another.
+//!
+//! Version 0 is the source's initial outputs (what is valid before its first release's):
+//! zeros until a sample valid from 0 arrives (its host publishes one when it answers a
+//! warm-up release), kept apart from the ring, since no release overwrites it.
 
 use modbot_ipc_schema::grid::{read_record, OutHeader, PortValue};
 use zerocopy::FromBytes;
@@ -31,12 +35,13 @@ pub struct Versions {
     /// (valid_from, outputs), the newest overwriting the oldest; `u64::MAX`: empty.
     ring: Vec<(u64, Vec<PortValue>)>,
     next: usize,
-    zeros: Vec<PortValue>,
+    /// Version 0: the initial outputs.
+    initial: Vec<PortValue>,
 }
 
 impl Versions {
-    /// Keeps `depth` versions of what `sub` receives; `zeros` are the outputs before the first
-    /// version (and give every version its types).
+    /// Keeps `depth` versions of what `sub` receives; `zeros` are version 0 until the source's
+    /// initial outputs arrive (and give every version its types).
     pub fn new(sub: Sub, zeros: Vec<PortValue>, depth: usize) -> Versions {
         Versions {
             sub,
@@ -44,18 +49,23 @@ impl Versions {
                 .map(|_| (u64::MAX, zeros.clone()))
                 .collect(),
             next: 0,
-            zeros,
+            initial: zeros,
         }
     }
 
     /// Takes every sample that arrived into the ring. No allocation: the ring's values have
     /// their types and lengths already.
     pub fn take_arrived(&mut self) {
-        let (ring, next) = (&mut self.ring, &mut self.next);
+        let (ring, next, initial) = (&mut self.ring, &mut self.next, &mut self.initial);
         while let Ok(true) = self.sub.receive(&mut |sample| {
             let Ok((header, record)) = OutHeader::ref_from_prefix(sample) else {
                 return;
             };
+            if header.valid_from.get() == 0 {
+                // The initial outputs (a record that does not fit leaves the last ones).
+                let _ = read_record(record, initial);
+                return;
+            }
             let slot = &mut ring[*next];
             if read_record(record, &mut slot.1).is_ok() {
                 slot.0 = header.valid_from.get();
@@ -66,12 +76,12 @@ impl Versions {
         }) {}
     }
 
-    /// Takes what arrived, then lends version `want` (0: the initial zeros); `None` if it is
-    /// not here (never arrived, or overwritten by newer ones).
+    /// Takes what arrived, then lends version `want` (0: the initial outputs); `None` if it
+    /// is not here (never arrived, or overwritten by newer ones).
     pub fn get(&mut self, want: u64) -> Option<&[PortValue]> {
         self.take_arrived();
         if want == 0 {
-            return Some(&self.zeros);
+            return Some(&self.initial);
         }
         self.ring
             .iter()
