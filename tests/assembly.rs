@@ -593,3 +593,38 @@ fn a_run_of_n_ticks_whose_grid_faulted_or_that_stopped_short_exits_non_zero_with
     );
     assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
 }
+
+/// SIGKILL of the bus bridge after assembly switches: the supervisor restarts it with the
+/// running assembly (generation 3 here), not the one the system started with, so the grid
+/// serves it again: its fresh drives are enabled and the robot is operational.
+#[test]
+fn a_bus_bridge_killed_after_a_switch_comes_back_with_the_running_assembly() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("busrestart");
+    let up = up_with(&mut sut, &arm(), Clock::RealTime, &[]);
+    sut.modbot_ok(&["assembly", "switch", "ptp"]);
+    sut.modbot_ok(&["assembly", "switch", "hold"]);
+    let pid: u32 = sut
+        .ls_field("host_bus", "PID")
+        .and_then(|p| p.parse().ok())
+        .expect("the bus bridge runs");
+    sut.signal(pid, Signal::SIGKILL);
+    sut.wait_for("the bus bridge restarted", Duration::from_secs(60), || {
+        sut.ls_field("host_bus", "PID")
+            .and_then(|p| p.parse::<u32>().ok())
+            .is_some_and(|p| p != pid)
+    });
+    sut.wait_for(
+        "the restarted bridge's drives enabled",
+        Duration::from_secs(60),
+        || all_axes(&bus_ledger(&sut), "operation enabled"),
+    );
+    let ledger = bus_ledger(&sut);
+    assert!(ledger.contains("assembly generation 3"), "{ledger}");
+    assert!(
+        sut.modbot_ok(&["robot"])
+            .starts_with("operational since tick"),
+        "{ledger}"
+    );
+    down(&mut sut, up);
+}

@@ -81,7 +81,7 @@ fn moser_patrols_detects_the_intruder_without_a_collision_and_ends_cleanly() {
     let at = |what: &str| -> f64 {
         let rest = &alert[alert.find(what).map_or(0, |i| i + what.len())..];
         rest.trim_start()
-            .split(|c: char| c == ',' || c == ')')
+            .split([',', ')'])
             .next()
             .unwrap_or("")
             .trim()

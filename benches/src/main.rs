@@ -39,7 +39,7 @@
 //!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
 //!   restart), [`swaps`] (6, assembly swaps), [`arm`] (7, the arm holding; the grid's
 //!   [`lockstep`] runs belong to 3), [`soak`] (8, a fault a second for minutes: calls exactly
-//!   once, memory, files), [`fmu`] (9, an FMU component against a built-in doing the same),
+//!   once, memory, files, the robot reset after each stop, no motion ok across one), [`fmu`] (9, an FMU component against a built-in doing the same),
 //!   [`ethercat`] (10, the EtherCAT bus cycle against a raw AF_PACKET ping-pong, and its jitter
 //!   against a bare timerfd loop, on a veth pair against the slave emulator).
 
@@ -135,7 +135,8 @@ enum Cmd {
     Swaps(RunArgs),
     /// 7: the arm holding: bus cycles missed against a bare real-time loop.
     Arm(RunArgs),
-    /// 8: MOSER and the arm under a fault a second: calls lost or doubled, restarts, memory.
+    /// 8: MOSER and the arm under a fault a second: calls lost or doubled, restarts, memory,
+    /// the robot's resets and the motions of a program.
     Soak(SoakArgs),
     /// 9: an FMU component's step and release to done against a built-in doing the same.
     Fmu(RunArgs),

@@ -323,10 +323,11 @@ impl Scratch {
         })
     }
 
-    /// A path in the temporary directory for a socket or file, removed with the scratch.
+    /// A path in the temporary directory for a socket, file or directory, removed with the
+    /// scratch.
     pub fn path(&mut self, what: &str) -> PathBuf {
         let path = std::env::temp_dir().join(format!("{}_{what}", self.domain.name()));
-        let _ = std::fs::remove_file(&path);
+        remove(&path);
         self.paths.push(path.clone());
         path
     }
@@ -335,8 +336,17 @@ impl Scratch {
     pub fn clean(&self) {
         self.domain.remove_files();
         for p in &self.paths {
-            let _ = std::fs::remove_file(p);
+            remove(p);
         }
+    }
+}
+
+/// Removes the file or directory at `path`, if there is one.
+fn remove(path: &Path) {
+    if path.is_dir() {
+        let _ = std::fs::remove_dir_all(path);
+    } else {
+        let _ = std::fs::remove_file(path);
     }
 }
 

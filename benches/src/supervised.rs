@@ -37,11 +37,25 @@ impl Supervised {
         args: &[String],
         grace: Duration,
     ) -> anyhow::Result<Supervised> {
+        Supervised::start_with_env(opts, domain, file, args, grace, &[])
+    }
+
+    /// Like [`Supervised::start`], with variables `env` for `modbot up` (which its modules
+    /// inherit): the soak's `MODBOT_DATA_DIR`, say.
+    pub fn start_with_env(
+        opts: &Opts,
+        domain: &Domain,
+        file: &Path,
+        args: &[String],
+        grace: Duration,
+        env: &[(&str, &Path)],
+    ) -> anyhow::Result<Supervised> {
         let modbot = procs::binary(opts, "modbot")?;
         let mut cmd = Command::new(&modbot);
         cmd.arg("up")
             .arg(file)
             .args(args)
+            .envs(env.iter().copied())
             .env("MODBOT_DOMAIN", domain.name())
             .env("RUST_LOG", "info")
             .stdin(Stdio::null())
@@ -307,7 +321,7 @@ impl Drop for Supervised {
 
 /// `cmd`'s process gets SIGTERM when this thread ends (so a killed benchmark stops its
 /// systems).
-fn die_with_parent(cmd: &mut Command) {
+pub(crate) fn die_with_parent(cmd: &mut Command) {
     use std::os::unix::process::CommandExt;
     // SAFETY: the closure runs in the child between fork and exec; it only calls prctl, which is
     // async-signal-safe, and allocates nothing.

@@ -482,8 +482,8 @@ mod tests {
             t.measured,
             "no grid.tick_error row with fifo=true hogs=0 in this run"
         );
-        // 15, and the missed cycles of the EtherCAT bus at 6 and 64 slaves, 1 and 4 kHz.
-        assert_eq!(sut.targets.len(), 19);
+        // 16, and the missed cycles of the EtherCAT bus at 6 and 64 slaves, 1 and 4 kHz.
+        assert_eq!(sut.targets.len(), 20);
         assert!(sut.targets.iter().all(|t| t.met.is_none()));
     }
 

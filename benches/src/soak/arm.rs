@@ -3,9 +3,10 @@
 //! from it.
 //!
 //! The bus bridge stops every drive when no tick came for 3 base periods or when the assembly
-//! faulted, and stays stopped until a switch to `hold` or until its own process is restarted
-//! (a new bus bridge starts with fresh drives, which the `hold` assembly enables). The soak
-//! switches nothing: it counts the safe stops and the seconds the arm spent in one.
+//! faulted, and holds them until an operator's reset (no assembly switch ends a stop) or until
+//! its own process is restarted (a new bus bridge starts with fresh drives, which the running
+//! assembly enables). Here the safe stops are counted as the ledger shows them, and the
+//! samples the arm spent in one; [`super::robot`] resets the robot after each.
 
 use std::time::Duration;
 

@@ -16,22 +16,35 @@
 //! - **Memory** ([`samples`]): every second the Rss of every process of the system and the
 //!   domain's /dev/shm files; growth over the last half; files left after the stop.
 //! - **The arm** ([`arm`]): every second the bus ledger; the safe stops it went into.
+//! - **The robot** ([`robot`]): every second its state; after a safe stop or a fault the soak
+//!   resets it, as an operator would, and keeps when each stop began and when the robot was
+//!   operational again.
+//! - **Motions** ([`motions`]): a robot program moves the arm back and forth without end,
+//!   started again whenever a refused or failed motion ends it; at the end its runs in
+//!   assembly data are judged, and an ok motion across a stop is a false ok.
 //! - **The note** ([`notes`]): every count behind the rows, the restarts by cause as the
-//!   supervisor printed them ([`ends`]), the memory windows, the arm's safe stops.
+//!   supervisor printed them ([`ends`]), the memory windows, the arm's safe stops, the resets
+//!   and the motions.
 //!
-//! Rows (`soak.*`, counts and bytes; each compared with the row it is a share of): faults by
-//! kind, calls issued / acknowledged / executed / lost / duplicated, restarts, Rss and /dev/shm
-//! at the middle and the end, files left, samples of the arm in a safe stop. `soak_faults.tsv`
-//! (every fault), `soak_memory.tsv` (every sample), `soak_processes.tsv` (every process of
-//! every sample), `soak_bus.tsv` (the bus ledger's first line every second) and
-//! `soak_supervisor.log` (the supervisor's own lines) go next to the report.
+//! Rows ([`rows`]: `soak.*`, counts and bytes, each compared with the row it is a share of):
+//! faults by kind, calls issued / acknowledged / executed / lost / duplicated, restarts, Rss
+//! and /dev/shm at the middle and the end, files left, samples of the arm in a safe stop, the
+//! robot's stops / recoveries / resets refused, the grid time from a stop to operational again,
+//! the motions by outcome. `soak_faults.tsv` (every fault), `soak_memory.tsv` (every sample),
+//! `soak_processes.tsv` (every process of every sample), `soak_bus.tsv` (the bus ledger's first
+//! line every second), `soak_stops.tsv` (every stop and how it ended), `soak_runs.tsv` (every
+//! command run of the program), `soak_program.log` (its output) and `soak_supervisor.log` (the
+//! supervisor's own lines) go next to the report.
 
 mod arm;
 mod driver;
 mod ends;
 mod inject;
 mod journal;
+mod motions;
 mod notes;
+mod robot;
+mod rows;
 mod samples;
 mod system;
 mod targets;
@@ -45,7 +58,7 @@ use modbot_runtime::supervisor::status;
 
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};
-use crate::report::{Report, Row};
+use crate::report::Report;
 use crate::supervised::Supervised;
 
 pub use targets::targets;
@@ -80,6 +93,17 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let examples = system::Examples::read()?;
     std::fs::write(&file, system::compose(&examples, &journal_file))
         .with_context(|| format!("cannot write {}", file.display()))?;
+    let data_dir = scratch.path("data");
+    std::fs::create_dir_all(&data_dir)
+        .with_context(|| format!("cannot make {}", data_dir.display()))?;
+    std::fs::create_dir_all(&opts.out)?;
+    let mut program = motions::Program::new(
+        opts,
+        &scratch.path("program.lua"),
+        scratch.domain.name(),
+        &data_dir,
+        &opts.out.join("soak_program.log"),
+    )?;
     let args: Vec<String> = [
         "--var".to_owned(),
         format!("domain={}", scratch.domain.name()),
@@ -87,7 +111,15 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         "endless=1".to_owned(),
     ]
     .into();
-    let mut sys = Supervised::start(opts, &scratch.domain, &file, &args, Duration::from_secs(30))?;
+    let env = [(modbot_data::DATA_DIR_ENV, data_dir.as_path())];
+    let mut sys = Supervised::start_with_env(
+        opts,
+        &scratch.domain,
+        &file,
+        &args,
+        Duration::from_secs(30),
+        &env,
+    )?;
     sys.wait_up(Duration::from_secs(120))?;
     let up_line = sys
         .lines_with("module(s) up in")
@@ -99,6 +131,7 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let targets = inject::targets(first.iter().map(|r| r.name.as_str()));
     let run = soak(
         &mut sys,
+        &mut program,
         Duration::from_secs_f64(minutes * 60.0),
         seed,
         targets,
@@ -118,8 +151,13 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         .with_context(|| format!("cannot read the journal {}", journal_file.display()))?;
     let (executed, unreadable) = journal::parse(&text);
     let tally = journal::tally(run.calls.issued, &run.calls.acknowledged, &executed);
-    std::fs::create_dir_all(&opts.out)?;
+    let runs = program.runs().unwrap_or_else(|e| {
+        report.note(format!("soak: the program's runs could not be read: {e:#}"));
+        Vec::new()
+    });
+    let moves = motions::tally(&runs, &run.robot.spans());
     write_logs(&opts.out, &run)?;
+    write_robot_logs(&opts.out, &run.robot, &runs)?;
     std::fs::write(
         opts.out.join("soak_supervisor.log"),
         supervisor_lines.join("\n") + "\n",
@@ -131,10 +169,12 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         ("minutes", serde_json::Value::from(minutes)),
         ("seed", serde_json::Value::from(seed)),
     ];
-    push_rows(report, &params, &run, &tally, &ends, left.len());
+    rows::push_rows(report, &params, &run, &tally, &ends, left.len(), &moves);
     report.note(notes::note(&notes::Facts {
         run: &run,
         tally: &tally,
+        moves: &moves,
+        program: &program,
         ends: &ends,
         unreadable,
         minutes,
@@ -157,12 +197,16 @@ pub(crate) struct Run {
     bus: Vec<arm::Seen>,
     /// `supervisor.status` calls that failed (the table of the second before is used then).
     status_errors: Vec<String>,
+    /// The robot's states, stops and resets.
+    robot: robot::Watch,
 }
 
-/// Injects a fault and takes a sample every second for `span`, while the driver calls the
-/// journal; then resumes what it stopped and collects the driver's calls.
+/// Injects a fault and takes a sample every second for `span`, resets the robot after a stop
+/// and keeps the program moving it, while the driver calls the journal; then stops the
+/// program, resumes what it stopped and collects the driver's calls.
 fn soak(
     sys: &mut Supervised,
+    program: &mut motions::Program,
     span: Duration,
     seed: u64,
     targets: Vec<inject::Target>,
@@ -175,10 +219,14 @@ fn soak(
     let mut next = started;
     let mut rows: Vec<status::Row> = Vec::new();
     let (mut samples, mut bus, mut status_errors) = (Vec::new(), Vec::new(), Vec::new());
+    let mut watch = robot::Watch::default();
     while started.elapsed() < span {
         injector.resume(false);
-        if Instant::now() >= next {
-            next += EVERY;
+        let now = Instant::now();
+        if now >= next {
+            // A second that took longer (a reset waiting for the grid) is not made up for
+            // with a burst of faults.
+            next = (next + EVERY).max(now + EVERY / 2);
             match sys.status() {
                 Ok(r) => rows = r,
                 Err(e) => status_errors.push(format!("{e:#}")),
@@ -186,6 +234,8 @@ fn soak(
             let at = started.elapsed();
             samples.push(samples::Sample::take(at, sys.up_pid(), &rows, &domain));
             bus.extend(arm::read(at, sys, &rows, |pid| injector.is_stopped(pid)));
+            watch.second(sys, &rows, |pid| injector.is_stopped(pid))?;
+            program.keep_running(at)?;
             if at >= EVERY {
                 injector.inject(sys, &rows)?;
             }
@@ -195,6 +245,7 @@ fn soak(
         }
         sys.sleep(Duration::from_millis(10))?;
     }
+    program.stop()?;
     injector.resume(true);
     let calls = driver.finish().context("the soak's calls")?;
     Ok(Run {
@@ -204,72 +255,8 @@ fn soak(
         samples,
         bus,
         status_errors,
+        robot: watch,
     })
-}
-
-fn push_rows(
-    report: &mut Report,
-    params: &[(&str, serde_json::Value)],
-    run: &Run,
-    tally: &journal::Tally,
-    ends: &ends::Ends,
-    left: usize,
-) {
-    let row = |name: &str, value: u64, unit: &'static str| {
-        let mut r = Row::single(name, value).unit(unit);
-        for (k, v) in params {
-            r = r.param(k, v.clone());
-        }
-        r
-    };
-    let count = |name: &str, value: u64| row(name, value, "count");
-    let i = &run.injected;
-    let faults: u64 = i.by_kind.values().sum();
-    report.push(count("soak.picks", faults + i.skipped).is_baseline());
-    report.push(count("soak.faults", faults).against("soak.picks", &[]));
-    for kind in inject::Kind::ALL {
-        let n = i.by_kind.get(&kind).copied().unwrap_or(0);
-        let name = format!("soak.faults_{}", kind.name());
-        report.push(count(&name, n).against("soak.faults", &[]));
-    }
-    report.push(count("soak.restarts", ends.total()).against("soak.faults", &[]));
-    report.push(count("soak.calls_issued", tally.issued).is_baseline());
-    for (name, n) in [
-        ("soak.calls_acknowledged", tally.acknowledged),
-        ("soak.calls_executed", tally.executed),
-    ] {
-        report.push(count(name, n).against("soak.calls_issued", &[]));
-    }
-    report.push(
-        count("soak.calls_lost", tally.lost.len() as u64).against("soak.calls_acknowledged", &[]),
-    );
-    report.push(
-        count("soak.calls_duplicated", tally.duplicated.len() as u64)
-            .against("soak.calls_executed", &[]),
-    );
-    report.push(
-        count("soak.calls_misanswered", run.calls.misanswered.len() as u64)
-            .against("soak.calls_acknowledged", &[]),
-    );
-    let (Some(w), Some(end)) = (samples::windows(&run.samples), run.samples.last()) else {
-        report.note("soak: too few samples for the memory rows");
-        return;
-    };
-    for (what, g) in [
-        ("rss", w.survivors()),
-        ("rss_all", w.everyone()),
-        ("shm", w.shm()),
-    ] {
-        let (mid_name, end_name) = (format!("soak.{what}_mid"), format!("soak.{what}_end"));
-        report.push(row(&mid_name, g.mid, "bytes").is_baseline());
-        report.push(row(&end_name, g.end, "bytes").against(&mid_name, &[]));
-    }
-    report.push(count("soak.files_end", end.shm_files as u64).is_baseline());
-    report.push(count("soak.files_left", left as u64).against("soak.files_end", &[]));
-    let arm = arm::summarize(&run.bus);
-    report.push(count("soak.arm_samples", arm.answered as u64).is_baseline());
-    report
-        .push(count("soak.arm_in_safe_stop", arm.stopped as u64).against("soak.arm_samples", &[]));
 }
 
 /// `soak_faults.tsv`, `soak_memory.tsv`, `soak_processes.tsv` and `soak_bus.tsv` into `dir`.
@@ -310,6 +297,45 @@ fn write_logs(dir: &Path, run: &Run) -> anyhow::Result<()> {
         let _ = writeln!(bus, "{:.3}\t{}\t{}", s.at.as_secs_f64(), s.pid, s.line);
     }
     std::fs::write(dir.join("soak_bus.tsv"), bus)?;
+    Ok(())
+}
+
+/// `soak_stops.tsv` (every stop the robot state showed, and how it ended) and `soak_runs.tsv`
+/// (every command run of the program) into `dir`.
+fn write_robot_logs(dir: &Path, w: &robot::Watch, runs: &[modbot_data::Run]) -> anyhow::Result<()> {
+    let mut stops = String::from(
+        "bridge_pid\tkind\tsince_tick\toperational_tick\tended_by\treset_ticks\tcause\n",
+    );
+    for s in &w.stops {
+        let (tick, how) = match s.end {
+            Some((t, robot::Ended::Reset)) => (t.to_string(), "reset"),
+            Some((t, robot::Ended::Restart)) => (t.to_string(), "restart"),
+            None => (String::new(), "still held"),
+        };
+        let _ = writeln!(
+            stops,
+            "{}\t{}\t{}\t{tick}\t{how}\t{}\t{}",
+            s.pid,
+            if s.fault { "fault" } else { "safe_stop" },
+            s.since_tick,
+            s.reset_ticks.map(|t| t.to_string()).unwrap_or_default(),
+            s.cause
+        );
+    }
+    std::fs::write(dir.join("soak_stops.tsv"), stops)?;
+    let mut table = String::from("command\tassembly\tstart_tick\tend_tick\toutcome\n");
+    for r in runs {
+        let _ = writeln!(
+            table,
+            "{}\t{}\t{}\t{}\t{}",
+            r.command,
+            r.assembly,
+            r.start_tick,
+            r.end_tick,
+            r.outcome.replace(['\t', '\n'], " ")
+        );
+    }
+    std::fs::write(dir.join("soak_runs.tsv"), table)?;
     Ok(())
 }
 

@@ -1,18 +1,21 @@
 //! The soak's note in the report: what ran, every count behind the rows, and what a reader
 //! needs to judge them (reasons of refused and failed calls, restarts by cause, memory windows,
-//! the arm's safe stops).
+//! the arm's safe stops, the resets and what they ended, the motions).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitStatus;
 
 use super::ends::Ends;
-use super::{arm, driver, inject, journal, samples, Run};
+use super::{arm, driver, inject, journal, motions, robot, samples, Run};
 
 /// What the note is written from.
 pub struct Facts<'a> {
     pub run: &'a Run,
     pub tally: &'a journal::Tally,
+    /// The program's motions, judged.
+    pub moves: &'a motions::Tally,
+    pub program: &'a motions::Program,
     pub ends: &'a Ends,
     /// Lines of the journal that were not a number.
     pub unreadable: u64,
@@ -52,10 +55,12 @@ pub fn note(f: &Facts<'_>) -> String {
     );
     let _ = write!(
         note,
-        " {} {} {} Bus at the end: {}. `modbot up` ended {}.",
+        " {} {} {} {} {} Bus at the end: {}. `modbot up` ended {}.",
         describe_faults(run, f.ends),
         describe_memory(run),
         describe_arm(run),
+        describe_resets(&run.robot),
+        describe_motions(f.moves, f.program),
         f.ledger.lines().next().unwrap_or_default().trim(),
         f.up_status
             .map_or_else(|| "(not started)".to_owned(), |s| s.to_string()),
@@ -228,12 +233,11 @@ fn describe_memory(run: &Run) -> String {
 fn describe_arm(run: &Run) -> String {
     let a = arm::summarize(&run.bus);
     format!(
-        "The arm: the bus bridge answered {} samples, {} of them in a safe stop; {} safe stops \
-         ({}). The bridge's watchdog stops the drives after 3 base periods without a tick: on \
-         this 2-core VM the arm alone goes into one now and then (the arm benchmark's bare \
-         real-time loop misses ticks too), a stalled bus bridge goes into one when it resumes, \
-         and the soak switches nothing back to `hold` (a restarted bridge starts with fresh \
-         drives, which `hold` enables).",
+        "The arm: the bus bridge answered {} samples, {} of them in a safe stop (its ledger); \
+         {} safe stops ({}). The bridge's watchdog stops the drives after 3 base periods \
+         without a tick: on this 2-core VM the arm alone goes into one now and then (the arm \
+         benchmark's bare real-time loop misses ticks too), and a stalled bus bridge goes into \
+         one when it resumes; the soak resets it (below).",
         a.answered,
         a.stopped,
         a.safe_stops(),
@@ -247,4 +251,114 @@ fn describe_arm(run: &Run) -> String {
                 .join(", ")
         },
     )
+}
+
+/// The stops the robot state showed, the resets and what they ended.
+fn describe_resets(w: &robot::Watch) -> String {
+    let list = |items: &mut dyn Iterator<Item = String>| {
+        let v: Vec<String> = items.collect();
+        if v.is_empty() {
+            "none".to_owned()
+        } else {
+            v.join(", ")
+        }
+    };
+    let (by_restart, open) = w.by_restart_and_open();
+    let (recovery, reset) = w.histograms();
+    let ms = |h: &hdrhistogram::Histogram<u64>, q: f64| h.value_at_quantile(q) as f64 / 1e6;
+    let mut s = format!(
+        "Resets: the robot state (method `robot` of the bus bridge, once a second unless the \
+         bridge was stopped) answered {} times (not: {}); {} stops ({} faults), by cause: {}. \
+         The soak asked {} resets (at most one a second, answer within {} ms): {} refused or \
+         unanswered ({}); {} stops ended by a reset, {} by a restart of the bus bridge, {} still \
+         held at the end; fresh bus bridges (after a SIGKILL): {}, {} of them never operational. From the stop to operational again (grid time, \
+         {} recoveries): p50 {:.0} ms, p99 {:.0} ms, max {:.0} ms; the resets' own share, from \
+         their beginning to every drive enabled: p50 {:.0} ms, max {:.0} ms. Switches to `hold` \
+         after a reset refused for a faulted assembly: {}{}. Every stop: soak_stops.tsv.",
+        w.answered,
+        list(&mut w.unanswered.iter().map(|(k, n)| format!("{k} {n}"))),
+        w.stops.len(),
+        w.stops.iter().filter(|s| s.fault).count(),
+        list(&mut w.causes().into_iter().map(|(c, n)| format!("{c} {n}"))),
+        w.resets,
+        1500,
+        w.refused.values().sum::<u64>(),
+        list(&mut w.refused.iter().map(|(k, n)| format!("{k} {n}"))),
+        w.recovered().count(),
+        by_restart,
+        open,
+        w.restarts.len(),
+        w.restarts.iter().filter(|r| r.operational.is_none()).count(),
+        recovery.len(),
+        ms(&recovery, 0.5),
+        ms(&recovery, 0.99),
+        ms(&recovery, 1.0),
+        ms(&reset, 0.5),
+        ms(&reset, 1.0),
+        w.switches.0,
+        if w.switches.1.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} failed: {})", w.switches.1.len(), w.switches.1[0])
+        },
+    );
+    if w.lagged > 0 {
+        let _ = write!(
+            s,
+            " After {} of the resets' answers the state still said `disabled` for a moment (the \
+             bridge publishes what `robot` answers every 20 ms, the reset's answer at once).",
+            w.lagged
+        );
+    }
+    if !w.not_back.is_empty() {
+        let _ = write!(
+            s,
+            " Resets answered ok after which the robot was not operational: {} ({}).",
+            w.not_back.len(),
+            w.not_back[0]
+        );
+    }
+    s
+}
+
+/// The program's motions by outcome, and the false oks.
+fn describe_motions(m: &motions::Tally, p: &motions::Program) -> String {
+    let mut s = format!(
+        "Motions: `modbot program run` moving the arm between two poses without end \
+         (soak_program.log), started {} times (exits: {}); {} motions: {} ok, {} refused (the \
+         robot not operational), {} failed because the robot left operational, {} failed \
+         otherwise, {} stopped by the soak's end; {} reported ok across a stop (must be 0); {} \
+         runs of other commands. Every run: soak_runs.tsv.",
+        p.starts,
+        p.exits
+            .iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        m.motions,
+        m.ok,
+        m.refused,
+        m.left_operational,
+        m.failed.len(),
+        m.interrupted,
+        m.false_ok.len(),
+        m.others,
+    );
+    if p.exits.keys().any(|k| k.contains("101")) {
+        s.push_str(
+            " Exit status 101 is a panic of `modbot program run` (its output is in the log); the \
+             run it was in is not in assembly data.",
+        );
+    }
+    if !m.failed.is_empty() {
+        let _ = write!(s, " Failed otherwise, the first: {}.", m.failed[0]);
+    }
+    if !m.false_ok.is_empty() {
+        let _ = write!(
+            s,
+            " Ok across a stop (start tick, end tick, the stop): {:?}.",
+            &m.false_ok[..m.false_ok.len().min(5)]
+        );
+    }
+    s
 }

@@ -1,5 +1,6 @@
 //! The soak's targets from the issue: no call lost, none duplicated, Rss over the last half
-//! grows by 5 % at most, no file left after the stop.
+//! grows by 5 % at most, no file left after the stop, no motion reported ok across a stop of
+//! the robot.
 
 use crate::report::{Report, Target};
 use crate::targets::{absolute, ratio_text, rows_with, target};
@@ -22,6 +23,10 @@ pub fn targets(report: &Report) -> Vec<Target> {
         zero(
             "soak: files of the domain left after the stop",
             "soak.files_left",
+        ),
+        zero(
+            "soak: motions reported ok across a stop of the robot",
+            "soak.motions_false_ok",
         ),
     ]
 }
@@ -62,17 +67,19 @@ mod tests {
     use crate::report::Row;
 
     #[test]
-    fn a_lost_call_misses_its_target_and_a_small_growth_meets_its() {
+    fn a_lost_call_misses_its_target_and_a_small_growth_and_no_false_ok_meet_theirs() {
         let mut r = Report::default();
         r.push(Row::single("soak.calls_lost", 1).unit("count"));
         r.push(Row::single("soak.calls_duplicated", 0).unit("count"));
         r.push(Row::single("soak.rss_mid", 100 << 20).unit("bytes"));
         r.push(Row::single("soak.rss_end", 103 << 20).unit("bytes"));
+        r.push(Row::single("soak.motions_false_ok", 0).unit("count"));
         let sut = targets(&r);
         assert_eq!(sut[0].met, Some(false));
         assert_eq!(sut[1].met, Some(true));
         assert_eq!(sut[2].met, Some(true), "{}", sut[2].measured);
         assert!(sut[2].measured.starts_with("+3.0 %"), "{}", sut[2].measured);
         assert_eq!(sut[3].met, None);
+        assert_eq!(sut[4].met, Some(true));
     }
 }

@@ -94,8 +94,8 @@ pub struct Bridge {
     last_miss: (u64, u64),
     /// Cycles since the last switch (a velocity step needs two cycles of one assembly).
     cycles_in_assembly: u64,
-    /// When the view was last published, and the switches and safe stop it had then.
-    published: (u64, usize, bool),
+    /// When the view was last published, and the switches and robot state it had then.
+    published: (u64, usize, usize),
     /// Silence after which the coordinator counts as lost, ns.
     lost_after_ns: u64,
     /// The grid runs in lockstep: releases come as fast as the grid goes, so gaps between
@@ -143,7 +143,7 @@ impl Bridge {
             before_target: vec![0.0; n],
             last_miss: (0, 0),
             cycles_in_assembly: 0,
-            published: (0, 0, false),
+            published: (0, 0, usize::MAX),
             lost_after_ns: LOST_AFTER * period_ns.max(1),
             lockstep: false,
             last_tick: 0,
@@ -698,14 +698,14 @@ impl Bridge {
     }
 
     /// [`Bridge::publish`] every [`PUBLISH_EVERY_NS`] at `now_ns`, and at once after a switch or
-    /// a safe stop.
+    /// a change of the robot state (a stop, the end of a reset).
     pub fn publish_due(&mut self, now_ns: u64, view: &Mutex<BusView>) {
-        let changed =
-            self.published.1 != self.switches.len() || self.published.2 != self.safe_stop.is_some();
+        let state = self.state_code();
+        let changed = self.published.1 != self.switches.len() || self.published.2 != state;
         if changed || now_ns.saturating_sub(self.published.0) >= PUBLISH_EVERY_NS {
             if let Ok(mut v) = view.try_lock() {
                 v.copy_from(self);
-                self.published = (now_ns, self.switches.len(), self.safe_stop.is_some());
+                self.published = (now_ns, self.switches.len(), state);
             }
         }
     }

@@ -405,11 +405,9 @@ fn execute_call(
     call.run.start_tick = start;
 
     // Until it is done.
-    let dt = shared
-        .borrow_mut()
-        .robot
-        .base_period_s()
-        .map_err(|e| call.fail(e))?;
+    // Each borrow ends before a failure is recorded (which borrows again).
+    let dt = shared.borrow_mut().robot.base_period_s();
+    let dt = dt.map_err(|e| call.fail(e))?;
     let done = def.raw_get::<Option<Function>>("done")?;
     let r = lua.create_table()?;
     r.raw_set("start_tick", start)?;
@@ -419,7 +417,8 @@ fn execute_call(
         if shared.borrow().interrupt.is_set() {
             return Err(call.fail("interrupted (Ctrl-C)"));
         }
-        let tick = shared.borrow_mut().robot.tick().map_err(|e| call.fail(e))?;
+        let tick = shared.borrow_mut().robot.tick();
+        let tick = tick.map_err(|e| call.fail(e))?;
         let elapsed = tick.saturating_sub(start) as f64 * dt;
         r.raw_set("tick", tick)?;
         r.raw_set("elapsed", elapsed)?;
@@ -438,7 +437,8 @@ fn execute_call(
         }
         if finished {
             // The condition was read after the tick: the grid's tick when it held.
-            let now = shared.borrow_mut().robot.tick().map_err(|e| call.fail(e))?;
+            let now = shared.borrow_mut().robot.tick();
+            let now = now.map_err(|e| call.fail(e))?;
             if watched {
                 call.still_operational(start)?;
             }
@@ -459,11 +459,8 @@ fn execute_call(
         }
         if fault_asked.elapsed() >= FAULT_POLL {
             fault_asked = Instant::now();
-            let fault = shared
-                .borrow_mut()
-                .robot
-                .fault()
-                .map_err(|e| call.fail(e))?;
+            let fault = shared.borrow_mut().robot.fault();
+            let fault = fault.map_err(|e| call.fail(e))?;
             if let Some(why) = fault {
                 return Err(call.fail(format!("the assembly faulted: {why}")));
             }

@@ -1,9 +1,10 @@
 //! The supervisor's own module, `supervisor` in the domain: its methods (`status`, `down`,
-//! and the hosts' `spawn_host` and `retire`) and the state they share with the supervisor.
+//! and the hosts' `spawn_host`, `retire` and `current_assembly`) and the state they share with
+//! the supervisor.
 
 use modbot_ipc_schema::{Addr, Args, Value};
 
-use super::hosts::{retire_method, spawn_host_method};
+use super::hosts::{current_assembly_method, retire_method, spawn_host_method};
 use super::shared::Shared;
 use super::status;
 use super::{relay, SupervisorError};
@@ -30,6 +31,7 @@ pub(super) fn open_endpoint(
             .method("down", down_method)
             .method("spawn_host", spawn_host_method)
             .method("retire", retire_method)
+            .method("current_assembly", current_assembly_method)
             .on_done(relay::on_done)
             .open(transport.clone(), Shared::default());
         match opened {

@@ -1,6 +1,8 @@
 //! The host processes of assemblies, started and stopped at the coordinator's request while
 //! the system runs: `spawn_host(host, assembly, generation[, program])` and `retire(module)`,
-//! handled between the supervisor's other work.
+//! handled between the supervisor's other work; and `current_assembly(assembly, generation)`:
+//! after a switch, a host of the system's own components (the bus bridge, the recorder) that
+//! dies is restarted with the running assembly, not the one the system started with.
 
 use modbot_grid::component::Generation;
 use modbot_grid::spec::GridRole;
@@ -51,6 +53,10 @@ impl Supervisor {
                     }
                 }
                 HostRequest::Retire(name) => self.retire(&name),
+                HostRequest::Current {
+                    assembly,
+                    generation,
+                } => self.current_assembly(&assembly, generation),
             }
         }
     }
@@ -131,6 +137,36 @@ impl Supervisor {
         Ok(())
     }
 
+    /// From now on a host of the system's own components starts (and restarts) with
+    /// `assembly` as generation `generation`: its `--assembly` and `--generation` arguments.
+    fn current_assembly(&mut self, assembly: &str, generation: Generation) {
+        for m in &mut self.spec.modules {
+            let system_host = matches!(
+                GridRole::of(&m.name),
+                Some(GridRole::Host { generation: g, .. }) if g == Generation::SYSTEM
+            );
+            if !system_host || !m.args.iter().any(|a| a == "--host") {
+                continue;
+            }
+            let mut args = Vec::with_capacity(m.args.len() + 4);
+            let mut old = m.args.iter();
+            while let Some(a) = old.next() {
+                if a == "--assembly" || a == "--generation" {
+                    old.next();
+                } else {
+                    args.push(a.clone());
+                }
+            }
+            args.extend([
+                "--assembly".to_owned(),
+                assembly.to_owned(),
+                "--generation".to_owned(),
+                generation.to_string(),
+            ]);
+            m.args = args;
+        }
+    }
+
     /// Stops module `name` for good (SIGTERM; SIGKILL after the grace period, by `watch`).
     fn retire(&mut self, name: &str) {
         let Some(i) = self.spec.modules.iter().position(|m| m.name == name) else {
@@ -202,5 +238,29 @@ pub(super) fn retire_method(
     shared
         .requests
         .push(HostRequest::Retire((*name).to_owned()));
+    Ok(())
+}
+
+pub(super) fn current_assembly_method(
+    shared: &mut Shared,
+    _: &mut Ctx,
+    args: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    let (assembly, generation) = (args.text(0)?, args.i64(1)?);
+    if !shared.hosts_allowed {
+        return Err(MethodError::Failed("this system has no assemblies".into()));
+    }
+    let generation = u16::try_from(generation)
+        .ok()
+        .filter(|g| *g >= 1)
+        .map(Generation)
+        .ok_or_else(|| MethodError::Failed(format!("generation {generation} is out of range")))?;
+    modbot_system::assembly::check_assembly_name(assembly)
+        .map_err(|e| MethodError::Failed(e.to_string()))?;
+    shared.requests.push(HostRequest::Current {
+        assembly: (*assembly).to_owned(),
+        generation,
+    });
     Ok(())
 }

@@ -16,6 +16,12 @@ pub(super) enum HostRequest {
         program: Option<String>,
     },
     Retire(String),
+    /// The grid switched to `assembly` (`generation`): a host of the system's components
+    /// restarted from now on loads it.
+    Current {
+        assembly: String,
+        generation: Generation,
+    },
 }
 
 /// The supervisor module's state, shared with its method handlers.

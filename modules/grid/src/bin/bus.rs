@@ -351,6 +351,9 @@ fn run() -> anyhow::Result<()> {
             let next = {
                 let mut b = bridge::lock(&shared);
                 b.watch(now());
+                // Published before a reset's answer is given: whoever reads the answer then
+                // reads the robot state it brought about.
+                b.publish_due(now(), &view);
                 while let Ok(ask) = asks.try_recv() {
                     let done = match ask {
                         Ask::Block(axis, on) => b.block_axis(axis, on),

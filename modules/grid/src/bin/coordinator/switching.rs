@@ -198,6 +198,15 @@ impl Switching {
             return;
         };
         if g == generation {
+            // A host of the system's components restarted from now on loads this assembly.
+            let told = module.ctx().call(
+                "supervisor",
+                "current_assembly",
+                &[Value::Text(&name), Value::I64(i64::from(generation))],
+            );
+            if let Err(e) = told {
+                tracing::warn!("cannot tell the supervisor the running assembly: {e}");
+            }
             self.status.outcomes.push(Outcome::Switched {
                 generation,
                 assembly: name,
