@@ -277,7 +277,7 @@ impl Drop for WakeTable {
     }
 }
 
-/// Opens the table's file, or creates it whole: written at a name of this process's own, sized,
+/// Opens the table's file, or creates it whole: written at a name of this call's own, sized,
 /// then linked to its real name, so no process ever maps a table that is not full size.
 fn open_or_create(path: &std::path::Path) -> std::io::Result<std::fs::File> {
     let open = || {
@@ -290,7 +290,11 @@ fn open_or_create(path: &std::path::Path) -> std::io::Result<std::fs::File> {
         Err(e) if e.kind() == ErrorKind::NotFound => {}
         other => return other,
     }
-    let scratch = path.with_extension(format!("wake.{}.new", std::process::id()));
+    // A name of this call's own: two threads of one process (two modules opening at once)
+    // must not share one scratch file.
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let scratch = path.with_extension(format!("wake.{}.{call}.new", std::process::id()));
     let made = (|| {
         let file = std::fs::OpenOptions::new()
             .read(true)
@@ -333,6 +337,29 @@ mod tests {
             Word::bus("group.arm"),
             Word(257 + (0x386f_27b5_u32 % 64) as u16)
         );
+    }
+
+    #[test]
+    fn threads_of_one_process_opening_the_table_at_once_all_map_it() {
+        let domain = Domain::new(&format!("wakerace{}", std::process::id())).unwrap();
+        let path = format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix());
+        for _ in 0..20 {
+            let _ = std::fs::remove_file(&path);
+            let barrier = std::sync::Arc::new(std::sync::Barrier::new(8));
+            let opened: Vec<_> = (0..8)
+                .map(|_| {
+                    let (domain, barrier) = (domain.clone(), barrier.clone());
+                    std::thread::spawn(move || {
+                        barrier.wait();
+                        WakeTable::open(&domain).map(|_| ())
+                    })
+                })
+                .collect();
+            for t in opened {
+                t.join().unwrap().unwrap();
+            }
+        }
+        let _ = std::fs::remove_file(&path);
     }
 
     #[test]
