@@ -41,9 +41,14 @@ fn ethercrab_synchronises_six_slaves_with_distributed_clocks() {
         let wire = Wire::start(tx, rx, chain.clone());
         let maindevice = MainDevice::new(
             pdu_loop,
+            // Generous: a loaded machine holds the emulator's thread up for tens of ms.
             Timeouts {
                 wait_loop_delay: Duration::from_millis(1),
-                ..Timeouts::default()
+                state_transition: Duration::from_secs(30),
+                pdu: Duration::from_secs(1),
+                eeprom: Duration::from_secs(10),
+                mailbox_echo: Duration::from_secs(10),
+                mailbox_response: Duration::from_secs(10),
             },
             MainDeviceConfig {
                 dc_static_sync_iterations: 1000,

@@ -30,10 +30,18 @@ fn abort_code(result: Result<impl std::fmt::Debug, Error>) -> u32 {
     }
 }
 
+/// Generous: the emulated chain answers on a thread of this process, which a loaded machine
+/// (two CPU hogs on two cores) holds up for tens of milliseconds; ethercrab's defaults (an
+/// EEPROM read in 10 ms) then time out where nothing is wrong. A lost frame still times out,
+/// after `pdu`.
 fn timeouts() -> Timeouts {
     Timeouts {
         wait_loop_delay: Duration::from_millis(1),
-        ..Timeouts::default()
+        state_transition: Duration::from_secs(30),
+        pdu: Duration::from_secs(1),
+        eeprom: Duration::from_secs(10),
+        mailbox_echo: Duration::from_secs(10),
+        mailbox_response: Duration::from_secs(10),
     }
 }
 

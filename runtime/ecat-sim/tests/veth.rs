@@ -142,9 +142,14 @@ fn ethercrab_brings_slaves_to_op_over_a_veth_pair() {
     thread::sleep(Duration::from_millis(200));
     let maindevice = MainDevice::new(
         pdu_loop,
+        // Generous: a loaded machine holds the emulator's process up for tens of ms.
         Timeouts {
             wait_loop_delay: Duration::from_millis(1),
-            ..Timeouts::default()
+            state_transition: Duration::from_secs(30),
+            pdu: Duration::from_secs(1),
+            eeprom: Duration::from_secs(10),
+            mailbox_echo: Duration::from_secs(10),
+            mailbox_response: Duration::from_secs(10),
         },
         MainDeviceConfig {
             dc_static_sync_iterations: 100,

@@ -118,7 +118,9 @@ fn timeouts(pdu: Duration) -> Timeouts {
     Timeouts {
         state_transition: Duration::from_secs(10),
         pdu,
-        eeprom: Duration::from_millis(100),
+        // A slave's EEPROM answers in milliseconds; a loaded controller may hold the master
+        // up for more: failing a start for it would be wrong.
+        eeprom: Duration::from_secs(1),
         wait_loop_delay: Duration::from_micros(200),
         mailbox_echo: Duration::from_millis(500),
         mailbox_response: Duration::from_secs(2),

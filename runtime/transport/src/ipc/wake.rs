@@ -343,6 +343,14 @@ mod tests {
     fn threads_of_one_process_opening_the_table_at_once_all_map_it() {
         let domain = Domain::new(&format!("wakerace{}", std::process::id())).unwrap();
         let path = format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix());
+        /// Removes the test's table however the test ends.
+        struct Removed(String);
+        impl Drop for Removed {
+            fn drop(&mut self) {
+                let _ = std::fs::remove_file(&self.0);
+            }
+        }
+        let _file = Removed(path.clone());
         for _ in 0..20 {
             let _ = std::fs::remove_file(&path);
             let barrier = std::sync::Arc::new(std::sync::Barrier::new(8));
@@ -359,7 +367,6 @@ mod tests {
                 t.join().unwrap().unwrap();
             }
         }
-        let _ = std::fs::remove_file(&path);
     }
 
     #[test]
