@@ -468,7 +468,7 @@ impl Bridge {
     }
 
     /// The robot state's kind now ([`RobotState::code`]).
-    fn state_code(&self) -> usize {
+    pub fn state_code(&self) -> usize {
         match &self.safe_stop {
             Some(stop) if stop.fault.is_some() => 3,
             Some(_) => 2,

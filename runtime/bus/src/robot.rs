@@ -295,18 +295,7 @@ impl Component for Bus {
         });
         let holding = b.holding();
         if let Some(PortValue::F64(state)) = outputs.last_mut() {
-            *state = match (&b.safe_stop, holding) {
-                (Some(stop), _) if stop.fault.is_some() => 3.0,
-                (Some(_), _) => 2.0,
-                (None, false)
-                    if b.actuals()
-                        .iter()
-                        .all(|a| a.state == DriveState::OperationEnabled) =>
-                {
-                    1.0
-                }
-                _ => 0.0,
-            };
+            *state = b.state_code() as f64;
         }
         let actuals = b.actuals();
         let (outputs, forwarded) = outputs.split_at_mut(BUS_OUT.len().min(outputs.len()));
