@@ -395,7 +395,7 @@ pub fn binary(opts: &Opts, name: &str) -> anyhow::Result<PathBuf> {
     let path = bin_dir(opts)?.join(name);
     if !path.is_file() {
         bail!(
-            "{} is missing: build the workspace first (cargo build --release --workspace --bins)",
+            "{} is missing: build the workspace first (cargo build --release --workspace)",
             path.display()
         );
     }
@@ -418,7 +418,7 @@ pub fn ensure_binaries(opts: &Opts) -> anyhow::Result<()> {
     let Some(cargo) = std::env::var_os("CARGO") else {
         bail!(
             "modbot binaries missing next to {}: {}; build them with \
-             `cargo build --release --workspace --bins`",
+             `cargo build --release --workspace`",
             opts.exe.display(),
             missing.join(", ")
         );

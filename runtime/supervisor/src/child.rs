@@ -61,6 +61,10 @@ pub(super) fn environment(
         (env::EPOCH_NS, system.epoch_ns.to_string()),
         (env::INBOX_SENDERS, system.inbox_senders.to_string()),
         (env::ASSIGNED, format!("{}.{}", spec.addr, spec.name)),
+        (
+            env::SUPERVISOR,
+            format!("{}.{}", std::process::id(), domain.name()),
+        ),
     ];
     for (name, value) in ours {
         vars.insert(name.to_owned(), value);

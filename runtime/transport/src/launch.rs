@@ -22,6 +22,11 @@ pub const EPOCH_NS: &str = "MODBOT_EPOCH_NS";
 /// claiming them in shared memory (two services fewer per module); any other address or name
 /// is claimed as usual.
 pub const ASSIGNED: &str = "MODBOT_ASSIGNED";
+/// `PID.DOMAIN`: the supervisor that started this process, and its domain. A process of that
+/// domain whose supervisor still lives knows it is supervised without asking iceoryx2 (whose
+/// `Service::does_exist` reads the details of every node attached to the directory: at 253
+/// modules starting together, quadratic work that took most of the start-up).
+pub const SUPERVISOR: &str = "MODBOT_SUPERVISOR";
 /// Simulated seconds per real second (default 1); descriptions set it in a module's `env`.
 /// Read by `modbot_core::sim::SimTime::from_env`.
 pub const SIM_SPEED: &str = "MODBOT_SIM_SPEED";
@@ -108,5 +113,47 @@ mod tests {
         assert_eq!(inbox_senders_for(2), 21);
         assert_eq!(inbox_senders_for(10), 37);
         assert_eq!(inbox_senders_for(254), DEFAULT_INBOX_SENDERS);
+    }
+}
+
+/// Whether this process was started by a supervisor of `domain` that still lives
+/// ([`SUPERVISOR`]).
+pub fn launched_by_live_supervisor(domain: &str) -> bool {
+    std::env::var(SUPERVISOR)
+        .ok()
+        .is_some_and(|v| names_live_supervisor(&v, domain))
+}
+
+fn names_live_supervisor(value: &str, domain: &str) -> bool {
+    let Some((pid, of)) = value.split_once('.') else {
+        return false;
+    };
+    let Ok(pid) = pid.parse::<i32>() else {
+        return false;
+    };
+    of == domain && pid > 0 && nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), None).is_ok()
+}
+
+#[cfg(test)]
+mod supervisor_tests {
+    use super::names_live_supervisor;
+
+    #[test]
+    fn a_live_supervisor_of_the_same_domain_is_recognised() {
+        let me = format!("{}.arm", std::process::id());
+        assert!(names_live_supervisor(&me, "arm"));
+    }
+
+    #[test]
+    fn another_domain_a_dead_pid_or_a_malformed_value_is_not_a_supervisor() {
+        let me = std::process::id();
+        assert!(!names_live_supervisor(&format!("{me}.arm"), "base"));
+        assert!(!names_live_supervisor(&format!("{me}.arm.x"), "arm"));
+        assert!(!names_live_supervisor("0.arm", "arm"));
+        assert!(!names_live_supervisor("-1.arm", "arm"));
+        assert!(!names_live_supervisor("arm", "arm"));
+        assert!(!names_live_supervisor("x.arm", "arm"));
+        // Beyond pid_max: no such process.
+        assert!(!names_live_supervisor("2147483646.arm", "arm"));
     }
 }

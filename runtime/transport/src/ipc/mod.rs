@@ -80,7 +80,13 @@ pub struct IpcTransport {
 impl IpcTransport {
     pub fn new(domain: &Domain) -> Result<IpcTransport, TransportError> {
         set_log_level_from_env_or(LogLevel::Error);
-        domain.check_access()?;
+        // A process its supervisor started runs as the supervisor's user, which checked the
+        // domain's access and closed its files: each of those walks /dev/shm, and 253
+        // processes starting together each walking thousands of files is quadratic.
+        let launched = crate::launch::launched_by_live_supervisor(domain.name());
+        if !launched {
+            domain.check_access()?;
+        }
         let mut config = Config::default();
         config.global.prefix = ipc!("prefix", FileName::new(domain.prefix().as_bytes()))?;
         // iceoryx2's node and service files (thousands at full size) on tmpfs, beside the
@@ -97,7 +103,9 @@ impl IpcTransport {
             .subscriber_expired_connection_buffer = 4;
         // An inbox this process creates has this many sender slots (`inbox_service`).
         config.defaults.publish_subscribe.max_publishers = crate::launch::inbox_senders();
-        let supervised = directory::is_published(&config);
+        // A process its supervisor started knows it (asking iceoryx2 reads every node
+        // attached to the directory: quadratic when hundreds of modules start together).
+        let supervised = launched || directory::is_published(&config);
         if supervised {
             // Each of these scans every node of the domain; the supervisor cleans instead.
             config.global.node.cleanup_dead_nodes_on_creation = false;
@@ -109,7 +117,7 @@ impl IpcTransport {
             config,
             tool: std::cell::Cell::new(false),
             supervised,
-            closed: std::cell::Cell::new(false),
+            closed: std::cell::Cell::new(launched),
         })
     }
 
@@ -126,8 +134,10 @@ impl IpcTransport {
     /// The transport of the supervisor itself: it scans and cleans, whatever an earlier
     /// supervisor of the domain left behind.
     pub fn for_supervisor(domain: &Domain) -> Result<IpcTransport, TransportError> {
+        domain.check_access()?;
         let mut t = IpcTransport::new(domain)?;
         t.supervised = false;
+        t.closed = std::cell::Cell::new(false);
         t.config.global.node.cleanup_dead_nodes_on_creation = true;
         t.config.global.node.cleanup_dead_nodes_on_destruction = true;
         t.config.global.service.cleanup_dead_nodes_on_open = true;
@@ -487,7 +497,10 @@ impl Transport for IpcTransport {
     }
 
     fn sweep_if_empty(&self) -> bool {
-        if self.supervised && directory::is_published(&self.config) {
+        if self.supervised
+            && (crate::launch::launched_by_live_supervisor(self.domain.name())
+                || directory::is_published(&self.config))
+        {
             // The supervisor removes the domain's files when the system stops; one that
             // stopped while other processes lived left them to the last of those, and as long
             // as its directory exists someone still holds it.
