@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Subcommand;
-use modbot_runtime::grid::switch::{self, Outcome};
+use modbot_runtime::grid::switch;
 
 /// What `modbot assembly` does.
 #[derive(Debug, Subcommand)]
@@ -30,17 +30,7 @@ pub fn run(domain: &str, command: Option<AssemblyCommand>) -> anyhow::Result<Exi
                 println!("assembly {} (generation {})", s.assembly, s.generation);
                 println!("switch: {}", s.state);
                 for outcome in &s.outcomes {
-                    let (g, name) = (outcome.generation(), outcome.assembly());
-                    match outcome {
-                        Outcome::Switched {
-                            announced, tick, ..
-                        } => println!(
-                            "  generation {g} {name}: switched at tick {tick} (announced {announced})"
-                        ),
-                        Outcome::Failed { reason, .. } => {
-                            println!("  generation {g} {name}: not switched: {reason}")
-                        }
-                    }
+                    println!("  {outcome}");
                 }
                 Ok(ExitCode::SUCCESS)
             }

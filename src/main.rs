@@ -125,6 +125,13 @@ enum Command {
         #[arg(long, value_name = "FILE")]
         record: Option<PathBuf>,
     },
+    /// The operator's control station: a web page with every module, the grid, the robot and
+    /// the blackboards live, and commands to them (the program `modbot-station`; its options
+    /// follow: `--listen ADDR:PORT`, default 127.0.0.1:8080, and `--token T`).
+    Station {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "OPTIONS")]
+        args: Vec<String>,
+    },
     /// A live table of the grid: per component its host, period, execution time, overruns
     /// and jitter, the measured tick rate, and the robot's state. Refreshes in place until
     /// Ctrl-C.
@@ -242,6 +249,20 @@ fn bus_scan(interface: &str) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `modbot station`: runs `modbot-station` (next to this program) in the domain, in this
+/// process's place.
+fn station(domain: &str, args: &[String]) -> anyhow::Result<ExitCode> {
+    use std::os::unix::process::CommandExt;
+    let me = std::env::current_exe()?;
+    let program = me.with_file_name("modbot-station");
+    let err = std::process::Command::new(&program)
+        .arg("--domain")
+        .arg(domain)
+        .args(args)
+        .exec();
+    anyhow::bail!("cannot run {}: {err}", program.display())
+}
+
 fn main() -> ExitCode {
     // Output piped into `head` and closed: end quietly, as Unix tools do, rather than panic
     // on the failed write.
@@ -284,6 +305,7 @@ fn main() -> ExitCode {
             },
         ),
         Command::Top { once } => tool::top(&domain, once),
+        Command::Station { args } => station(&domain, &args),
         Command::Bus {
             command: Some(BusCommand::Scan { interface }),
             ..

@@ -84,6 +84,7 @@ pub enum HeartbeatError {
 }
 
 /// The counters a heartbeat carries.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Counters {
     pub dropped: u64,

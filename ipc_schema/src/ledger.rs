@@ -24,6 +24,7 @@ pub const FIELDS: usize = 15;
 pub const GRID_FIELDS: usize = 8;
 
 /// One component's line of the ledger.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ComponentRow {
     pub name: String,
@@ -44,6 +45,7 @@ pub struct ComponentRow {
 }
 
 /// The grid's line of the ledger.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct GridRow {
     pub state: String,

@@ -19,6 +19,7 @@ use crate::value::Value;
 pub const FIELDS: usize = 9;
 
 /// One module as the supervisor reports it.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Row {
     pub name: String,

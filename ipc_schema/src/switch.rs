@@ -145,6 +145,25 @@ impl Outcome {
     }
 }
 
+/// `generation G NAME: switched at tick T (announced A)` or `generation G NAME: not switched:
+/// REASON`, as `modbot assembly` and the control station show it.
+impl fmt::Display for Outcome {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (g, name) = (self.generation(), self.assembly());
+        match self {
+            Outcome::Switched {
+                announced, tick, ..
+            } => write!(
+                f,
+                "generation {g} {name}: switched at tick {tick} (announced {announced})"
+            ),
+            Outcome::Failed { reason, .. } => {
+                write!(f, "generation {g} {name}: not switched: {reason}")
+            }
+        }
+    }
+}
+
 /// `idle`, `preparing GEN NAME` or `announced GEN NAME TICK`, as `modbot assembly` shows it.
 impl fmt::Display for State {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

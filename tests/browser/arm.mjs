@@ -1,0 +1,97 @@
+// The station against the arm (examples/arm.lua), in Debian's chromium driven headless by
+// playwright-core.
+//
+//   node tests/browser/arm.mjs URL SCREENSHOT_DIR
+//
+// Checks: the grid, its assembly (hold, generation 1) and the robot's state are shown; the
+// robot is brought to operational from the page if the machine stopped it (a reset through
+// the command form, as an operator would); switching to ptp from the page's command form
+// changes the generation and the joints' plots move. Writes a screenshot. Exits 1 with the
+// reason on the first check that fails.
+import { launch, fail, step, screenshot } from "./station-lib.mjs";
+
+const [url, shots] = process.argv.slice(2);
+setTimeout(() => { console.error("arm.mjs: not done within 10 minutes"); process.exit(1); }, 600_000).unref();
+
+// Calls MODULE.METHOD(ARGS) through the page's command form; resolves with the answer.
+async function command(page, module, method, args) {
+  const before = await page.locator("#answers li").count();
+  await page.fill("#call-module", module);
+  await page.fill("#call-method", method);
+  await page.fill("#call-args", args);
+  await page.click('#call-form button[type="submit"]');
+  await page.waitForFunction((n) => {
+    const li = document.querySelectorAll("#answers li");
+    return li.length > n && li[0].dataset.ok !== undefined;
+  }, before, { timeout: 60_000 });
+  const li = page.locator("#answers li").first();
+  return { ok: (await li.getAttribute("data-ok")) === "true", text: await li.textContent() };
+}
+
+// Resets the robot from the page until it is operational (at most 5 times).
+async function operational(page) {
+  for (let i = 0; i < 5; i++) {
+    const robot = await page.locator("#robot").textContent();
+    if (robot.startsWith("robot operational")) return;
+    console.log(`the robot is not operational (${robot}): reset from the page`);
+    const bus = await page.evaluate(() =>
+      Object.keys(window.station.state.blackboards).find((m) =>
+        "robot.link_position" in window.station.state.blackboards[m]));
+    const a = await command(page, bus, "reset", "");
+    if (!a.ok) console.log(`reset: ${a.text}`);
+    await page.waitForFunction(() =>
+      document.querySelector("#robot").textContent.startsWith("robot operational"),
+      null, { timeout: 30_000 }).catch(() => {});
+  }
+  fail(`the robot is not operational: ${await page.locator("#robot").textContent()}`);
+}
+
+const browser = await launch();
+try {
+  const page = await browser.newPage({ viewport: { width: 1500, height: 1300 } });
+  await page.goto(url);
+
+  await step("the grid, its assembly and the robot are shown", () =>
+    page.waitForFunction(() => {
+      const a = document.querySelector("#assembly");
+      return !a.hidden && a.dataset.name === "hold" && a.dataset.generation === "1" &&
+        !document.querySelector("#robot").hidden &&
+        document.querySelectorAll("#components tbody tr").length > 0 &&
+        document.querySelectorAll("#joints .plot").length === 6;
+    }, null, { timeout: 60_000 }));
+
+  await step("the robot is operational", () => operational(page));
+
+  let start;
+  await step("switching to ptp in the page changes the generation", async () => {
+    start = await page.evaluate(() => window.station.arm.link.map((h) => h[h.length - 1]));
+    const a = await command(page, "coordinator", "switch", "ptp");
+    if (!a.ok) fail(`the switch was refused: ${a.text}`);
+    await page.waitForFunction(() => {
+      const a = document.querySelector("#assembly");
+      return a.dataset.name === "ptp" && Number(a.dataset.generation) > 1;
+    }, null, { timeout: 60_000 });
+  });
+
+  await step("the joints' plots move", async () => {
+    for (let attempt = 0; ; attempt++) {
+      try {
+        await page.waitForFunction((start) => window.station.arm.link.some((h, j) =>
+          Math.abs(h[h.length - 1] - start[j]) > 0.05), start, { timeout: 30_000 });
+        return;
+      } catch (e) {
+        // A machine that starved the grid stopped the robot: the operator resets it.
+        if (attempt >= 3) throw e;
+        await operational(page);
+      }
+    }
+  });
+  await page.waitForTimeout(1500); // some of the motion on the plots
+  await screenshot(page, null, `${shots}/station-arm.png`);
+  console.log("arm: every check passed");
+} catch (e) {
+  console.error(e.message || e);
+  process.exitCode = 1;
+} finally {
+  await browser.close();
+}

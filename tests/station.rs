@@ -1,0 +1,170 @@
+//! The operator's control station (`modbot station`) against real systems, looked at in a real
+//! browser: Debian's chromium, headless, driven by playwright-core (`tests/browser/`, which
+//! `./setup.sh --tests` installs), and through its HTTP API.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use common::TestDomain;
+use nix::sys::signal::Signal;
+
+const BROWSER_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/browser");
+
+/// Where the tests' screenshots go (`target/station-screenshots/`).
+fn screenshots() -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/station-screenshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Starts `modbot station` in the domain on a port the kernel picks; returns its pid and the
+/// page's address.
+fn station(sut: &mut TestDomain, more: &[&str]) -> (u32, String) {
+    let mut args = vec!["station", "--listen", "127.0.0.1:0"];
+    args.extend_from_slice(more);
+    let pid = sut.spawn_logged("modbot", &args);
+    let mut url = String::new();
+    sut.wait_for("the station's address", Duration::from_secs(60), || {
+        let out = sut.output_of(pid);
+        match out.split_once(" at http://") {
+            Some((_, rest)) => {
+                let end = rest.find(|c: char| c.is_whitespace() || c == '?').unwrap_or(rest.len());
+                url = format!("http://{}", &rest[..end]);
+                true
+            }
+            None => false,
+        }
+    });
+    (pid, url)
+}
+
+/// A GET of `path` from the station at `url`, by hand (HTTP/1.0, the whole answer).
+fn get(url: &str, path: &str) -> (u16, String) {
+    use std::io::{Read, Write};
+    let host = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(host).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    write!(s, "GET {path} HTTP/1.0\r\nHost: {host}\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    let status = answer
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = answer
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_owned())
+        .unwrap_or_default();
+    (status, body)
+}
+
+/// Runs a browser test script; panics with what it printed if a check failed.
+fn browser_test(script: &str, args: &[&str]) {
+    let node_modules = Path::new(BROWSER_DIR).join("node_modules/playwright-core");
+    assert!(
+        node_modules.is_dir() && Path::new("/usr/bin/chromium").exists(),
+        "the browser tests need Debian's chromium and playwright-core: run ./setup.sh --tests"
+    );
+    let out = Command::new("node")
+        .arg(Path::new(BROWSER_DIR).join(script))
+        .args(args)
+        .current_dir(BROWSER_DIR)
+        .output()
+        .expect("node runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{script} failed:\n{text}");
+    println!("{text}");
+}
+
+fn moser(sut: &mut TestDomain) -> u32 {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/moser.lua");
+    let domain = format!("domain={}", sut.name());
+    let up = sut.spawn_logged(
+        "modbot",
+        &[
+            "up", file, "--var", &domain, "--var", "speed=10", "--var", "endless=1", "--for",
+            "600",
+        ],
+    );
+    sut.wait_for("MOSER up", Duration::from_secs(120), || {
+        sut.output_of(up).contains("module(s) up in")
+    });
+    up
+}
+
+#[test]
+fn the_station_shows_moser_live_in_a_browser_and_commands_it_with_the_token_only() {
+    let mut sut = TestDomain::new("station_moser");
+    let up = moser(&mut sut);
+    let token = format!("tok{}", std::process::id());
+    let (station, url) = station(&mut sut, &["--token", &token]);
+    let shots = screenshots();
+    browser_test("moser.mjs", &[&url, &token, shots.to_str().unwrap()]);
+    assert!(shots.join("station-moser.png").is_file());
+
+    sut.signal(station, Signal::SIGTERM);
+    let status = sut.wait_exit(station, Duration::from_secs(60));
+    assert!(status.success(), "the station ended with {status}");
+    sut.signal(up, Signal::SIGINT);
+    let status = sut.wait_exit(up, Duration::from_secs(120));
+    assert!(status.success(), "{}", sut.output_of(up));
+}
+
+#[test]
+fn the_station_serves_its_page_and_the_state_of_a_system_without_a_browser() {
+    let mut sut = TestDomain::new("station_api");
+    let up = moser(&mut sut);
+    let (station, url) = station(&mut sut, &[]);
+    let (status, page) = get(&url, "/");
+    assert_eq!(status, 200);
+    assert!(page.contains("<title>modbot station</title>"), "{page}");
+    let (status, script) = get(&url, "/station.js");
+    assert_eq!(status, 200);
+    assert!(script.contains("new WebSocket"));
+    // The state, as the page gets it: the seven modules, MOSER's blackboards.
+    sut.wait_for("seven running modules in /api/state", Duration::from_secs(60), || {
+        let (_, body) = get(&url, "/api/state");
+        body.matches("\"state\":\"running\"").count() == 7 && body.contains("\"mobility\":{")
+    });
+    let (_, map) = get(&url, "/api/map");
+    assert!(map.contains("server room"), "{map}");
+    let (status, _) = get(&url, "/nothing");
+    assert_eq!(status, 404);
+    sut.signal(station, Signal::SIGTERM);
+    assert!(sut.wait_exit(station, Duration::from_secs(60)).success());
+    sut.signal(up, Signal::SIGINT);
+    assert!(sut.wait_exit(up, Duration::from_secs(120)).success());
+}
+
+#[test]
+fn the_station_switches_the_arm_to_ptp_from_the_page_and_its_joints_move() {
+    let _one = common::arm::one_arm_at_a_time();
+    let mut sut = TestDomain::new("station_arm");
+    let domain = format!("domain={}", sut.name());
+    let file = common::arm::arm();
+    let up = sut.spawn_logged(
+        "modbot",
+        &["up", file.to_str().unwrap(), "--var", &domain, "--for", "600"],
+    );
+    sut.wait_for("the arm up", Duration::from_secs(120), || {
+        sut.output_of(up).contains("module(s) up in")
+    });
+    let (station, url) = station(&mut sut, &[]);
+    let shots = screenshots();
+    browser_test("arm.mjs", &[&url, shots.to_str().unwrap()]);
+    assert!(shots.join("station-arm.png").is_file());
+    let assembly = sut.modbot_ok(&["assembly"]);
+    assert!(assembly.starts_with("assembly ptp (generation 2)"), "{assembly}");
+    sut.signal(station, Signal::SIGTERM);
+    assert!(sut.wait_exit(station, Duration::from_secs(60)).success());
+    sut.signal(up, Signal::SIGINT);
+    assert!(sut.wait_exit(up, Duration::from_secs(120)).success(), "{}", sut.output_of(up));
+}
