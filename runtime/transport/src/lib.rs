@@ -114,6 +114,11 @@ pub enum TransportError {
     },
     #[error("name '{name}' is already taken by the module at address {addr} (pid {pid})")]
     NameTaken { name: String, addr: Addr, pid: u32 },
+    #[error(
+        "the inbox of address {addr} is being created by another process (or one was stopped \
+         while it created it)"
+    )]
+    InboxInCreation { addr: Addr },
     #[error("address {0} is not a module address (1..=254)")]
     BadAddress(Addr),
     #[error("module name '{0}' is invalid: use 1 to 48 characters of a-z, A-Z, 0-9, _ and -")]
@@ -312,7 +317,11 @@ pub trait Transport {
                 mode,
                 joins,
             ) {
-                Err(TransportError::AddressTaken { .. }) => continue,
+                // A process that answered an earlier tool at this address may be creating its
+                // inbox right now (or was stopped while it did, SIGSTOP): another address.
+                Err(TransportError::AddressTaken { .. } | TransportError::InboxInCreation { .. }) => {
+                    continue
+                }
                 Ok(endpoint) => {
                     self.opened_as_tool();
                     return Ok(endpoint);

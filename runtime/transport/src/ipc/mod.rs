@@ -273,18 +273,24 @@ fn inbox_service(
     // configuration (`launch::INBOX_SENDERS`), and an opener takes what the inbox has instead
     // of requiring a number of its own. Fewer slots make every receive cheaper (iceoryx2 looks
     // at each one); a sender finds out at once if they are all taken (`InboxSendersTaken`).
-    ipc!(
-        "open inbox",
-        node.service_builder(&service_name(&format!("inbox.{}", addr.0))?)
-            .publish_subscribe::<[u8]>()
-            .max_subscribers(2)
-            .max_nodes(MAX_NODES)
-            .subscriber_max_buffer_size(INBOX_DEPTH)
-            .subscriber_max_borrowed_samples(4)
-            .history_size(0)
-            .enable_safe_overflow(false)
-            .open_or_create()
-    )
+    use iceoryx2::service::builder::publish_subscribe::{
+        PublishSubscribeOpenError, PublishSubscribeOpenOrCreateError,
+    };
+    node.service_builder(&service_name(&format!("inbox.{}", addr.0))?)
+        .publish_subscribe::<[u8]>()
+        .max_subscribers(2)
+        .max_nodes(MAX_NODES)
+        .subscriber_max_buffer_size(INBOX_DEPTH)
+        .subscriber_max_borrowed_samples(4)
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .open_or_create()
+        .map_err(|e| match e {
+            PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(
+                PublishSubscribeOpenError::HangsInCreation,
+            ) => TransportError::InboxInCreation { addr },
+            e => ipc_err("open inbox")(&e),
+        })
 }
 
 fn shared_bus(
