@@ -124,6 +124,10 @@ enum Command {
         /// declares none, every output of the system's own components is recorded.
         #[arg(long, value_name = "FILE")]
         record: Option<PathBuf>,
+        /// Also serve the operator's control station for the system (`modbot station`), on
+        /// ADDR:PORT (default 127.0.0.1:8080); it prints its address.
+        #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
+        station: Option<String>,
     },
     /// The operator's control station: a web page with every module, the grid, the robot and
     /// the blackboards live, and commands to them (the program `modbot-station`; its options
@@ -292,6 +296,7 @@ fn main() -> ExitCode {
             lockstep,
             switches,
             record,
+            station,
         } => up_cmd::up(
             &file,
             given_domain.as_deref(),
@@ -303,6 +308,7 @@ fn main() -> ExitCode {
                 lockstep,
                 switches,
             },
+            station.as_deref(),
         ),
         Command::Top { once } => tool::top(&domain, once),
         Command::Station { args } => station(&domain, &args),

@@ -18,6 +18,7 @@ pub fn up(
     run_for: Option<f64>,
     vars: &[(String, String)],
     grid_run: &GridRun,
+    station: Option<&str>,
 ) -> anyhow::Result<ExitCode> {
     let resolver = DefaultResolver::for_file(file);
     let mut spec = match system::load_with_vars(file, &resolver, vars) {
@@ -60,10 +61,14 @@ pub fn up(
             return Ok(ExitCode::from(1));
         }
     };
+    let station = station.and_then(|listen| start_station(&domain, listen));
     let summary = sup.run(&RunOptions {
         run_for,
         show_status: true,
     });
+    if let Some(child) = station {
+        stop_station(child);
+    }
     sweep(&domain);
     println!(
         "modbot up: ran {:.1} s in domain '{}'",
@@ -80,6 +85,45 @@ pub fn up(
         }
         Ok(ExitCode::from(1))
     }
+}
+
+/// `--station`: the control station (`modbot-station`, next to this program) for the system,
+/// on `listen`; it prints its address. It gets SIGTERM when `modbot up` dies. A station that
+/// cannot start is said and the system runs without it.
+fn start_station(domain: &Domain, listen: &str) -> Option<std::process::Child> {
+    use std::os::unix::process::CommandExt;
+    let program = std::env::current_exe()
+        .ok()?
+        .with_file_name("modbot-station");
+    let mut command = std::process::Command::new(&program);
+    command
+        .args(["--domain", domain.name(), "--listen", listen])
+        .env_remove("MODBOT_SUPERVISOR");
+    // SAFETY: prctl is async-signal-safe and touches only the child being set up.
+    unsafe {
+        command.pre_exec(|| {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    match command.spawn() {
+        Ok(child) => Some(child),
+        Err(e) => {
+            eprintln!("modbot up: no station: cannot run {}: {e}", program.display());
+            None
+        }
+    }
+}
+
+/// Stops the station before the domain is cleaned up (SIGTERM: it leaves the domain).
+fn stop_station(mut child: std::process::Child) {
+    // SAFETY: kill with a pid this process spawned and has not reaped.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGTERM);
+    }
+    let _ = child.wait();
 }
 
 /// Removes what the system left in `domain`, unless a process of the domain still lives (a

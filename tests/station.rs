@@ -168,3 +168,42 @@ fn the_station_switches_the_arm_to_ptp_from_the_page_and_its_joints_move() {
     sut.signal(up, Signal::SIGINT);
     assert!(sut.wait_exit(up, Duration::from_secs(120)).success(), "{}", sut.output_of(up));
 }
+
+#[test]
+fn modbot_up_with_station_serves_the_page_of_its_system_and_stops_it_with_the_system() {
+    let mut sut = TestDomain::new("station_up");
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/moser.lua");
+    let domain = format!("domain={}", sut.name());
+    let up = sut.spawn_logged(
+        "modbot",
+        &[
+            "up", file, "--var", &domain, "--var", "speed=10", "--var", "endless=1", "--for",
+            "600", "--station", "127.0.0.1:0",
+        ],
+    );
+    let mut url = String::new();
+    sut.wait_for("the station's address from modbot up", Duration::from_secs(120), || {
+        let out = sut.output_of(up);
+        match out.split_once("modbot station: domain") {
+            Some((_, rest)) => {
+                let at = rest.split_once(" at ").map(|(_, a)| a).unwrap_or_default();
+                url = at.split_whitespace().next().unwrap_or_default().to_owned();
+                !url.is_empty()
+            }
+            None => false,
+        }
+    });
+    sut.wait_for("seven running modules in /api/state", Duration::from_secs(60), || {
+        let (_, body) = get(&url, "/api/state");
+        body.matches("\"state\":\"running\"").count() == 7
+    });
+    sut.signal(up, Signal::SIGINT);
+    let status = sut.wait_exit(up, Duration::from_secs(120));
+    assert!(status.success(), "{}", sut.output_of(up));
+    assert!(sut.output_of(up).contains("modbot station: stopped"));
+    let host = url.trim_start_matches("http://").trim_end_matches('/').to_owned();
+    assert!(
+        std::net::TcpStream::connect(&host).is_err(),
+        "the station still answers at {url} after the system stopped"
+    );
+}
