@@ -8,7 +8,8 @@
 # - with --tests, Python's h5py (the tests read the recordings with it) and FMPy (the tests
 #   validate and simulate the FMUs with it), through pip; iproute2 (`ip`: the EtherCAT
 #   tests make a network namespace and a veth pair) and Debian's chromium (the station's
-#   browser tests), through apt-get; and playwright-core, which drives chromium, through npm
+#   browser tests) and tmux (the test of `modbot top` types into it), through apt-get; and
+#   playwright-core, which drives chromium, through npm
 #   into tests/browser/node_modules (its version pinned by tests/browser/package-lock.json).
 set -euo pipefail
 
@@ -31,11 +32,14 @@ fi
 if [ "${1:-}" = "--tests" ] && [ ! -x /usr/bin/chromium ]; then
     missing+=(chromium)
 fi
+if [ "${1:-}" = "--tests" ] && ! command -v tmux > /dev/null; then
+    missing+=(tmux)
+fi
 if [ "${1:-}" = "--tests" ] && ! command -v npm > /dev/null; then
     missing+=(nodejs npm)
 fi
 if [ ${#missing[@]} -gt 0 ]; then
-    echo "setup: installing ${missing[*]} (libclang for the fmi crate's bindgen, HDF5 for the recorder, iproute2 for the EtherCAT tests, chromium for the station's browser tests)"
+    echo "setup: installing ${missing[*]} (libclang for the fmi crate's bindgen, HDF5 for the recorder, iproute2 for the EtherCAT tests, chromium for the station's browser tests, tmux for modbot top's)"
     sudo=""
     [ "$(id -u)" -ne 0 ] && sudo="sudo"
     $sudo apt-get update -qq

@@ -136,11 +136,12 @@ enum Command {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "OPTIONS")]
         args: Vec<String>,
     },
-    /// A live table of the grid: per component its host, period, execution time, overruns
-    /// and jitter, the measured tick rate, and the robot's state. Refreshes in place until
-    /// Ctrl-C.
+    /// The system in this terminal, live: every module (state, activity, pid, restarts, last
+    /// exit, counters, calls, latency), sortable, with a module's detail on Enter; the grid's
+    /// components, the assembly and the robot's state. `q` quits.
     Top {
-        /// Print one table and exit.
+        /// Print the grid's ledger (per component host, period, execution time, overruns,
+        /// jitter; the tick rate) and the robot's state once, for scripts, and exit.
         #[arg(long)]
         once: bool,
     },
@@ -310,7 +311,8 @@ fn main() -> ExitCode {
             },
             station.as_deref(),
         ),
-        Command::Top { once } => tool::top(&domain, once),
+        Command::Top { once: true } => tool::top(&domain, true),
+        Command::Top { once: false } => station(&domain, &["--top".to_owned()]),
         Command::Station { args } => station(&domain, &args),
         Command::Bus {
             command: Some(BusCommand::Scan { interface }),

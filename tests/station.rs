@@ -207,3 +207,74 @@ fn modbot_up_with_station_serves_the_page_of_its_system_and_stops_it_with_the_sy
         "the station still answers at {url} after the system stopped"
     );
 }
+
+/// A tmux session of this test, killed however the test ends.
+struct Tmux(String);
+
+impl Tmux {
+    fn run(&self, args: &[&str]) -> String {
+        let out = Command::new("tmux").args(args).output().expect("tmux runs");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
+    fn screen(&self) -> String {
+        self.run(&["capture-pane", "-p", "-t", &self.0])
+    }
+
+    fn keys(&self, keys: &str) {
+        self.run(&["send-keys", "-t", &self.0, keys]);
+    }
+}
+
+impl Drop for Tmux {
+    fn drop(&mut self) {
+        let _ = Command::new("tmux").args(["kill-session", "-t", &self.0]).output();
+    }
+}
+
+#[test]
+fn modbot_top_shows_the_modules_sorts_them_and_opens_a_modules_detail_in_a_terminal() {
+    let mut sut = TestDomain::new("station_top");
+    let up = moser(&mut sut);
+    let session = Tmux(format!("modbot-top-{}", sut.name()));
+    let modbot = common::bin("modbot");
+    let command = format!("env MODBOT_DOMAIN={} {} top", sut.name(), modbot.display());
+    let started = Command::new("tmux")
+        .args(["new-session", "-d", "-s", &session.0, "-x", "200", "-y", "50", &command])
+        .status()
+        .expect("tmux runs (./setup.sh --tests installs it)");
+    assert!(started.success());
+    let mut screen = String::new();
+    sut.wait_for("the seven modules on the screen", Duration::from_secs(60), || {
+        screen = session.screen();
+        screen.contains("7 modules, 7 running") && screen.contains("near_ir")
+    });
+    assert!(screen.contains("sorted by address"), "{screen}");
+    session.keys("n");
+    sut.wait_for("the modules sorted by name", Duration::from_secs(30), || {
+        screen = session.screen();
+        let order: Vec<usize> = ["collision_sonar", "control_station", "high_level", "intrusion"]
+            .iter()
+            .filter_map(|n| screen.find(&format!(" {n} ")))
+            .collect();
+        screen.contains("sorted by name") && order.len() == 4 && order.windows(2).all(|w| w[0] < w[1])
+    });
+    // The first row is chosen: its detail.
+    session.keys("Enter");
+    sut.wait_for("collision_sonar's detail", Duration::from_secs(30), || {
+        screen = session.screen();
+        screen.contains("module collision_sonar at address 3") && screen.contains("methods:")
+    });
+    session.keys("Escape");
+    session.keys("q");
+    sut.wait_for("modbot top ended", Duration::from_secs(30), || {
+        session.run(&["has-session", "-t", &session.0]).is_empty()
+            && !Command::new("tmux")
+                .args(["has-session", "-t", &session.0])
+                .status()
+                .map(|s| s.success())
+                .unwrap_or(false)
+    });
+    sut.signal(up, Signal::SIGINT);
+    assert!(sut.wait_exit(up, Duration::from_secs(120)).success(), "{}", sut.output_of(up));
+}

@@ -16,6 +16,8 @@
 //!   `station/assets/`: nothing is fetched at run time), `/api/state` and `/api/map` for
 //!   scripts, and `/ws`, where a browser gets the state and sends [`commands`].
 //!
+//! [`top`] is `modbot top`: the same looks as a terminal view (ratatui).
+//!
 //! [`access`] decides who may command: on loopback anyone; elsewhere only a connection that
 //! shows the token (given, or printed at start). [`map`] holds MOSER's building for the page.
 
@@ -25,4 +27,5 @@ pub mod events;
 pub mod map;
 pub mod server;
 pub mod state;
+pub mod top;
 pub mod watcher;

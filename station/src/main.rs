@@ -28,6 +28,9 @@ struct Args {
     /// non-loopback address the station makes one and prints it.
     #[arg(long, env = "MODBOT_STATION_TOKEN")]
     token: Option<String>,
+    /// Show the system in this terminal instead (`modbot top`).
+    #[arg(long)]
+    top: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -39,6 +42,12 @@ fn main() -> anyhow::Result<()> {
         .init();
     let args = Args::parse();
     let domain = Domain::new(&args.domain)?;
+    if args.top {
+        let tool = Tool::open(&domain, "top")
+            .with_context(|| format!("modbot top cannot join domain '{}'", args.domain))?;
+        modbot_station::top::run(Watcher::new(tool, &args.domain))?;
+        return Ok(());
+    }
     let (access, origin) = Access::new(args.listen, args.token, || {
         random_token().unwrap_or_else(|e| panic!("no random token: /dev/urandom: {e}"))
     });

@@ -88,7 +88,10 @@ impl Watcher {
         while !stop.load(Ordering::Relaxed) {
             let now = Instant::now();
             if now >= next {
-                let json = self.look();
+                let state = self.look();
+                let json = serde_json::to_string(&state).unwrap_or_else(|e| {
+                    format!("{{\"type\":\"error\",\"text\":\"the state did not serialise: {e}\"}}")
+                });
                 out.send_replace(json.into());
                 next = now + LOOK_PERIOD;
             }
@@ -141,8 +144,8 @@ impl Watcher {
         }
     }
 
-    /// One look at the system, as JSON.
-    pub fn look(&mut self) -> String {
+    /// One look at the system.
+    pub fn look(&mut self) -> State {
         let mut state = State {
             kind: "state",
             domain: self.domain.clone(),
@@ -184,9 +187,7 @@ impl Watcher {
             }
         }
         self.log.observe(&mut state);
-        serde_json::to_string(&state).unwrap_or_else(|e| {
-            format!("{{\"type\":\"error\",\"text\":\"the state did not serialise: {e}\"}}")
-        })
+        state
     }
 
     /// The modules: the supervisor's rows, or iceoryx2's directory without a supervisor.
