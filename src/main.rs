@@ -133,7 +133,11 @@ enum Command {
     /// the blackboards live, and commands to them (the program `modbot-station`; its options
     /// follow: `--listen ADDR:PORT`, default 127.0.0.1:8080, and `--token T`).
     Station {
-        #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "OPTIONS")]
+        #[arg(
+            trailing_var_arg = true,
+            allow_hyphen_values = true,
+            value_name = "OPTIONS"
+        )]
         args: Vec<String>,
     },
     /// The system in this terminal, live: every module (state, activity, pid, restarts, last

@@ -111,7 +111,10 @@ fn start_station(domain: &Domain, listen: &str) -> Option<std::process::Child> {
     match command.spawn() {
         Ok(child) => Some(child),
         Err(e) => {
-            eprintln!("modbot up: no station: cannot run {}: {e}", program.display());
+            eprintln!(
+                "modbot up: no station: cannot run {}: {e}",
+                program.display()
+            );
             None
         }
     }

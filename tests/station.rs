@@ -31,7 +31,9 @@ fn station(sut: &mut TestDomain, more: &[&str]) -> (u32, String) {
         let out = sut.output_of(pid);
         match out.split_once(" at http://") {
             Some((_, rest)) => {
-                let end = rest.find(|c: char| c.is_whitespace() || c == '?').unwrap_or(rest.len());
+                let end = rest
+                    .find(|c: char| c.is_whitespace() || c == '?')
+                    .unwrap_or(rest.len());
                 url = format!("http://{}", &rest[..end]);
                 true
             }
@@ -90,7 +92,15 @@ fn moser(sut: &mut TestDomain) -> u32 {
     let up = sut.spawn_logged(
         "modbot",
         &[
-            "up", file, "--var", &domain, "--var", "speed=10", "--var", "endless=1", "--for",
+            "up",
+            file,
+            "--var",
+            &domain,
+            "--var",
+            "speed=10",
+            "--var",
+            "endless=1",
+            "--for",
             "600",
         ],
     );
@@ -130,10 +140,14 @@ fn the_station_serves_its_page_and_the_state_of_a_system_without_a_browser() {
     assert_eq!(status, 200);
     assert!(script.contains("new WebSocket"));
     // The state, as the page gets it: the seven modules, MOSER's blackboards.
-    sut.wait_for("seven running modules in /api/state", Duration::from_secs(60), || {
-        let (_, body) = get(&url, "/api/state");
-        body.matches("\"state\":\"running\"").count() == 7 && body.contains("\"mobility\":{")
-    });
+    sut.wait_for(
+        "seven running modules in /api/state",
+        Duration::from_secs(60),
+        || {
+            let (_, body) = get(&url, "/api/state");
+            body.matches("\"state\":\"running\"").count() == 7 && body.contains("\"mobility\":{")
+        },
+    );
     let (_, map) = get(&url, "/api/map");
     assert!(map.contains("server room"), "{map}");
     let (status, _) = get(&url, "/nothing");
@@ -152,7 +166,14 @@ fn the_station_switches_the_arm_to_ptp_from_the_page_and_its_joints_move() {
     let file = common::arm::arm();
     let up = sut.spawn_logged(
         "modbot",
-        &["up", file.to_str().unwrap(), "--var", &domain, "--for", "600"],
+        &[
+            "up",
+            file.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--for",
+            "600",
+        ],
     );
     sut.wait_for("the arm up", Duration::from_secs(120), || {
         sut.output_of(up).contains("module(s) up in")
@@ -162,11 +183,18 @@ fn the_station_switches_the_arm_to_ptp_from_the_page_and_its_joints_move() {
     browser_test("arm.mjs", &[&url, shots.to_str().unwrap()]);
     assert!(shots.join("station-arm.png").is_file());
     let assembly = sut.modbot_ok(&["assembly"]);
-    assert!(assembly.starts_with("assembly ptp (generation 2)"), "{assembly}");
+    assert!(
+        assembly.starts_with("assembly ptp (generation 2)"),
+        "{assembly}"
+    );
     sut.signal(station, Signal::SIGTERM);
     assert!(sut.wait_exit(station, Duration::from_secs(60)).success());
     sut.signal(up, Signal::SIGINT);
-    assert!(sut.wait_exit(up, Duration::from_secs(120)).success(), "{}", sut.output_of(up));
+    assert!(
+        sut.wait_exit(up, Duration::from_secs(120)).success(),
+        "{}",
+        sut.output_of(up)
+    );
 }
 
 #[test]
@@ -177,31 +205,52 @@ fn modbot_up_with_station_serves_the_page_of_its_system_and_stops_it_with_the_sy
     let up = sut.spawn_logged(
         "modbot",
         &[
-            "up", file, "--var", &domain, "--var", "speed=10", "--var", "endless=1", "--for",
-            "600", "--station", "127.0.0.1:0",
+            "up",
+            file,
+            "--var",
+            &domain,
+            "--var",
+            "speed=10",
+            "--var",
+            "endless=1",
+            "--for",
+            "600",
+            "--station",
+            "127.0.0.1:0",
         ],
     );
     let mut url = String::new();
-    sut.wait_for("the station's address from modbot up", Duration::from_secs(120), || {
-        let out = sut.output_of(up);
-        match out.split_once("modbot station: domain") {
-            Some((_, rest)) => {
-                let at = rest.split_once(" at ").map(|(_, a)| a).unwrap_or_default();
-                url = at.split_whitespace().next().unwrap_or_default().to_owned();
-                !url.is_empty()
+    sut.wait_for(
+        "the station's address from modbot up",
+        Duration::from_secs(120),
+        || {
+            let out = sut.output_of(up);
+            match out.split_once("modbot station: domain") {
+                Some((_, rest)) => {
+                    let at = rest.split_once(" at ").map(|(_, a)| a).unwrap_or_default();
+                    url = at.split_whitespace().next().unwrap_or_default().to_owned();
+                    !url.is_empty()
+                }
+                None => false,
             }
-            None => false,
-        }
-    });
-    sut.wait_for("seven running modules in /api/state", Duration::from_secs(60), || {
-        let (_, body) = get(&url, "/api/state");
-        body.matches("\"state\":\"running\"").count() == 7
-    });
+        },
+    );
+    sut.wait_for(
+        "seven running modules in /api/state",
+        Duration::from_secs(60),
+        || {
+            let (_, body) = get(&url, "/api/state");
+            body.matches("\"state\":\"running\"").count() == 7
+        },
+    );
     sut.signal(up, Signal::SIGINT);
     let status = sut.wait_exit(up, Duration::from_secs(120));
     assert!(status.success(), "{}", sut.output_of(up));
     assert!(sut.output_of(up).contains("modbot station: stopped"));
-    let host = url.trim_start_matches("http://").trim_end_matches('/').to_owned();
+    let host = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_owned();
     assert!(
         std::net::TcpStream::connect(&host).is_err(),
         "the station still answers at {url} after the system stopped"
@@ -228,7 +277,9 @@ impl Tmux {
 
 impl Drop for Tmux {
     fn drop(&mut self) {
-        let _ = Command::new("tmux").args(["kill-session", "-t", &self.0]).output();
+        let _ = Command::new("tmux")
+            .args(["kill-session", "-t", &self.0])
+            .output();
     }
 }
 
@@ -240,25 +291,50 @@ fn modbot_top_shows_the_modules_sorts_them_and_opens_a_modules_detail_in_a_termi
     let modbot = common::bin("modbot");
     let command = format!("env MODBOT_DOMAIN={} {} top", sut.name(), modbot.display());
     let started = Command::new("tmux")
-        .args(["new-session", "-d", "-s", &session.0, "-x", "200", "-y", "50", &command])
+        .args([
+            "new-session",
+            "-d",
+            "-s",
+            &session.0,
+            "-x",
+            "200",
+            "-y",
+            "50",
+            &command,
+        ])
         .status()
         .expect("tmux runs (./setup.sh --tests installs it)");
     assert!(started.success());
     let mut screen = String::new();
-    sut.wait_for("the seven modules on the screen", Duration::from_secs(60), || {
-        screen = session.screen();
-        screen.contains("7 modules, 7 running") && screen.contains("near_ir")
-    });
+    sut.wait_for(
+        "the seven modules on the screen",
+        Duration::from_secs(60),
+        || {
+            screen = session.screen();
+            screen.contains("7 modules, 7 running") && screen.contains("near_ir")
+        },
+    );
     assert!(screen.contains("sorted by address"), "{screen}");
     session.keys("n");
-    sut.wait_for("the modules sorted by name", Duration::from_secs(30), || {
-        screen = session.screen();
-        let order: Vec<usize> = ["collision_sonar", "control_station", "high_level", "intrusion"]
+    sut.wait_for(
+        "the modules sorted by name",
+        Duration::from_secs(30),
+        || {
+            screen = session.screen();
+            let order: Vec<usize> = [
+                "collision_sonar",
+                "control_station",
+                "high_level",
+                "intrusion",
+            ]
             .iter()
             .filter_map(|n| screen.find(&format!(" {n} ")))
             .collect();
-        screen.contains("sorted by name") && order.len() == 4 && order.windows(2).all(|w| w[0] < w[1])
-    });
+            screen.contains("sorted by name")
+                && order.len() == 4
+                && order.windows(2).all(|w| w[0] < w[1])
+        },
+    );
     // The first row is chosen: its detail.
     session.keys("Enter");
     sut.wait_for("collision_sonar's detail", Duration::from_secs(30), || {
@@ -276,5 +352,9 @@ fn modbot_top_shows_the_modules_sorts_them_and_opens_a_modules_detail_in_a_termi
                 .unwrap_or(false)
     });
     sut.signal(up, Signal::SIGINT);
-    assert!(sut.wait_exit(up, Duration::from_secs(120)).success(), "{}", sut.output_of(up));
+    assert!(
+        sut.wait_exit(up, Duration::from_secs(120)).success(),
+        "{}",
+        sut.output_of(up)
+    );
 }

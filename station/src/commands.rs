@@ -103,7 +103,9 @@ pub fn parse(text: &str) -> Result<Message, MessageError> {
                 .args
                 .iter()
                 .enumerate()
-                .map(|(index, a)| OwnedValue::parse(a).map_err(|why| MessageError::Arg { index, why }))
+                .map(|(index, a)| {
+                    OwnedValue::parse(a).map_err(|why| MessageError::Arg { index, why })
+                })
                 .collect::<Result<_, _>>()?;
             Ok(Message::Call(Call {
                 id: raw.id,
@@ -209,21 +211,48 @@ mod tests {
             ("not json", "malformed message"),
             (r#"{"op":"launch"}"#, "unknown op 'launch'"),
             (r#"{"op":"call","method":"x"}"#, "is not a module name"),
-            (r#"{"op":"call","module":"a b","method":"x"}"#, "'a b' is not a module name"),
-            (r#"{"op":"call","module":"a","method":""}"#, "is not a method name"),
-            (r#"{"op":"call","module":"a","method":"x;y"}"#, "'x;y' is not a method name"),
-            (r#"{"op":"call","module":"a","method":"x","extra":1}"#, "unknown field"),
-            (r#"{"op":"call","module":"a","method":"x","args":["f64:z"]}"#, "argument 0"),
-            (r#"{"op":"call","module":"a","method":"x","args":[1]}"#, "malformed message"),
+            (
+                r#"{"op":"call","module":"a b","method":"x"}"#,
+                "'a b' is not a module name",
+            ),
+            (
+                r#"{"op":"call","module":"a","method":""}"#,
+                "is not a method name",
+            ),
+            (
+                r#"{"op":"call","module":"a","method":"x;y"}"#,
+                "'x;y' is not a method name",
+            ),
+            (
+                r#"{"op":"call","module":"a","method":"x","extra":1}"#,
+                "unknown field",
+            ),
+            (
+                r#"{"op":"call","module":"a","method":"x","args":["f64:z"]}"#,
+                "argument 0",
+            ),
+            (
+                r#"{"op":"call","module":"a","method":"x","args":[1]}"#,
+                "malformed message",
+            ),
         ];
         for (text, expected) in cases {
             let e = parse(text).unwrap_err().to_string();
             assert!(e.contains(expected), "{text}: {e}");
         }
-        let long = format!(r#"{{"op":"watch","modules":["{}"]}}"#, "a".repeat(MAX_MESSAGE));
+        let long = format!(
+            r#"{{"op":"watch","modules":["{}"]}}"#,
+            "a".repeat(MAX_MESSAGE)
+        );
         assert!(matches!(parse(&long), Err(MessageError::TooLong { .. })));
         let many: Vec<String> = (0..=MAX_ARGS).map(|i| format!("\"{i}\"")).collect();
-        let text = format!(r#"{{"op":"call","module":"a","method":"x","args":[{}]}}"#, many.join(","));
-        assert!(matches!(parse(&text), Err(MessageError::TooManyArgs { .. })));
+        let text = format!(
+            r#"{{"op":"call","module":"a","method":"x","args":[{}]}}"#,
+            many.join(",")
+        );
+        assert!(matches!(
+            parse(&text),
+            Err(MessageError::TooManyArgs { .. })
+        ));
     }
 }

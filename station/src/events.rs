@@ -70,7 +70,11 @@ impl Log {
                         );
                     }
                     if state != row.state {
-                        self.push(t, "module", format!("{}: {} → {}", row.name, state, row.state));
+                        self.push(
+                            t,
+                            "module",
+                            format!("{}: {} → {}", row.name, state, row.state),
+                        );
                     }
                     if let (Some(before), Some(after)) = (active, active_now) {
                         if before != after {
@@ -82,13 +86,10 @@ impl Log {
             }
             self.modules.insert(row.name.clone(), seen);
         }
-        let grid = now
-            .grid
-            .as_ref()
-            .map(|g| match g.grid.fault.as_str() {
-                "" => g.grid.state.clone(),
-                fault => format!("{}: {fault}", g.grid.state),
-            });
+        let grid = now.grid.as_ref().map(|g| match g.grid.fault.as_str() {
+            "" => g.grid.state.clone(),
+            fault => format!("{}: {fault}", g.grid.state),
+        });
         if grid != self.grid && !(first && grid.is_none()) {
             if let Some(g) = &grid {
                 self.push(t, "grid", format!("grid {g}"));
@@ -126,7 +127,9 @@ impl Log {
                 (Some(Json::Number(Some(x))), Some(Json::Number(Some(y)))) => Some([*x, *y]),
                 _ => None,
             };
-            let shown = at.map_or(String::new(), |[x, y]| format!(" (robot at {x:.1}, {y:.1})"));
+            let shown = at.map_or(String::new(), |[x, y]| {
+                format!(" (robot at {x:.1}, {y:.1})")
+            });
             self.push_at(
                 now.t_ms,
                 "alert",
@@ -151,7 +154,11 @@ mod tests {
             state: state.into(),
             pid: 42,
             restarts,
-            last_exit: if restarts > 0 { "was killed by SIGKILL".into() } else { String::new() },
+            last_exit: if restarts > 0 {
+                "was killed by SIGKILL".into()
+            } else {
+                String::new()
+            },
             counters: Default::default(),
         });
         m.active = active;
@@ -168,7 +175,9 @@ mod tests {
         if let Some(a) = alerts {
             s.blackboards.insert(
                 "intrusion".into(),
-                [("alerts".to_owned(), Json::Integer(a))].into_iter().collect(),
+                [("alerts".to_owned(), Json::Integer(a))]
+                    .into_iter()
+                    .collect(),
             );
         }
         s
@@ -177,10 +186,20 @@ mod tests {
     #[test]
     fn changes_between_looks_are_logged_once_each() {
         let mut log = Log::new();
-        let mut s = look(0, vec![module("sonar", "running", 0, Some(true))], Some("operational"), Some(0));
+        let mut s = look(
+            0,
+            vec![module("sonar", "running", 0, Some(true))],
+            Some("operational"),
+            Some(0),
+        );
         log.observe(&mut s);
         assert_eq!(s.events.len(), 1, "{:?}", s.events); // the robot's state as found
-        let mut s = look(100, vec![module("sonar", "running", 1, Some(false))], Some("operational"), Some(1));
+        let mut s = look(
+            100,
+            vec![module("sonar", "running", 1, Some(false))],
+            Some("operational"),
+            Some(1),
+        );
         log.observe(&mut s);
         let texts: Vec<&str> = s.events.iter().map(|e| e.text.as_str()).collect();
         assert_eq!(
@@ -191,7 +210,12 @@ mod tests {
                 "INTRUDER ALERT 1",
             ]
         );
-        let mut s = look(200, vec![module("sonar", "running", 1, Some(false))], Some("safe stop"), Some(1));
+        let mut s = look(
+            200,
+            vec![module("sonar", "running", 1, Some(false))],
+            Some("safe stop"),
+            Some(1),
+        );
         log.observe(&mut s);
         assert_eq!(s.events.last().unwrap().text, "robot safe stop");
         assert_eq!(s.events.len(), 5);

@@ -46,7 +46,11 @@ pub fn moser() -> Map {
     let b = moser_building();
     Map {
         bounds: rect(&b.bounds),
-        walls: b.walls.iter().map(|w| [w.a.x, w.a.y, w.b.x, w.b.y]).collect(),
+        walls: b
+            .walls
+            .iter()
+            .map(|w| [w.a.x, w.a.y, w.b.x, w.b.y])
+            .collect(),
         rooms: b
             .rooms
             .iter()

@@ -39,12 +39,18 @@ pub struct Shared {
 /// The station's routes.
 pub fn router(shared: Shared) -> Router {
     Router::new()
-        .route("/", get(|| async { page(INDEX, "text/html; charset=utf-8") }))
+        .route(
+            "/",
+            get(|| async { page(INDEX, "text/html; charset=utf-8") }),
+        )
         .route(
             "/station.js",
             get(|| async { page(SCRIPT, "text/javascript; charset=utf-8") }),
         )
-        .route("/station.css", get(|| async { page(STYLE, "text/css; charset=utf-8") }))
+        .route(
+            "/station.css",
+            get(|| async { page(STYLE, "text/css; charset=utf-8") }),
+        )
         .route("/api/state", get(api_state))
         .route("/api/map", get(api_map))
         .route("/ws", get(ws))
@@ -57,11 +63,19 @@ fn page(body: &'static str, kind: &'static str) -> Response {
 
 async fn api_state(AxumState(s): AxumState<Shared>) -> Response {
     let json = s.states.borrow().clone();
-    ([(header::CONTENT_TYPE, "application/json")], json.to_string()).into_response()
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        json.to_string(),
+    )
+        .into_response()
 }
 
 async fn api_map(AxumState(s): AxumState<Shared>) -> Response {
-    ([(header::CONTENT_TYPE, "application/json")], s.map.to_string()).into_response()
+    (
+        [(header::CONTENT_TYPE, "application/json")],
+        s.map.to_string(),
+    )
+        .into_response()
 }
 
 #[derive(Deserialize)]

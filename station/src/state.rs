@@ -99,11 +99,7 @@ impl Assembly {
             name: s.assembly.clone(),
             generation: s.generation,
             switch: s.state.to_string(),
-            history: s
-                .outcomes
-                .iter()
-                .map(ToString::to_string)
-                .collect(),
+            history: s.outcomes.iter().map(ToString::to_string).collect(),
         }
     }
 }

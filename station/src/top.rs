@@ -124,9 +124,7 @@ fn key(s: &mut Screen, code: KeyCode, modifiers: KeyModifiers) -> bool {
     let n = s.state.modules.len();
     match code {
         KeyCode::Char('q') => return false,
-        KeyCode::Char('c') if modifiers.contains(KeyModifiers::CONTROL) => {
-            return false
-        }
+        KeyCode::Char('c') if modifiers.contains(KeyModifiers::CONTROL) => return false,
         KeyCode::Esc => s.detail = false,
         KeyCode::Enter => s.detail = !s.detail,
         KeyCode::Down => {
@@ -158,7 +156,10 @@ fn us(x: Option<f64>) -> String {
 
 fn draw(f: &mut Frame, s: &mut Screen) {
     let st = &s.state;
-    let grid_rows = st.grid.as_ref().map_or(0, |g| g.components.len() as u16 + 4);
+    let grid_rows = st
+        .grid
+        .as_ref()
+        .map_or(0, |g| g.components.len() as u16 + 4);
     let [head, modules, grid, foot] = Layout::vertical([
         Constraint::Length(2),
         Constraint::Min(5),
@@ -167,7 +168,11 @@ fn draw(f: &mut Frame, s: &mut Screen) {
     ])
     .areas(f.area());
 
-    let running = st.modules.iter().filter(|m| m.row.state == "running").count();
+    let running = st
+        .modules
+        .iter()
+        .filter(|m| m.row.state == "running")
+        .count();
     let mut lines = vec![Line::from(format!(
         "modbot top · domain {} · {} modules, {running} running · sorted by {}{}",
         st.domain,
@@ -183,8 +188,18 @@ fn draw(f: &mut Frame, s: &mut Screen) {
     f.render_widget(Paragraph::new(lines), head);
 
     let header = Row::new([
-        "ADDR", "NAME", "STATE", "ACTIVE", "PID", "RESTARTS", "LAST EXIT", "DROPPED", "REJECT",
-        "CALLS", "P50", "P99",
+        "ADDR",
+        "NAME",
+        "STATE",
+        "ACTIVE",
+        "PID",
+        "RESTARTS",
+        "LAST EXIT",
+        "DROPPED",
+        "REJECT",
+        "CALLS",
+        "P50",
+        "P99",
     ])
     .style(Style::new().add_modifier(Modifier::BOLD));
     let rows = st.modules.iter().map(|m| {
@@ -238,8 +253,16 @@ fn draw(f: &mut Frame, s: &mut Screen) {
             g.grid.state, g.grid.ticks, g.grid.missed, g.grid.rate_hz
         );
         let header = Row::new([
-            "COMPONENT", "HOST", "PERIOD", "POLICY", "RELEASES", "OVERRUNS", "LATE", "STALE",
-            "EXEC P50", "EXEC P99",
+            "COMPONENT",
+            "HOST",
+            "PERIOD",
+            "POLICY",
+            "RELEASES",
+            "OVERRUNS",
+            "LATE",
+            "STALE",
+            "EXEC P50",
+            "EXEC P99",
         ])
         .style(Style::new().add_modifier(Modifier::BOLD));
         let rows = g.components.iter().map(|c| {
@@ -287,10 +310,17 @@ fn detail(f: &mut Frame, m: &Module) {
     .intersection(area);
     let text = vec![
         Line::from(format!("module {} at address {}", m.row.name, m.row.addr)),
-        Line::from(format!("state {} · pid {} · restarts {}", m.row.state, m.row.pid, m.row.restarts)),
+        Line::from(format!(
+            "state {} · pid {} · restarts {}",
+            m.row.state, m.row.pid, m.row.restarts
+        )),
         Line::from(format!(
             "last exit: {}",
-            if m.row.last_exit.is_empty() { "-" } else { &m.row.last_exit }
+            if m.row.last_exit.is_empty() {
+                "-"
+            } else {
+                &m.row.last_exit
+            }
         )),
         Line::from(format!(
             "frames dropped {} · rejected {} · replayed {}",
@@ -334,7 +364,11 @@ mod tests {
 
     #[test]
     fn modules_sort_by_each_key_and_reverse_with_ties_by_address() {
-        let mut v = vec![m(3, "b", 1, Some(5.0)), m(1, "c", 2, None), m(2, "a", 1, Some(9.0))];
+        let mut v = vec![
+            m(3, "b", 1, Some(5.0)),
+            m(1, "c", 2, None),
+            m(2, "a", 1, Some(9.0)),
+        ];
         let names = |v: &[Module]| v.iter().map(|m| m.row.name.clone()).collect::<Vec<_>>();
         sort(&mut v, SortBy::Name, false);
         assert_eq!(names(&v), ["a", "b", "c"]);

@@ -167,7 +167,7 @@ impl Watcher {
         if exists("coordinator") {
             state.grid = self.grid(&mut state.problems);
         }
-        if exists(&self.bus_module.clone()) {
+        if exists(&self.bus_module) {
             state.robot = self.robot(&mut state.problems);
         }
         let now = Instant::now();
@@ -239,7 +239,10 @@ impl Watcher {
 
     /// Once a second: what every running module says of itself (describe, stats).
     fn describe_due(&mut self, state: &State) {
-        if self.described.is_some_and(|t| t.elapsed() < DESCRIBE_PERIOD) {
+        if self
+            .described
+            .is_some_and(|t| t.elapsed() < DESCRIBE_PERIOD)
+        {
             return;
         }
         self.described = Some(Instant::now());
@@ -251,17 +254,26 @@ impl Watcher {
             .collect();
         let mut reports: Vec<SelfReport> = vec![SelfReport::default(); names.len()];
         let describe = sysmethod::name(sysmethod::DESCRIBE).unwrap_or("describe");
-        self.tool
-            .call_each(&names, describe, CallOptions::timeout(LOOK_TIMEOUT), |i, r| {
+        self.tool.call_each(
+            &names,
+            describe,
+            CallOptions::timeout(LOOK_TIMEOUT),
+            |i, r| {
                 if let Ok(a) = r {
                     reports[i].methods = a
                         .text(3)
-                        .map(|m| m.split(',').filter(|s| !s.is_empty()).map(str::to_owned).collect())
+                        .map(|m| {
+                            m.split(',')
+                                .filter(|s| !s.is_empty())
+                                .map(str::to_owned)
+                                .collect()
+                        })
                         .unwrap_or_default();
                     // Modules older than `active` do not send it: active.
                     reports[i].active = Some(!matches!(a.get(8), Some(Value::Bool(false))));
                 }
-            });
+            },
+        );
         let stats = sysmethod::name(sysmethod::STATS).unwrap_or("stats");
         self.tool
             .call_each(&names, stats, CallOptions::timeout(LOOK_TIMEOUT), |i, r| {
@@ -273,11 +285,7 @@ impl Watcher {
                     }
                 }
             });
-        self.reports = names
-            .iter()
-            .map(|n| (*n).to_owned())
-            .zip(reports)
-            .collect();
+        self.reports = names.iter().map(|n| (*n).to_owned()).zip(reports).collect();
     }
 
     fn grid(&mut self, problems: &mut Vec<String>) -> Option<Grid> {

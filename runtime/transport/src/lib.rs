@@ -319,9 +319,9 @@ pub trait Transport {
             ) {
                 // A process that answered an earlier tool at this address may be creating its
                 // inbox right now (or was stopped while it did, SIGSTOP): another address.
-                Err(TransportError::AddressTaken { .. } | TransportError::InboxInCreation { .. }) => {
-                    continue
-                }
+                Err(
+                    TransportError::AddressTaken { .. } | TransportError::InboxInCreation { .. },
+                ) => continue,
                 Ok(endpoint) => {
                     self.opened_as_tool();
                     return Ok(endpoint);
