@@ -64,8 +64,9 @@ fn get(url: &str, path: &str) -> (u16, String) {
     (status, body)
 }
 
-/// Runs a browser test script; panics with what it printed if a check failed.
-fn browser_test(script: &str, args: &[&str]) {
+/// Runs a browser test script; panics with what it printed, and the tail of the system's log
+/// (`up`, the `modbot up` process), if a check failed.
+fn browser_test(sut: &TestDomain, up: u32, script: &str, args: &[&str]) {
     let node_modules = Path::new(BROWSER_DIR).join("node_modules/playwright-core");
     assert!(
         node_modules.is_dir() && Path::new("/usr/bin/chromium").exists(),
@@ -82,7 +83,15 @@ fn browser_test(script: &str, args: &[&str]) {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(out.status.success(), "{script} failed:\n{text}");
+    if !out.status.success() {
+        let log = sut.output_of(up);
+        let tail: Vec<&str> = log.lines().rev().take(60).collect();
+        let tail: Vec<&str> = tail.into_iter().rev().collect();
+        panic!(
+            "{script} failed:\n{text}\nthe system's log, its last lines:\n{}",
+            tail.join("\n")
+        );
+    }
     println!("{text}");
 }
 
@@ -117,7 +126,12 @@ fn the_station_shows_moser_live_in_a_browser_and_commands_it_with_the_token_only
     let token = format!("tok{}", std::process::id());
     let (station, url) = station(&mut sut, &["--token", &token]);
     let shots = screenshots();
-    browser_test("moser.mjs", &[&url, &token, shots.to_str().unwrap()]);
+    browser_test(
+        &sut,
+        up,
+        "moser.mjs",
+        &[&url, &token, shots.to_str().unwrap()],
+    );
     assert!(shots.join("station-moser.png").is_file());
 
     sut.signal(station, Signal::SIGTERM);
@@ -180,7 +194,7 @@ fn the_station_switches_the_arm_to_ptp_from_the_page_and_its_joints_move() {
     });
     let (station, url) = station(&mut sut, &[]);
     let shots = screenshots();
-    browser_test("arm.mjs", &[&url, shots.to_str().unwrap()]);
+    browser_test(&sut, up, "arm.mjs", &[&url, shots.to_str().unwrap()]);
     assert!(shots.join("station-arm.png").is_file());
     let assembly = sut.modbot_ok(&["assembly"]);
     assert!(

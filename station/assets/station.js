@@ -42,6 +42,7 @@ function connect() {
       document.body.dataset.mode = m.can_command ? "commanding" : "read-only";
     } else if (m.type === "state") {
       view.state = m;
+      view.stateAt = Date.now();
       render(m);
     } else if (m.type === "answer") {
       answered(m);
@@ -82,14 +83,22 @@ function answered(m) {
 function fmtUs(x) { return x == null ? "–" : x < 1000 ? `${x.toFixed(1)} µs` : `${(x / 1000).toFixed(2)} ms`; }
 function fmtNs(x) { return fmtUs(x / 1000); }
 
+// Each part of the page is drawn on its own: one that fails (says why in the problems line and
+// in view.errors) does not stop the others.
 function render(s) {
-  renderModules(s);
-  renderRobotAndGrid(s);
-  renderArm(s);
-  renderBoards(s);
-  renderMap(s);
-  renderEvents(s);
-  $("#problems").textContent = s.problems.length ? "not answered in the last look: " + s.problems.join("; ") : "";
+  const errors = [];
+  for (const part of [renderModules, renderRobotAndGrid, renderArm, renderBoards, renderMap, renderEvents]) {
+    try {
+      part(s);
+    } catch (e) {
+      errors.push(`${part.name}: ${e.message || e}`);
+    }
+  }
+  view.errors = errors;
+  const lines = [];
+  if (s.problems.length) lines.push("not answered in the last look: " + s.problems.join("; "));
+  if (errors.length) lines.push("the page could not draw: " + errors.join("; "));
+  $("#problems").textContent = lines.join(" · ");
 }
 
 function renderModules(s) {
@@ -297,9 +306,16 @@ function renderMap(s) {
   if (!mob || typeof mob.x !== "number") { $("#map-view").hidden = true; return; }
   $("#map-view").hidden = false;
   if (!view.map) {
+    // Asked once; asked again a second later if that failed.
     if (!view.mapAsked) {
       view.mapAsked = true;
-      fetch("api/map").then((r) => r.json()).then((m) => { view.map = m; });
+      fetch("api/map")
+        .then((r) => (r.ok ? r.json() : Promise.reject(new Error(`HTTP ${r.status}`))))
+        .then((m) => { view.map = m; })
+        .catch((e) => {
+          view.mapError = `${e.message || e}`;
+          setTimeout(() => { view.mapAsked = false; }, 1000);
+        });
     }
     return;
   }

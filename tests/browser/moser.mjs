@@ -13,6 +13,18 @@ import { launch, fail, step, screenshot } from "./station-lib.mjs";
 const [url, token, shots] = process.argv.slice(2);
 // Whatever hangs, the test ends and says so.
 setTimeout(() => { console.error("moser.mjs: not done within 10 minutes"); process.exit(1); }, 600_000).unref();
+// What the page had when a check failed: the robot's pose, the plan's state, the map, the
+// station's problems and the page's own drawing errors.
+async function seen(page) {
+  return page.evaluate(() => {
+    const v = window.station, s = v.state || { blackboards: {}, problems: [] };
+    return JSON.stringify({
+      pose: v.pose, map: v.map !== null, mapError: v.mapError, errors: v.errors,
+      mobility: s.blackboards.mobility, high_level: s.blackboards.high_level,
+      problems: s.problems, t_ms: s.t_ms, state_age_ms: v.stateAt ? Date.now() - v.stateAt : null, events: (s.events || []).slice(-8),
+    });
+  });
+}
 const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: 1500, height: 1300 } });
@@ -24,12 +36,16 @@ try {
       document.body.dataset.mode === "commanding", null, { timeout: 60_000 }));
 
   await step("the robot's marker moves on the map", async () => {
-    await page.waitForFunction(() => window.station.pose !== null, null, { timeout: 60_000 });
-    const first = await page.evaluate(() => ({ ...window.station.pose }));
-    await page.waitForFunction((p) => {
-      const q = window.station.pose;
-      return Math.hypot(q.x - p.x, q.y - p.y) > 0.5;
-    }, first, { timeout: 60_000 });
+    try {
+      await page.waitForFunction(() => window.station.pose !== null, null, { timeout: 60_000 });
+      const first = await page.evaluate(() => ({ ...window.station.pose }));
+      await page.waitForFunction((p) => {
+        const q = window.station.pose;
+        return Math.hypot(q.x - p.x, q.y - p.y) > 0.5;
+      }, first, { timeout: 120_000 });
+    } catch (e) {
+      fail(`${e.message || e}; the page saw ${await seen(page)}`);
+    }
     const shown = await page.locator("#robot-pose").getAttribute("data-x");
     if (shown === null) fail("the map shows no robot position");
   });
