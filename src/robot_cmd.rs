@@ -5,8 +5,8 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Subcommand;
+use modbot_bus::ask::{self as robot_state, RESET_TIMEOUT};
 use modbot_ipc_schema::Value;
-use modbot_program::robot_state::{self, RESET_TIMEOUT};
 use modbot_runtime::bus::DriveFault;
 use modbot_runtime::tool::Calls;
 use modbot_runtime::CallOptions;

@@ -429,8 +429,7 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
             }
         };
         // The robot's state, from the bus bridge (a grid without a bus has none).
-        if let Ok(Some(state)) =
-            modbot_program::robot_state::robot_state(&mut tool, Duration::from_millis(500))
+        if let Ok(Some(state)) = modbot_bus::ask::robot_state(&mut tool, Duration::from_millis(500))
         {
             frame.push_str(&format!("robot {state}\n"));
         }

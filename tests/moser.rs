@@ -127,3 +127,34 @@ fn nav_sonar_killed_mid_patrol_is_restarted_and_the_patrol_carries_on() {
     assert_scenario_completed(&output);
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }
+
+/// The high-level module SIGKILLed mid-patrol forgets the patrol it was given; restarted, it
+/// reports itself idle, and the control station, whose mission stands, sends it the patrol
+/// again: the robot goes on to the intruder and the scenario completes.
+#[test]
+fn high_level_killed_mid_patrol_is_given_its_patrol_again_by_the_control_station() {
+    let mut sut = TestDomain::new("moserhl");
+    let up = moser(&mut sut);
+    sut.wait_for(
+        "the patrol to be under way",
+        Duration::from_secs(60),
+        || sut.output_of(up).contains("patrolling wing 3  point"),
+    );
+    let pid: u32 = sut
+        .ls_field("high_level", "PID")
+        .and_then(|p| p.parse().ok())
+        .expect("high_level runs");
+    sut.signal(pid, Signal::SIGKILL);
+    sut.wait_for("the patrol sent again", Duration::from_secs(60), || {
+        sut.output_of(up).contains("patrol of wing 3 sent again")
+    });
+    let status = sut.wait_exit(up, Duration::from_secs(200));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert!(
+        output.contains("high_level ended (killed by SIGKILL)"),
+        "{output}"
+    );
+    assert_scenario_completed(&output);
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}

@@ -226,7 +226,7 @@ pub(crate) trait Path {
 
 /// How long modbot's blocking side looks before sleeping: the default of [`CallOptions::spin`]
 /// and of [`ModuleBuilder::linger`], which is defined as the same.
-const LOOK: Duration = modbot_runtime::module::DEFAULT_LINGER;
+pub(crate) const LOOK: Duration = modbot_runtime::module::DEFAULT_LINGER;
 
 /// The pause before each call of the paced rows: long enough for both sides to sleep.
 const PACE: Duration = Duration::from_micros(200);
@@ -305,7 +305,7 @@ fn pair_sizes(
 }
 
 /// A modbot call to the echo module, in a domain of its own.
-struct ModbotPath {
+pub(crate) struct ModbotPath {
     tool: Module<()>,
     child: Proc,
     mode: ReceiveMode,
@@ -320,7 +320,7 @@ struct ModbotPath {
 impl ModbotPath {
     /// `look`: how long the caller looks for an answer and the echo module for the next call
     /// before sleeping (blocking mode: [`CallOptions::spin`], [`ModuleBuilder::linger`]).
-    fn open(
+    pub(crate) fn open(
         opts: &Opts,
         mode: ReceiveMode,
         max_frame: usize,
@@ -363,7 +363,7 @@ impl ModbotPath {
     }
 
     /// Notes the shared memory a big domain took, and stops the echo module.
-    fn close(self, report: &mut Report, sizes: &[usize]) -> anyhow::Result<()> {
+    pub(crate) fn close(self, report: &mut Report, sizes: &[usize]) -> anyhow::Result<()> {
         let max_frame = self.scratch.domain.max_frame();
         if max_frame > modbot_runtime::domain::DEFAULT_MAX_FRAME {
             let (reserved, used) = procs::shm_usage(&self.scratch.domain);

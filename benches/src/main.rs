@@ -3,13 +3,13 @@
 //!
 //! # Commands
 //! - `modbot-benches all [--quick] [--pin] [--fifo] [--out DIR]`: every benchmark in order
-//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu, ethercat; ethercat only as root, else
-//!   a note says it was skipped). A benchmark that fails leaves a note in
+//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu, ethercat, station; ethercat only as
+//!   root, station only with chromium, else a note says it was skipped). A benchmark that fails leaves a note in
 //!   the report and the run goes on. Writes `report.md`, `report.json` and the SVG plots into
 //!   `target/bench-report/` (next to the `release` directory this executable is in) or `DIR`,
 //!   and prints `report.md`. `--quick` finishes in under 3 minutes.
 //!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
-//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu|ethercat [options]`: one
+//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu|ethercat|station [options]`: one
 //!   benchmark, with the same report. `ethercat` needs root (a network namespace, raw sockets)
 //!   and `modbot-ecat-sim` built next to this executable; without root it exits with one line.
 //! - `modbot-benches soak [--minutes N] [--seed S] [options]`: MOSER and the arm under a fault a
@@ -41,7 +41,9 @@
 //!   [`lockstep`] runs belong to 3), [`soak`] (8, a fault a second for minutes: calls exactly
 //!   once, memory, files, the robot reset after each stop, no motion ok across one), [`fmu`] (9, an FMU component against a built-in doing the same),
 //!   [`ethercat`] (10, the EtherCAT bus cycle against a raw AF_PACKET ping-pong, and its jitter
-//!   against a bare timerfd loop, on a veth pair against the slave emulator).
+//!   against a bare timerfd loop, on a veth pair against the slave emulator), [`station`] (11, the
+//!   grid and a busy call with the control station and two browsers attached against none, and
+//!   the station's looks at 253 modules).
 
 mod arm;
 mod calls;
@@ -62,6 +64,7 @@ mod sample;
 mod scale;
 mod snapshots;
 mod soak;
+mod station;
 mod supervised;
 mod swaps;
 mod targets;
@@ -142,6 +145,9 @@ enum Cmd {
     Fmu(RunArgs),
     /// 10: EtherCAT bus cycle vs raw AF_PACKET ping-pong, and its jitter at 1 and 4 kHz (root).
     Ethercat(RunArgs),
+    /// 11: the grid and a busy call with the control station and two browsers attached against
+    /// none, and the station's looks at 253 modules (needs chromium).
+    Station(RunArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -161,7 +167,7 @@ struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-const BENCHES: [Bench; 9] = [
+const BENCHES: [Bench; 10] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -207,6 +213,11 @@ const BENCHES: [Bench; 9] = [
         name: "ethercat",
         run: ethercat::run,
         needs_binaries: false,
+    },
+    Bench {
+        name: "station",
+        run: station::run,
+        needs_binaries: true,
     },
 ];
 
@@ -400,6 +411,7 @@ fn run() -> anyhow::Result<()> {
         Cmd::Swaps(args) => run_benches(&args, &[bench("swaps")]),
         Cmd::Arm(args) => run_benches(&args, &[bench("arm")]),
         Cmd::Fmu(args) => run_benches(&args, &[bench("fmu")]),
+        Cmd::Station(args) => run_benches(&args, &[bench("station")]),
         Cmd::Ethercat(args) => {
             ethercat::require_root()?;
             run_benches(&args, &[bench("ethercat")])

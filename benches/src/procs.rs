@@ -371,8 +371,10 @@ pub fn shm_usage(domain: &Domain) -> (u64, u64) {
 
 /// The modbot system binaries the grid, scale, fault, swap and FMU benchmarks start (and the
 /// FMU the last one steps, which the workspace's build puts beside them).
-pub const SYSTEM_BINARIES: [&str; 9] = [
+pub const SYSTEM_BINARIES: [&str; 11] = [
     "modbot",
+    "modbot-station",
+    "modbot-fleet",
     "modbot-coordinator",
     "modbot-host",
     "modbot-bus",

@@ -128,7 +128,13 @@ pub fn evaluate(report: &mut Report) {
     ];
     let soak = crate::soak::targets(report);
     let ethercat = crate::ethercat::targets(report);
-    report.targets = targets.into_iter().chain(soak).chain(ethercat).collect();
+    let station = crate::station::targets(report);
+    report.targets = targets
+        .into_iter()
+        .chain(soak)
+        .chain(ethercat)
+        .chain(station)
+        .collect();
 }
 
 /// Whether `have` matches `want`: equal, or equal as text (`true` and `"true"`).

@@ -3,7 +3,9 @@
 //! One bytes value holding a run of values in the payload encoding, [`FIELDS`] per module:
 //! name (text, a module name), address (i64, 1..=254), state (text, one of [`STATES`]), pid
 //! (i64, u32; 0 when not running), restarts (i64, u32), last exit (text, empty if none), then
-//! the frames the module dropped, rejected and replayed (i64 ≥ 0, from its heartbeats). A run
+//! the frames the module dropped, rejected and replayed (i64 ≥ 0, from its heartbeats), then
+//! the age of its last heartbeat in milliseconds when the rows were built (i64 ≥ 0; −1 when it
+//! does not run or has not beaten since it started). A run
 //! whose last row is incomplete, a value of another kind or out of range, a name that is not
 //! a module name or an unknown state is malformed.
 
@@ -16,7 +18,7 @@ use crate::names::is_module_name;
 use crate::value::Value;
 
 /// Values per module.
-pub const FIELDS: usize = 9;
+pub const FIELDS: usize = 10;
 
 /// One module as the supervisor reports it.
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
@@ -33,6 +35,9 @@ pub struct Row {
     pub last_exit: String,
     /// Its transport counters, from its heartbeats.
     pub counters: Counters,
+    /// How old its last heartbeat was when the supervisor built the rows (it does so at least
+    /// four times a second); `None` when it does not run or has not beaten yet.
+    pub heartbeat_age_ms: Option<u64>,
 }
 
 /// The states a row names.
@@ -70,6 +75,10 @@ impl Row {
         push_u64(out, self.counters.dropped);
         push_u64(out, self.counters.rejected);
         push_u64(out, self.counters.replayed);
+        match self.heartbeat_age_ms {
+            Some(ms) => push_u64(out, ms),
+            None => push(out, Value::I64(-1)),
+        }
     }
 
     fn decode(fields: &mut Fields<'_>) -> Result<Row, FieldError> {
@@ -84,6 +93,14 @@ impl Row {
                 dropped: fields.int("the dropped frames")?,
                 rejected: fields.int("the rejected frames")?,
                 replayed: fields.int("the replayed requests")?,
+            },
+            heartbeat_age_ms: match fields.int::<i64>("the heartbeat age")? {
+                -1 => None,
+                ms => Some(u64::try_from(ms).map_err(|_| FieldError::Range {
+                    what: "the heartbeat age",
+                    value: ms,
+                    ty: "milliseconds (≥ 0, or −1 for none)",
+                })?),
             },
         })
     }
@@ -141,6 +158,7 @@ mod tests {
                     rejected: 4,
                     replayed: 5,
                 },
+                heartbeat_age_ms: Some(120),
             },
             Row {
                 name: "mobility".into(),
@@ -150,6 +168,7 @@ mod tests {
                 restarts: 0,
                 last_exit: String::new(),
                 counters: Counters::default(),
+                heartbeat_age_ms: None,
             },
         ]
     }
@@ -160,7 +179,7 @@ mod tests {
         rows()[1].encode(&mut bytes);
         assert_eq!(
             hex::encode(&bytes),
-            "a86d6f62696c697479 03 a4646f776e 00 00 a0 00 00 00".replace(' ', "")
+            "a86d6f62696c697479 03 a4646f776e 00 00 a0 00 00 00 ff".replace(' ', "")
         );
     }
 
@@ -181,7 +200,7 @@ mod tests {
             Err(StatusError::Row {
                 row: 1,
                 why: FieldError::Missing {
-                    what: "the replayed requests"
+                    what: "the heartbeat age"
                 }
             })
         ));
@@ -196,13 +215,23 @@ mod tests {
             })
         ));
         let mut negative = bytes.clone();
-        let last = negative.len() - 1;
-        negative[last] = 0xff; // -1 replayed
+        let replayed = negative.len() - 2;
+        negative[replayed] = 0xff; // -1 replayed
         assert!(matches!(
             decode(&negative),
             Err(StatusError::Row {
                 row: 1,
                 why: FieldError::Range { value: -1, .. }
+            })
+        ));
+        let mut aged = bytes.clone();
+        aged.pop();
+        push(&mut aged, Value::I64(-2));
+        assert!(matches!(
+            decode(&aged),
+            Err(StatusError::Row {
+                row: 1,
+                why: FieldError::Range { value: -2, .. }
             })
         ));
         let mut not_text = bytes;

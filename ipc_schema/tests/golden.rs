@@ -352,6 +352,7 @@ fn the_readme_golden_vectors_match_the_encoders() {
                         rejected: n("rejected"),
                         replayed: n("replayed"),
                     },
+                    heartbeat_age_ms: Some(n("heartbeat_age_ms")),
                 };
                 let mut bytes = Vec::new();
                 encode(std::slice::from_ref(&row), &mut bytes);

@@ -119,10 +119,18 @@ fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
             any::<u32>(),
             text(),
         ),
-        (count.clone(), count.clone(), count),
+        (
+            count.clone(),
+            count.clone(),
+            count.clone(),
+            proptest::option::of(count),
+        ),
     )
         .prop_map(
-            |((name, addr, state, pid, restarts, last_exit), (dropped, rejected, replayed))| {
+            |(
+                (name, addr, state, pid, restarts, last_exit),
+                (dropped, rejected, replayed, heartbeat_age_ms),
+            )| {
                 modbot_ipc_schema::status::Row {
                     name,
                     addr,
@@ -135,6 +143,7 @@ fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
                         rejected,
                         replayed,
                     },
+                    heartbeat_age_ms,
                 }
             },
         )

@@ -5,6 +5,9 @@
 //! its methods: `patrol(wing)`, `stop()`, `activate_module(module)` and
 //! `deactivate_module(module)` (the last two switch a module on or off, e.g. to let the near-infrared ring stand in for the sonar).
 //! When the scenario ends it collects every module's traffic statistics and prints the summary.
+//!
+//! The station keeps the operator's mission: a high-level module that restarted (and so forgot
+//! its patrol) reports itself idle, and the station sends it the patrol again.
 
 use modbot_core::module::Report;
 use modbot_core::stats::{Histogram, Stats};
@@ -46,6 +49,10 @@ pub struct Station {
     last_line_s: f64,
     /// Print a progress line at most this often (simulated seconds).
     pub line_every_s: f64,
+    /// The wing the operator sent the robot to patrol, until a stop.
+    pub mission: Option<i64>,
+    /// When the patrol was last sent again (the module clock, seconds).
+    resent_s: f64,
 }
 
 impl Station {
@@ -54,6 +61,7 @@ impl Station {
             high_level: high_level.to_owned(),
             line_every_s,
             last_line_s: f64::NEG_INFINITY,
+            resent_s: f64::NEG_INFINITY,
             ..Default::default()
         }
     }
@@ -63,8 +71,12 @@ fn f(r: &Report<'_>, i: usize) -> f64 {
     r.values.f64(i).unwrap_or(f64::NAN)
 }
 
+/// How long after sending the patrol again the station waits before it may send it once more
+/// (seconds of the module clock; the high-level module reports every simulated second).
+const RESEND_AFTER_S: f64 = 3.0;
+
 /// Reports from the robot: progress and alerts.
-pub fn on_report(s: &mut Station, _: &mut Ctx, r: &Report<'_>) {
+pub fn on_report(s: &mut Station, ctx: &mut Ctx, r: &Report<'_>) {
     match r.topic {
         SUMMARY_TOPIC => {
             s.progress = Progress {
@@ -77,6 +89,7 @@ pub fn on_report(s: &mut Station, _: &mut Ctx, r: &Report<'_>) {
                 room: r.values.text(7).unwrap_or("?").to_owned(),
                 state: r.values.text(8).unwrap_or("?").to_owned(),
             };
+            keep_mission(s, ctx);
         }
         ALERT_TOPIC => {
             let alert = Alert {
@@ -100,6 +113,24 @@ pub fn on_report(s: &mut Station, _: &mut Ctx, r: &Report<'_>) {
             }
         }
         _ => {}
+    }
+}
+
+/// Sends the patrol again when the high-level module says it is idle while the operator's
+/// mission stands (it restarted and forgot it), at most every [`RESEND_AFTER_S`].
+fn keep_mission(s: &mut Station, ctx: &mut Ctx) {
+    let Some(wing) = s.mission else { return };
+    let now_s = ctx.now_ns() as f64 / 1e9;
+    if s.progress.state != "idle" || now_s - s.resent_s < RESEND_AFTER_S {
+        return;
+    }
+    s.resent_s = now_s;
+    let hl = s.high_level.clone();
+    match ctx.call(&hl, "patrol", &[Value::I64(wing)]) {
+        Ok(_) => println!(
+            "control station: {hl} is idle (it restarted?): patrol of wing {wing} sent again"
+        ),
+        Err(e) => println!("control station: {hl} is idle and did not take the patrol again: {e}"),
     }
 }
 
@@ -127,6 +158,7 @@ pub fn patrol(
     let hl = s.high_level.clone();
     ctx.call(&hl, "patrol", &[Value::I64(wing)])
         .map_err(|e| MethodError::Failed(e.to_string()))?;
+    s.mission = Some(wing);
     println!("operator: patrol wing {wing}");
     Ok(())
 }
@@ -139,6 +171,7 @@ pub fn stop(
     _: &mut Reply,
 ) -> Result<(), MethodError> {
     let hl = s.high_level.clone();
+    s.mission = None;
     ctx.call(&hl, "stop", &[])
         .map_err(|e| MethodError::Failed(e.to_string()))?;
     println!("operator: stop");

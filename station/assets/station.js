@@ -81,6 +81,7 @@ function answered(m) {
 }
 
 function fmtUs(x) { return x == null ? "–" : x < 1000 ? `${x.toFixed(1)} µs` : `${(x / 1000).toFixed(2)} ms`; }
+function fmtAge(ms) { return ms == null ? "–" : ms < 10_000 ? `${ms} ms ago` : `${(ms / 1000).toFixed(1)} s ago`; }
 function fmtNs(x) { return fmtUs(x / 1000); }
 
 // Each part of the page is drawn on its own: one that fails (says why in the problems line and
@@ -104,7 +105,8 @@ function render(s) {
 function renderModules(s) {
   const body = $("#modules tbody");
   const running = s.modules.filter((m) => m.state === "running").length;
-  $("#module-count").textContent = `${s.modules.length} modules, ${running} running${s.supervised ? "" : " (no supervisor)"}`;
+  $("#module-count").textContent = `${s.modules.length} modules, ${running} running${s.supervised ? "" : " (no supervisor)"}` +
+    ` · looked at in ${s.look_ms} ms · ${s.pages} page${s.pages === 1 ? "" : "s"} watching`;
   const seen = new Set();
   for (const m of s.modules) {
     seen.add(m.name);
@@ -112,7 +114,7 @@ function renderModules(s) {
     if (!tr) {
       tr = document.createElement("tr");
       tr.dataset.module = m.name;
-      tr.innerHTML = "<td></td>".repeat(11) + "<td><button data-action=\"toggle\"></button> <button data-action=\"stats\">stats</button></td>";
+      tr.innerHTML = "<td></td>".repeat(12) + "<td><button data-action=\"toggle\"></button> <button data-action=\"stats\">stats</button></td>";
       tr.querySelector('[data-action="toggle"]').onclick = () =>
         call(m.name, tr.dataset.active === "false" ? "activate" : "deactivate", []);
       tr.querySelector('[data-action="stats"]').onclick = () => call(m.name, "stats", []);
@@ -129,7 +131,7 @@ function renderModules(s) {
     tr.dataset.active = m.active === null ? "" : String(m.active);
     const cells = tr.children;
     const values = [m.addr, m.name, m.state, m.active === null ? "?" : m.active ? "yes" : "no", m.pid || "–",
-      m.restarts, m.last_exit || "–", m.counters.dropped, m.counters.rejected, m.calls,
+      m.restarts, fmtAge(m.heartbeat_age_ms), m.last_exit || "–", m.counters.dropped, m.counters.rejected, m.calls,
       `${fmtUs(m.latency_p50_us)} / ${fmtUs(m.latency_p99_us)}`];
     values.forEach((v, i) => { if (cells[i].textContent !== String(v)) cells[i].textContent = v; });
     cells[2].className = `state-${m.state}`;

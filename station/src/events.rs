@@ -160,6 +160,7 @@ mod tests {
                 String::new()
             },
             counters: Default::default(),
+            heartbeat_age_ms: None,
         });
         m.active = active;
         m

@@ -2,7 +2,7 @@
 //! a web page. See the crate's documentation (`src/lib.rs`).
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -62,15 +62,18 @@ fn main() -> anyhow::Result<()> {
     // The endpoint is the watcher thread's own (an endpoint stays on the thread that opened
     // it); whether it joined the domain comes back before anything is served.
     let stop = Arc::new(AtomicBool::new(false));
+    let pages = Arc::new(AtomicUsize::new(0));
     let (joined_tx, joined) = std::sync::mpsc::channel();
     let watching = {
-        let (stop, name) = (stop.clone(), args.domain.clone());
+        let (stop, name, pages) = (stop.clone(), args.domain.clone(), pages.clone());
         std::thread::Builder::new()
             .name("watcher".into())
             .spawn(move || match Tool::open(&domain, "station") {
                 Ok(tool) => {
                     let _ = joined_tx.send(Ok(()));
-                    Watcher::new(tool, &name).run(inputs_rx, states_tx, &stop);
+                    Watcher::new(tool, &name)
+                        .with_pages(pages)
+                        .run(inputs_rx, states_tx, &stop);
                 }
                 Err(e) => {
                     let _ = joined_tx.send(Err(e));
@@ -98,6 +101,7 @@ fn main() -> anyhow::Result<()> {
         inputs,
         domain: Arc::from(args.domain.as_str()),
         map: Arc::from(serde_json::to_string(&modbot_station::map::moser())?),
+        pages,
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -1,5 +1,6 @@
 //! The web side: the page, the state for scripts, and the WebSocket.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
 use axum::extract::ws::{CloseFrame, Message as WsMessage, WebSocket, WebSocketUpgrade};
@@ -34,6 +35,24 @@ pub struct Shared {
     pub inputs: Sender<Input>,
     pub domain: Arc<str>,
     pub map: Arc<str>,
+    /// The pages connected now (the watcher reports it with each look).
+    pub pages: Arc<AtomicUsize>,
+}
+
+/// Counts a page while its connection lasts.
+struct Page(Arc<AtomicUsize>);
+
+impl Page {
+    fn new(pages: &Arc<AtomicUsize>) -> Page {
+        pages.fetch_add(1, Ordering::Relaxed);
+        Page(pages.clone())
+    }
+}
+
+impl Drop for Page {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::Relaxed);
+    }
 }
 
 /// The station's routes.
@@ -98,6 +117,7 @@ async fn ws(
 /// One browser: the state as it changes (the latest only: a slow browser skips updates), the
 /// answers to its commands, and its messages.
 async fn connection(mut socket: WebSocket, s: Shared, can_command: bool) {
+    let _page = Page::new(&s.pages);
     let hello = serde_json::json!({
         "type": "hello",
         "domain": &*s.domain,

@@ -14,8 +14,12 @@ pub struct State {
     #[serde(rename = "type")]
     pub kind: &'static str,
     pub domain: String,
-    /// Milliseconds since the station started.
+    /// Milliseconds since the station started, when the look began.
     pub t_ms: u64,
+    /// How long the look took (its calls into the domain), in milliseconds.
+    pub look_ms: u64,
+    /// How many pages are connected to the station.
+    pub pages: usize,
     /// Whether this connection may command (set per connection when sent).
     pub can_command: bool,
     /// Whether a supervisor answers (else the modules come from iceoryx2's directory).

@@ -194,6 +194,7 @@ fn draw(f: &mut Frame, s: &mut Screen) {
         "ACTIVE",
         "PID",
         "RESTARTS",
+        "BEAT",
         "LAST EXIT",
         "DROPPED",
         "REJECT",
@@ -214,6 +215,7 @@ fn draw(f: &mut Frame, s: &mut Screen) {
             },
             m.row.pid.to_string(),
             m.row.restarts.to_string(),
+            beat(m.row.heartbeat_age_ms),
             m.row.last_exit.clone(),
             m.row.counters.dropped.to_string(),
             m.row.counters.rejected.to_string(),
@@ -229,6 +231,7 @@ fn draw(f: &mut Frame, s: &mut Screen) {
         Constraint::Length(6),
         Constraint::Length(7),
         Constraint::Length(8),
+        Constraint::Length(7),
         Constraint::Min(12),
         Constraint::Length(7),
         Constraint::Length(6),
@@ -298,6 +301,15 @@ fn draw(f: &mut Frame, s: &mut Screen) {
     }
 }
 
+/// A heartbeat's age: `120ms`, `3.4s`, or `-` when there is none.
+fn beat(ms: Option<u64>) -> String {
+    match ms {
+        None => "-".to_owned(),
+        Some(ms) if ms < 10_000 => format!("{ms}ms"),
+        Some(ms) => format!("{:.1}s", ms as f64 / 1e3),
+    }
+}
+
 /// A module's detail over the table.
 fn detail(f: &mut Frame, m: &Module) {
     let area = f.area();
@@ -311,8 +323,11 @@ fn detail(f: &mut Frame, m: &Module) {
     let text = vec![
         Line::from(format!("module {} at address {}", m.row.name, m.row.addr)),
         Line::from(format!(
-            "state {} · pid {} · restarts {}",
-            m.row.state, m.row.pid, m.row.restarts
+            "state {} · pid {} · restarts {} · last heartbeat {} ago",
+            m.row.state,
+            m.row.pid,
+            m.row.restarts,
+            beat(m.row.heartbeat_age_ms)
         )),
         Line::from(format!(
             "last exit: {}",
@@ -357,6 +372,7 @@ mod tests {
             restarts,
             last_exit: String::new(),
             counters: Default::default(),
+            heartbeat_age_ms: None,
         });
         m.latency_p99_us = p99;
         m

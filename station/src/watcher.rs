@@ -3,7 +3,7 @@
 //! side as one JSON text.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -62,6 +62,8 @@ pub struct Watcher {
     reports: BTreeMap<String, SelfReport>,
     described: Option<Instant>,
     bus_module: String,
+    /// The pages connected, counted by the web side.
+    pages: Arc<AtomicUsize>,
 }
 
 impl Watcher {
@@ -74,11 +76,15 @@ impl Watcher {
             watched: BTreeMap::new(),
             reports: BTreeMap::new(),
             described: None,
-            bus_module: modbot_grid::spec::host_module_of(
-                "bus",
-                modbot_grid::component::Generation::SYSTEM,
-            ),
+            bus_module: modbot_bus::ask::bus_module(),
+            pages: Arc::default(),
         }
+    }
+
+    /// Counts the pages in `pages` (the web side keeps it): each look says how many there are.
+    pub fn with_pages(mut self, pages: Arc<AtomicUsize>) -> Watcher {
+        self.pages = pages;
+        self
     }
 
     /// Looks and serves commands until `stop` is set or `inputs` closes (the web side
@@ -146,10 +152,12 @@ impl Watcher {
 
     /// One look at the system.
     pub fn look(&mut self) -> State {
+        let began = Instant::now();
         let mut state = State {
             kind: "state",
             domain: self.domain.clone(),
             t_ms: self.t_ms(),
+            pages: self.pages.load(Ordering::Relaxed),
             ..State::default()
         };
         self.modules(&mut state);
@@ -187,6 +195,7 @@ impl Watcher {
             }
         }
         self.log.observe(&mut state);
+        state.look_ms = began.elapsed().as_millis() as u64;
         state
     }
 
@@ -227,6 +236,7 @@ impl Watcher {
                                 restarts: 0,
                                 last_exit: String::new(),
                                 counters: Default::default(),
+                                heartbeat_age_ms: None,
                             })
                         })
                         .collect();
@@ -320,23 +330,13 @@ impl Watcher {
     }
 
     fn robot(&mut self, problems: &mut Vec<String>) -> Option<String> {
-        let module = self.bus_module.clone();
-        let state = self.tool.call_blocking(
-            &module,
-            "robot",
-            &[],
-            CallOptions::timeout(LOOK_TIMEOUT),
-            |r| -> Result<String, String> {
-                let a = r.map_err(|e| e.to_string())?;
-                let values: Vec<_> = a.as_slice().iter().map(Value::to_owned_value).collect();
-                modbot_bus::RobotState::from_values(&values)
-                    .map(|s| s.to_string())
-                    .map_err(|e| e.to_string())
-            },
-        );
-        state
-            .map_err(|e| problems.push(format!("robot state: {e}")))
-            .ok()
+        match modbot_bus::ask::robot_state(&mut self.tool, LOOK_TIMEOUT) {
+            Ok(state) => state.map(|s| s.to_string()),
+            Err(e) => {
+                problems.push(format!("robot state: {e}"));
+                None
+            }
+        }
     }
 
     fn blackboard(

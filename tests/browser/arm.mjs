@@ -5,7 +5,8 @@
 //
 // Checks: the grid, its assembly (hold, generation 1) and the robot's state are shown; the
 // robot is brought to operational from the page if the machine stopped it (a reset through
-// the command form, as an operator would); switching to ptp from the page's command form
+// the command form, as an operator would; a faulted assembly is switched back to hold first,
+// as the refusal says); switching to ptp from the page's command form
 // changes the generation and the joints' plots move. Writes a screenshot. Exits 1 with the
 // reason on the first check that fails.
 import { launch, fail, step, screenshot } from "./station-lib.mjs";
@@ -37,7 +38,13 @@ async function operational(page) {
     const bus = await page.evaluate(() =>
       Object.keys(window.station.state.blackboards).find((m) =>
         "robot.link_position" in window.station.state.blackboards[m]));
-    const a = await command(page, bus, "reset", "");
+    let a = await command(page, bus, "reset", "");
+    if (!a.ok && a.text.includes("faulted")) {
+      // The running assembly faulted: back to hold, as the refusal says, then reset.
+      console.log(`reset: ${a.text}: switching to hold first`);
+      await command(page, "coordinator", "switch", "hold");
+      a = await command(page, bus, "reset", "");
+    }
     if (!a.ok) console.log(`reset: ${a.text}`);
     await page.waitForFunction(() =>
       document.querySelector("#robot").textContent.startsWith("robot operational"),
@@ -83,6 +90,8 @@ try {
         // A machine that starved the grid stopped the robot: the operator resets it.
         if (attempt >= 3) throw e;
         await operational(page);
+        const name = await page.locator("#assembly").getAttribute("data-name");
+        if (name !== "ptp") await command(page, "coordinator", "switch", "ptp");
       }
     }
   });

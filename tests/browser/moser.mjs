@@ -30,9 +30,11 @@ try {
   const page = await browser.newPage({ viewport: { width: 1500, height: 1300 } });
   await page.goto(`${url}?token=${token}`);
 
-  await step("the page lists the 7 modules running", () =>
+  await step("the page lists the 7 modules running, with their heartbeats' age", () =>
     page.waitForFunction(() =>
       document.querySelectorAll('#modules tbody tr[data-state="running"]').length === 7 &&
+      [...document.querySelectorAll('#modules tbody tr')].every((tr) => tr.children[6].textContent.endsWith(" ago")) &&
+      document.querySelector("#module-count").textContent.includes("1 page watching") &&
       document.body.dataset.mode === "commanding", null, { timeout: 60_000 }));
 
   await step("the robot's marker moves on the map", async () => {

@@ -21,8 +21,8 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use hdrhistogram::Histogram;
+use modbot_bus::ask as robot_state;
 use modbot_bus::RobotState;
-use modbot_program::robot_state;
 use modbot_runtime::supervisor::status;
 
 use crate::supervised::Supervised;
@@ -167,7 +167,7 @@ impl Watch {
                 Ok(None)
             }
             Err(why) => {
-                *self.unanswered.entry(reason(&why)).or_default() += 1;
+                *self.unanswered.entry(reason(&why.to_string())).or_default() += 1;
                 Ok(None)
             }
         }
@@ -196,6 +196,7 @@ impl Watch {
                 }
             }
             Err(why) => {
+                let why = why.to_string();
                 *self.refused.entry(reason(&why)).or_default() += 1;
                 if why.starts_with("the running assembly faulted") {
                     match modbot_runtime::grid::switch::switch(sys.tool()?, HOLD, SWITCH_TIMEOUT) {
@@ -371,7 +372,7 @@ fn operational_after_reset(sys: &mut Supervised) -> anyhow::Result<(Result<u64, 
                 state,
             },
             Err(why) => Seen {
-                text: why,
+                text: why.to_string(),
                 state: None,
             },
         };

@@ -1,5 +1,5 @@
 //! The supervisor's status rows. The golden row's values: name, address, state, pid,
-//! restarts, last exit, dropped, rejected, replayed.
+//! restarts, last exit, dropped, rejected, replayed, heartbeat age.
 
 use modbot_ipc_schema::fields::FieldError;
 use modbot_ipc_schema::status::{decode, StatusError};
@@ -14,7 +14,7 @@ fn with(index: usize, value: Value<'_>) -> Option<StatusError> {
 }
 
 #[test]
-fn a_last_row_with_fewer_than_9_values_is_refused() {
+fn a_last_row_with_fewer_than_10_values_is_refused() {
     let mut values = run_values(&crate::support::golden(GOLDEN));
     values.pop();
     assert_eq!(
@@ -22,7 +22,7 @@ fn a_last_row_with_fewer_than_9_values_is_refused() {
         Some(StatusError::Row {
             row: 0,
             why: FieldError::Missing {
-                what: "the replayed requests"
+                what: "the heartbeat age"
             }
         })
     );
@@ -100,6 +100,19 @@ fn a_negative_counter_is_refused() {
             ..
         })
     ));
+}
+
+#[test]
+fn a_heartbeat_age_below_minus_one_is_refused_and_minus_one_is_none() {
+    assert!(matches!(
+        with(9, Value::I64(-2)),
+        Some(StatusError::Row {
+            why: FieldError::Range { value: -2, .. },
+            ..
+        })
+    ));
+    let rows = decode(&run_with(GOLDEN, 9, Value::I64(-1))).unwrap();
+    assert_eq!(rows[0].heartbeat_age_ms, None);
 }
 
 #[test]

@@ -106,6 +106,7 @@ fn start_patrol(module: &mut Module<Station>, high_level: &str, wing: i64) -> an
         match module.call_owned(high_level, "patrol", &[Value::I64(wing)], opts) {
             Ok(_) => {
                 println!("control station: patrolling wing {wing}");
+                module.state_mut().mission = Some(wing);
                 return Ok(());
             }
             Err(CallError::Nak { code, .. })
@@ -127,6 +128,7 @@ fn finish(
 ) -> anyhow::Result<Summary> {
     let opts = CallOptions::timeout(Duration::from_secs(2));
     let hl = cli.high_level.clone();
+    module.state_mut().mission = None;
     if let Err(e) = module.call_owned(&hl, "stop", &[], opts) {
         println!("control station: stop not taken: {e}");
     }

@@ -26,7 +26,9 @@
 //!   stop, fault, disabled) and the values it travels as.
 //! - [`reset`]: an operator's reset: how the bridge brings the drives back without a restart.
 //! - [`robot`]: the grid components `bus` (one bus cycle per release) and `drive_enable`.
+//! - [`ask`]: asking the bridge from any tool: the robot's state, an operator's reset.
 
+pub mod ask;
 pub mod backend;
 pub mod bridge;
 pub mod cia402;

@@ -28,7 +28,6 @@
 //! - `session`: what the Lua functions share (robot, store, commands, the first failure).
 //! - [`robot`]: [`Robot`], what a program needs of a running system; [`system_robot`]: the
 //!   real one, a tool endpoint in the system's domain.
-//! - [`robot_state`]: the robot's state and an operator's reset, asked of the bus bridge.
 //! - [`interrupt`]: Ctrl-C as a flag the interpreter looks at.
 //! - `error`: [`ProgramError`] (`file:line: why`) and [`RobotError`].
 
@@ -40,7 +39,6 @@ mod lua_env;
 mod plot;
 mod recordings;
 pub mod robot;
-pub mod robot_state;
 mod session;
 pub mod system_robot;
 

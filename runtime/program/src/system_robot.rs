@@ -263,12 +263,13 @@ impl Robot for SystemRobot {
     }
 
     fn robot_state(&mut self) -> Result<Option<modbot_bus::RobotState>, RobotError> {
-        super::robot_state::robot_state(&mut self.tool, CALL_TIMEOUT).map_err(RobotError::Robot)
+        modbot_bus::ask::robot_state(&mut self.tool, CALL_TIMEOUT)
+            .map_err(|e| RobotError::Robot(e.to_string()))
     }
 
     fn reset(&mut self) -> Result<String, RobotError> {
-        super::robot_state::reset(&mut self.tool, super::robot_state::RESET_TIMEOUT)
-            .map_err(RobotError::Robot)
+        modbot_bus::ask::reset(&mut self.tool, modbot_bus::ask::RESET_TIMEOUT)
+            .map_err(|e| RobotError::Robot(e.to_string()))
     }
 
     fn domain(&self) -> &str {

@@ -399,6 +399,7 @@ impl Supervisor {
     }
 
     fn rows(&self) -> Vec<Row> {
+        let now = self.now_ns();
         self.spec
             .modules
             .iter()
@@ -416,6 +417,8 @@ impl Supervisor {
                     .map(ToString::to_string)
                     .unwrap_or_default(),
                 counters: s.counters,
+                heartbeat_age_ms: (s.child.is_some() && s.last_beat_ns > 0)
+                    .then(|| now.saturating_sub(s.last_beat_ns) / 1_000_000),
             })
             .collect()
     }

@@ -88,6 +88,7 @@ mod tests {
             restarts: 0,
             last_exit: last_exit.into(),
             counters: Counters::default(),
+            heartbeat_age_ms: None,
         };
         let rows = vec![
             row("sonar", 2, 42, "killed by SIGKILL"),
