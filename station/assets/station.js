@@ -164,6 +164,11 @@ function renderModules(s) {
 function renderRobotAndGrid(s) {
   if (s.robot) setPill("#robot", `robot ${s.robot}`, s.robot.startsWith("operational") ? "good" : "bad");
   else $("#robot").hidden = true;
+  // The operator's reset: offered while the robot is stopped, answered when done or refused.
+  const reset = $("#robot-reset");
+  reset.hidden = !s.robot || !s.bus || s.robot.startsWith("operational");
+  reset.disabled = !view.canCommand;
+  if (!reset.onclick) reset.onclick = () => { if (view.state && view.state.bus) call(view.state.bus, "reset", []); };
   const g = s.grid;
   $("#grid").hidden = !g;
   if (!g) { $("#grid-state").hidden = true; return; }

@@ -28,6 +28,8 @@ pub struct State {
     pub grid: Option<Grid>,
     /// The robot's state as the bus bridge words it, if the system has a bus.
     pub robot: Option<String>,
+    /// The bus bridge's module name, if the system has a bus (where a reset goes).
+    pub bus: Option<String>,
     /// Watched modules' blackboards, item by item.
     pub blackboards: BTreeMap<String, BTreeMap<String, Json>>,
     /// The latest events, oldest first.

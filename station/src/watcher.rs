@@ -122,19 +122,27 @@ impl Watcher {
         self.started.elapsed().as_millis() as u64
     }
 
-    /// Runs one command of a page, and logs it with its outcome.
+    /// Runs one command of a page, and logs it with its outcome. The bus bridge's `reset` is
+    /// the operator's reset: answered when the bridge has done or refused it (up to
+    /// [`modbot_bus::ask::RESET_TIMEOUT`]; the looks wait meanwhile), not when it took it.
     pub fn command(&mut self, call: &Call) -> Answer {
         let args: Vec<Value<'_>> = call.args.iter().map(|a| a.as_value()).collect();
-        let result = self.tool.call_blocking(
-            &call.module,
-            &call.method,
-            &args,
-            CallOptions::timeout(COMMAND_TIMEOUT),
-            |r| match r {
-                Ok(a) => Ok(answer_text(a)),
-                Err(e) => Err(e.to_string()),
-            },
-        );
+        let reset = call.module == self.bus_module && call.method == "reset" && args.is_empty();
+        let result = if reset {
+            modbot_bus::ask::reset(&mut self.tool, modbot_bus::ask::RESET_TIMEOUT)
+                .map_err(|e| e.to_string())
+        } else {
+            self.tool.call_blocking(
+                &call.module,
+                &call.method,
+                &args,
+                CallOptions::timeout(COMMAND_TIMEOUT),
+                |r| match r {
+                    Ok(a) => Ok(answer_text(a)),
+                    Err(e) => Err(e.to_string()),
+                },
+            )
+        };
         let shown: Vec<String> = call.args.iter().map(ToString::to_string).collect();
         let what = format!("{}.{}({})", call.module, call.method, shown.join(", "));
         let t = self.t_ms();
@@ -177,6 +185,7 @@ impl Watcher {
         }
         if exists(&self.bus_module) {
             state.robot = self.robot(&mut state.problems);
+            state.bus = Some(self.bus_module.clone());
         }
         let now = Instant::now();
         self.watched.retain(|_, until| *until > now);

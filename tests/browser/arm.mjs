@@ -29,23 +29,33 @@ async function command(page, module, method, args) {
   return { ok: (await li.getAttribute("data-ok")) === "true", text: await li.textContent() };
 }
 
+// Clicks the page's "reset robot" button; resolves with the answer (given when the bus bridge
+// has done or refused the reset).
+async function resetButton(page) {
+  const before = await page.locator("#answers li").count();
+  await page.click("#robot-reset");
+  await page.waitForFunction((n) => {
+    const li = document.querySelectorAll("#answers li");
+    return li.length > n && li[0].dataset.ok !== undefined;
+  }, before, { timeout: 60_000 });
+  const li = page.locator("#answers li").first();
+  return { ok: (await li.getAttribute("data-ok")) === "true", text: await li.textContent() };
+}
+
 // Resets the robot from the page until it is operational (at most 5 times).
 async function operational(page) {
   for (let i = 0; i < 5; i++) {
     const robot = await page.locator("#robot").textContent();
     if (robot.startsWith("robot operational")) return;
     console.log(`the robot is not operational (${robot}): reset from the page`);
-    const bus = await page.evaluate(() =>
-      Object.keys(window.station.state.blackboards).find((m) =>
-        "robot.link_position" in window.station.state.blackboards[m]));
-    let a = await command(page, bus, "reset", "");
+    let a = await resetButton(page);
     if (!a.ok && a.text.includes("faulted")) {
       // The running assembly faulted: back to hold, as the refusal says, then reset.
       console.log(`reset: ${a.text}: switching to hold first`);
       await command(page, "coordinator", "switch", "hold");
-      a = await command(page, bus, "reset", "");
+      a = await resetButton(page);
     }
-    if (!a.ok) console.log(`reset: ${a.text}`);
+    console.log(`reset: ${a.text}`);
     await page.waitForFunction(() =>
       document.querySelector("#robot").textContent.startsWith("robot operational"),
       null, { timeout: 30_000 }).catch(() => {});
