@@ -103,6 +103,9 @@ function render(s) {
 }
 
 function renderModules(s) {
+  const stop = $("#system-stop");
+  stop.hidden = !s.supervised;
+  stop.disabled = !view.canCommand;
   const body = $("#modules tbody");
   const running = s.modules.filter((m) => m.state === "running").length;
   $("#module-count").textContent = `${s.modules.length} modules, ${running} running${s.supervised ? "" : " (no supervisor)"}` +
@@ -172,6 +175,7 @@ function renderRobotAndGrid(s) {
   const g = s.grid;
   $("#grid").hidden = !g;
   if (!g) { $("#grid-state").hidden = true; return; }
+  $("#switch-form button").disabled = !view.canCommand;
   setPill("#grid-state", `grid ${g.state}`, g.state.startsWith("running") ? "good" : g.state.startsWith("fault") ? "bad" : "warn");
   $("#grid-summary").textContent = `${g.state}${g.fault ? ": " + g.fault : ""} · tick ${g.ticks} · missed ${g.missed} · ` +
     `${g.rate_hz.toFixed(0)} Hz · tick error p50 ${fmtNs(g.tick_err_p50)} p99 ${fmtNs(g.tick_err_p99)}`;
@@ -422,6 +426,17 @@ function renderEvents(s) {
 function escapeHtml(t) {
   return t.replace(/[&<>"]/g, (ch) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[ch]));
 }
+
+// Stopping the whole system asks first.
+$("#system-stop").onclick = () => {
+  const domain = view.state ? view.state.domain : "this";
+  if (confirm(`Stop every module of the system in domain '${domain}'?`)) call("supervisor", "down", []);
+};
+
+$("#switch-form").onsubmit = (e) => {
+  e.preventDefault();
+  call("coordinator", "switch", [$("#switch-name").value.trim()]);
+};
 
 $("#call-form").onsubmit = (e) => {
   e.preventDefault();

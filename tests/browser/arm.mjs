@@ -21,6 +21,11 @@ async function command(page, module, method, args) {
   await page.fill("#call-method", method);
   await page.fill("#call-args", args);
   await page.click('#call-form button[type="submit"]');
+  return newestAnswer(page, before);
+}
+
+// The answer to the newest command (the first item of the answers), once it came.
+async function newestAnswer(page, before) {
   await page.waitForFunction((n) => {
     const li = document.querySelectorAll("#answers li");
     return li.length > n && li[0].dataset.ok !== undefined;
@@ -29,17 +34,20 @@ async function command(page, module, method, args) {
   return { ok: (await li.getAttribute("data-ok")) === "true", text: await li.textContent() };
 }
 
+// Switches the assembly through the grid's switch form.
+async function switchTo(page, name) {
+  const before = await page.locator("#answers li").count();
+  await page.fill("#switch-name", name);
+  await page.click('#switch-form button[type="submit"]');
+  return newestAnswer(page, before);
+}
+
 // Clicks the page's "reset robot" button; resolves with the answer (given when the bus bridge
 // has done or refused the reset).
 async function resetButton(page) {
   const before = await page.locator("#answers li").count();
   await page.click("#robot-reset");
-  await page.waitForFunction((n) => {
-    const li = document.querySelectorAll("#answers li");
-    return li.length > n && li[0].dataset.ok !== undefined;
-  }, before, { timeout: 60_000 });
-  const li = page.locator("#answers li").first();
-  return { ok: (await li.getAttribute("data-ok")) === "true", text: await li.textContent() };
+  return newestAnswer(page, before);
 }
 
 // Resets the robot from the page until it is operational (at most 5 times).
@@ -52,7 +60,7 @@ async function operational(page) {
     if (!a.ok && a.text.includes("faulted")) {
       // The running assembly faulted: back to hold, as the refusal says, then reset.
       console.log(`reset: ${a.text}: switching to hold first`);
-      await command(page, "coordinator", "switch", "hold");
+      await switchTo(page, "hold");
       a = await resetButton(page);
     }
     console.log(`reset: ${a.text}`);
@@ -82,7 +90,7 @@ try {
   let start;
   await step("switching to ptp in the page changes the generation", async () => {
     start = await page.evaluate(() => window.station.arm.link.map((h) => h[h.length - 1]));
-    const a = await command(page, "coordinator", "switch", "ptp");
+    const a = await switchTo(page, "ptp");
     if (!a.ok) fail(`the switch was refused: ${a.text}`);
     await page.waitForFunction(() => {
       const a = document.querySelector("#assembly");
@@ -101,7 +109,7 @@ try {
         if (attempt >= 3) throw e;
         await operational(page);
         const name = await page.locator("#assembly").getAttribute("data-name");
-        if (name !== "ptp") await command(page, "coordinator", "switch", "ptp");
+        if (name !== "ptp") await switchTo(page, "ptp");
       }
     }
   });

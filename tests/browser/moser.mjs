@@ -6,7 +6,8 @@
 // lists the 7 modules running; the robot's marker moves on the map; the intruder alert
 // appears; clicking deactivate on near_ir changes its state (and activate brings it back);
 // a page with a wrong token is read-only and its commands are refused; a malformed message
-// closes that connection with a reason. Writes a screenshot of each view. Exits 1 with the
+// closes that connection with a reason; "stop system" asks first and stops the system only
+// when confirmed. Writes a screenshot of each view. Exits 1 with the
 // reason on the first check that fails.
 import { launch, fail, step, screenshot } from "./station-lib.mjs";
 
@@ -106,6 +107,20 @@ try {
     if (closed.code !== 1008 || !closed.reason.includes("malformed message")) {
       fail(`closed with ${JSON.stringify(closed)}`);
     }
+  });
+  await step("stopping the system asks first, and stops it only when confirmed", async () => {
+    page.once("dialog", (d) => d.dismiss());
+    await page.click("#system-stop");
+    await page.waitForTimeout(1500);
+    const running = await page.evaluate(() =>
+      document.querySelectorAll('#modules tbody tr[data-state="running"]').length);
+    if (running !== 7) fail(`a dismissed stop stopped modules: ${running} running`);
+    page.once("dialog", (d) => d.accept());
+    await page.click("#system-stop");
+    await page.locator("#answers li.ok", { hasText: "supervisor.down" }).first().waitFor({ timeout: 30_000 });
+    await page.waitForFunction(() =>
+      document.querySelectorAll('#modules tbody tr[data-state="running"]').length < 7,
+      null, { timeout: 60_000 });
   });
   console.log("moser: every check passed");
 } catch (e) {
