@@ -104,24 +104,29 @@ fn browser_test(sut: &TestDomain, up: u32, script: &str, args: &[&str]) {
     println!("{text}");
 }
 
-fn moser(sut: &mut TestDomain) -> u32 {
+/// Spawns `modbot up examples/moser.lua` at ten times real time, patrolling until stopped,
+/// with `more` arguments; returns its pid.
+fn spawn_moser(sut: &mut TestDomain, more: &[&str]) -> u32 {
     let file = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/moser.lua");
     let domain = format!("domain={}", sut.name());
-    let up = sut.spawn_logged(
-        "modbot",
-        &[
-            "up",
-            file,
-            "--var",
-            &domain,
-            "--var",
-            "speed=10",
-            "--var",
-            "endless=1",
-            "--for",
-            "600",
-        ],
-    );
+    let mut args = vec![
+        "up",
+        file,
+        "--var",
+        &domain,
+        "--var",
+        "speed=10",
+        "--var",
+        "endless=1",
+        "--for",
+        "600",
+    ];
+    args.extend_from_slice(more);
+    sut.spawn_logged("modbot", &args)
+}
+
+fn moser(sut: &mut TestDomain) -> u32 {
+    let up = spawn_moser(sut, &[]);
     sut.wait_for("MOSER up", Duration::from_secs(120), || {
         sut.output_of(up).contains("module(s) up in")
     });
@@ -237,25 +242,7 @@ fn the_station_switches_the_arm_to_ptp_from_the_page_and_its_joints_move() {
 fn modbot_up_with_station_serves_the_page_of_its_system_and_stops_it_with_the_system() {
     let _one = one_at_a_time();
     let mut sut = TestDomain::new("station_up");
-    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/moser.lua");
-    let domain = format!("domain={}", sut.name());
-    let up = sut.spawn_logged(
-        "modbot",
-        &[
-            "up",
-            file,
-            "--var",
-            &domain,
-            "--var",
-            "speed=10",
-            "--var",
-            "endless=1",
-            "--for",
-            "600",
-            "--station",
-            "127.0.0.1:0",
-        ],
-    );
+    let up = spawn_moser(&mut sut, &["--station", "127.0.0.1:0"]);
     let mut url = String::new();
     sut.wait_for(
         "the station's address from modbot up",
