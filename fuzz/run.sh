@@ -10,7 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 RUNS=${1:-10000000}
-TARGETS=${TARGETS:-"frame values snapshot heartbeat grid directory relay switch status latency bus description"}
+TARGETS=${TARGETS:-"frame values snapshot heartbeat grid directory relay switch status latency bus grid_spec description"}
 cargo +nightly fuzz build -O >/dev/null
 printf '%-12s %12s %9s %8s\n' target executions seconds crashes
 status=0

@@ -35,11 +35,15 @@ pub fn run(file: &Path, vars: &[(String, String)]) -> ExitCode {
 
 /// Loads every assembly of the grid's directory; prints one line each, or the first error.
 fn check_assemblies(grid: &modbot_runtime::grid::GridSpec) -> Result<(), system::SystemError> {
-    let Some(a) = &grid.assembly else {
+    let Some((a, source)) = grid
+        .assembly
+        .as_ref()
+        .and_then(|a| Some((a, a.source.as_ref()?)))
+    else {
         return Ok(());
     };
     let registry = modbot_runtime::components::builtin();
-    for name in system::assembly_names(&a.dir) {
+    for name in system::assembly_names(&source.dir) {
         let spec = system::load_assembly(grid, &name, a.generation, &registry)?;
         let hosts = spec.assembly_hosts();
         println!(

@@ -35,7 +35,7 @@ pub fn up(
         );
         spec.domain = given.to_owned();
     }
-    if let Err(e) = processes::add_processes(&mut spec, &resolver, file, vars, grid_run) {
+    if let Err(e) = processes::add_processes(&mut spec, &resolver, file, grid_run) {
         eprintln!("modbot up: {e}");
         return Ok(ExitCode::from(2));
     }

@@ -596,14 +596,21 @@ fn a_run_of_n_ticks_whose_grid_faulted_or_that_stopped_short_exits_non_zero_with
 
 /// SIGKILL of the bus bridge after assembly switches: the supervisor restarts it with the
 /// running assembly (generation 3 here), not the one the system started with, so the grid
-/// serves it again: its fresh drives are enabled and the robot is operational.
+/// serves it again: its fresh drives are enabled and the robot is operational. The description
+/// and the running assembly's file were broken meanwhile: the restarted bridge serves the
+/// checked grid the supervisor wrote for generation 3, and reads no file.
 #[test]
 fn a_bus_bridge_killed_after_a_switch_comes_back_with_the_running_assembly() {
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("busrestart");
-    let up = up_with(&mut sut, &arm(), Clock::RealTime, &[]);
+    let copy = ArmCopy::new(&sut, &[]);
+    let up = up_with(&mut sut, &copy.system(), Clock::RealTime, &[]);
     sut.modbot_ok(&["assembly", "switch", "ptp"]);
     sut.modbot_ok(&["assembly", "switch", "hold"]);
+    for file in [copy.system(), copy.dir.join("arm/hold.lua")] {
+        let text = std::fs::read_to_string(&file).unwrap();
+        std::fs::write(&file, text + "error('edited after modbot up')\n").unwrap();
+    }
     let pid: u32 = sut
         .ls_field("host_bus", "PID")
         .and_then(|p| p.parse().ok())

@@ -230,6 +230,11 @@ fn ticks_of(top: &str) -> u64 {
 }
 
 fn start(sut: &mut TestDomain, body: &str) -> u32 {
+    start_file(sut, body).0
+}
+
+/// [`start`], also giving the description's file.
+fn start_file(sut: &mut TestDomain, body: &str) -> (u32, PathBuf) {
     let file = sut.write_system(body);
     let up = sut.spawn_logged("modbot", &["up", file.to_str().unwrap()]);
     let start = std::time::Instant::now();
@@ -245,7 +250,7 @@ fn start(sut: &mut TestDomain, body: &str) -> u32 {
         );
         std::thread::sleep(Duration::from_millis(50));
     }
-    up
+    (up, file)
 }
 
 /// A SIGSTOPped host does not stop the tick: the other components keep being released and the
@@ -339,26 +344,7 @@ fn a_restarted_host_is_released_again() {
     let _one = one_grid();
     let mut sut = TestDomain::new("hostrestart");
     let up = start(&mut sut, &sleeper_grid("hold"));
-    let hs: u32 = sut
-        .ls_field("host_hs", "PID")
-        .and_then(|p| p.parse().ok())
-        .expect("host_hs runs");
-    sut.signal(hs, Signal::SIGKILL);
-    // Restarted (once, or again if a restart failed under load) and running; what the
-    // supervisor said otherwise is in the failure.
-    sut.wait_until("host_hs to be back", Duration::from_secs(30), || {
-        let restarts: u32 = sut
-            .ls_field("host_hs", "RESTARTS")
-            .and_then(|r| r.parse().ok())
-            .unwrap_or(0);
-        let running = sut.ls_field("host_hs", "STATE").as_deref() == Some("running");
-        if restarts >= 1 && running {
-            Ok(())
-        } else {
-            let ls = String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout).into_owned();
-            Err(format!("{ls}\nmodbot up:\n{}", sut.output_of(up)))
-        }
-    });
+    kill_and_wait_for_restart(&mut sut, up, "host_hs");
     let before = releases_of(&top(&sut), "S");
     sut.wait_until("S to be released again", Duration::from_secs(60), || {
         let top = top(&sut);
@@ -371,4 +357,66 @@ fn a_restarted_host_is_released_again() {
     sut.signal(up, Signal::SIGTERM);
     sut.wait_exit(up, Duration::from_secs(30));
     assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
+
+/// The description is read once, by `modbot up`: edited while the system runs (a component
+/// renamed, a gain changed, a line that fails to load) it changes nothing; a host killed
+/// afterwards comes back serving the grid the system started with.
+#[test]
+fn a_host_restarted_after_the_description_was_edited_serves_the_original_grid() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("speconce");
+    let body = sleeper_grid("hold");
+    let (up, file) = start_file(&mut sut, &body);
+    let edited = std::fs::read_to_string(&file)
+        .unwrap()
+        .replace("\"T\"", "\"U\"")
+        .replace("S.y -> T.u", "S.y -> U.u")
+        .replace("k = 1", "k = 5")
+        + "error('edited after modbot up')\n";
+    std::fs::write(&file, edited).unwrap();
+    kill_and_wait_for_restart(&mut sut, up, "host_h1");
+    let bb = String::from_utf8_lossy(&sut.modbot(&["bb", "host_h1"]).stdout).into_owned();
+    assert!(bb.contains("T.y") && !bb.contains("U.y"), "{bb}");
+    let before = releases_of(&top(&sut), "T");
+    sut.wait_until("T to be released again", Duration::from_secs(60), || {
+        let top = top(&sut);
+        if releases_of(&top, "T") > before + 20 {
+            Ok(())
+        } else {
+            Err(format!("{top}\nmodbot up:\n{}", sut.output_of(up)))
+        }
+    });
+    sut.signal(up, Signal::SIGTERM);
+    sut.wait_exit(up, Duration::from_secs(30));
+    // The checked grids went with the domain's other files.
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
+
+/// SIGKILLs the grid process `module` and waits until the supervisor restarted it and it runs.
+fn kill_and_wait_for_restart(sut: &mut TestDomain, up: u32, module: &str) {
+    let pid: u32 = sut
+        .ls_field(module, "PID")
+        .and_then(|p| p.parse().ok())
+        .unwrap_or_else(|| panic!("{module} runs"));
+    sut.signal(pid, Signal::SIGKILL);
+    // Restarted (once, or again if a restart failed under load) and running; what the
+    // supervisor said otherwise is in the failure.
+    sut.wait_until(
+        &format!("{module} to be back"),
+        Duration::from_secs(30),
+        || {
+            let restarts: u32 = sut
+                .ls_field(module, "RESTARTS")
+                .and_then(|r| r.parse().ok())
+                .unwrap_or(0);
+            let running = sut.ls_field(module, "STATE").as_deref() == Some("running");
+            if restarts >= 1 && running {
+                Ok(())
+            } else {
+                let ls = String::from_utf8_lossy(&sut.modbot(&["ls"]).stdout).into_owned();
+                Err(format!("{ls}\nmodbot up:\n{}", sut.output_of(up)))
+            }
+        },
+    );
 }

@@ -89,14 +89,7 @@ fn every_crate_depends_only_on_crates_below_it() {
 fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
     // The grid and the bus are modbot-grid's, the system descriptions (mlua) modbot-system's;
     // modbot-runtime is the facade over all of them.
-    let dirs: BTreeMap<&str, &str> = LAYERS.iter().map(|(n, d, _)| (*n, *d)).collect();
-    let mut seen = BTreeSet::new();
-    let mut todo = vec!["modbot-modules".to_owned()];
-    while let Some(name) = todo.pop() {
-        if seen.insert(name.clone()) {
-            todo.extend(internal_dependencies(dirs[name.as_str()]));
-        }
-    }
+    let seen = reached_from("modbot-modules");
     assert!(
         !seen.contains("modbot-runtime"),
         "modbot-modules reaches {seen:?}"
@@ -105,6 +98,40 @@ fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("modules/Cargo.toml"))
             .unwrap();
     assert!(!manifest.contains("mlua"));
+}
+
+/// The crates `name` depends on, directly or not (among the workspace's).
+fn reached_from(name: &str) -> BTreeSet<String> {
+    let dirs: BTreeMap<&str, &str> = LAYERS.iter().map(|(n, d, _)| (*n, *d)).collect();
+    let mut seen = BTreeSet::new();
+    let mut todo = vec![name.to_owned()];
+    while let Some(name) = todo.pop() {
+        if seen.insert(name.clone()) {
+            todo.extend(internal_dependencies(dirs[name.as_str()]));
+        }
+    }
+    seen
+}
+
+#[test]
+fn the_grid_processes_read_no_description_and_link_no_lua() {
+    // The supervisor reads the description and writes the checked grid; the coordinator, the
+    // hosts, the bus bridge, the recorder and the FMU host read that.
+    for program in [
+        "modbot-grid-processes",
+        "modbot-fmu-host",
+        "modbot-example-first-component",
+    ] {
+        let seen = reached_from(program);
+        for lua in [
+            "modbot-system",
+            "modbot-supervisor",
+            "modbot-program",
+            "modbot-runtime",
+        ] {
+            assert!(!seen.contains(lua), "{program} reaches {lua}: {seen:?}");
+        }
+    }
 }
 
 #[test]

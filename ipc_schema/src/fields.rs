@@ -41,23 +41,46 @@ pub(crate) fn push_u64(out: &mut Vec<u8>, n: u64) {
 /// Reads a run of values one named field at a time.
 #[derive(Debug, Clone)]
 pub(crate) struct Fields<'a> {
-    values: core::iter::Peekable<Values<'a>>,
+    values: Values<'a>,
 }
 
 impl<'a> Fields<'a> {
     pub(crate) fn new(bytes: &'a [u8]) -> Fields<'a> {
         Fields {
-            values: Values::new(bytes, 0).peekable(),
+            values: Values::new(bytes, 0),
         }
     }
 
     /// Whether every value has been read.
     pub(crate) fn is_done(&mut self) -> bool {
-        self.values.peek().is_none()
+        self.values.rest().is_empty()
+    }
+
+    /// The bytes not read yet: a bound on how many values can follow (each takes one byte or
+    /// more), for counts that must not be trusted further.
+    pub(crate) fn remaining(&self) -> usize {
+        self.values.rest().len()
+    }
+
+    /// Where the next value starts, in bytes from the start of the run.
+    pub(crate) fn offset(&self) -> usize {
+        self.values.offset()
     }
 
     fn next(&mut self, what: &'static str) -> Result<Value<'a>, FieldError> {
         Ok(self.values.next().ok_or(FieldError::Missing { what })??)
+    }
+
+    /// The next value, whatever its kind.
+    pub(crate) fn value(&mut self, what: &'static str) -> Result<Value<'a>, FieldError> {
+        self.next(what)
+    }
+
+    pub(crate) fn bool(&mut self, what: &'static str) -> Result<bool, FieldError> {
+        match self.next(what)? {
+            Value::Bool(b) => Ok(b),
+            other => Err(kind(what, ValueKind::Bool, other)),
+        }
     }
 
     pub(crate) fn text(&mut self, what: &'static str) -> Result<&'a str, FieldError> {
@@ -130,6 +153,29 @@ mod tests {
         );
         assert!(sut.is_done());
         assert_eq!(sut.text("more"), Err(FieldError::Missing { what: "more" }));
+    }
+
+    #[test]
+    fn a_bool_a_value_of_any_kind_and_the_bytes_left_are_read() {
+        let mut bytes = Vec::new();
+        push(&mut bytes, Value::Bool(true));
+        push(&mut bytes, Value::Bytes(&[1, 2]));
+        push(&mut bytes, Value::I64(1));
+        let mut sut = Fields::new(&bytes);
+        assert_eq!((sut.remaining(), sut.offset()), (6, 0));
+        assert_eq!(sut.bool("mlock"), Ok(true));
+        assert_eq!(sut.value("a value"), Ok(Value::Bytes(&[1, 2])));
+        assert_eq!((sut.remaining(), sut.offset()), (1, 5));
+        assert_eq!(
+            sut.bool("mlock"),
+            Err(FieldError::Kind {
+                what: "mlock",
+                expected: ValueKind::Bool,
+                found: ValueKind::I64
+            })
+        );
+        assert!(sut.is_done());
+        assert_eq!(sut.value("more"), Err(FieldError::Missing { what: "more" }));
     }
 
     #[test]

@@ -137,6 +137,26 @@ pub fn bus(data: &[u8]) {
     }
 }
 
+/// The checked grid, as a grid process reads it: every connection indexes the ports it names
+/// (safe once the image decodes), and what decodes encodes to bytes that decode and encode to
+/// the same bytes (compared as bytes: a parameter may be NaN).
+pub fn grid_spec(data: &[u8]) {
+    use crate::grid_spec::{decode, encode};
+    if let Ok(image) = decode(data) {
+        for c in &image.connections {
+            let from = &image.components[c.from.component].info.outputs[c.from.port];
+            let to = &image.components[c.to.component].info.inputs[c.to.port];
+            assert_eq!(from.ty, to.ty);
+        }
+        let mut again = Vec::new();
+        encode(&image, &mut again);
+        let back = decode(&again).expect("an encoded image decodes");
+        let mut twice = Vec::new();
+        encode(&back, &mut twice);
+        assert_eq!(again, twice);
+    }
+}
+
 /// One of the decoders above.
 pub type Decoder = fn(&[u8]);
 
@@ -153,4 +173,5 @@ pub const TARGETS: &[(&str, Decoder)] = &[
     ("status", status),
     ("latency", latency),
     ("bus", bus),
+    ("grid_spec", grid_spec),
 ];

@@ -14,6 +14,8 @@
 //! - [`snapshot`]: the blackboard snapshot format: one buffer, header + item table + data,
 //!   readable in place.
 //! - [`grid`]: the time grid's port values, output records and release/done notices.
+//! - [`grid_spec`]: the checked grid the supervisor writes once per assembly generation and
+//!   every grid process reads (components, their interfaces, connections).
 //! - [`ledger`]: the grid's overrun ledger (the coordinator's `ledger` answer).
 //! - [`switch`]: the coordinator's answers about assembly switches (`switch`, `assembly`).
 //! - [`bus`]: the bus bridge's record of assembly switches (its `switches` answer).
@@ -42,6 +44,7 @@ pub mod directory;
 pub mod fields;
 pub mod fuzz;
 pub mod grid;
+pub mod grid_spec;
 pub mod heartbeat;
 pub mod hex;
 pub mod latency;

@@ -546,6 +546,16 @@ impl<'a> Values<'a> {
             offset: base,
         }
     }
+
+    /// The bytes not read yet.
+    pub(crate) fn rest(&self) -> &'a [u8] {
+        self.rest
+    }
+
+    /// Where the next value starts, counted as `base` and the bytes read.
+    pub(crate) fn offset(&self) -> usize {
+        self.offset
+    }
 }
 
 impl<'a> Iterator for Values<'a> {

@@ -16,6 +16,8 @@ mod directory;
 mod frames;
 #[path = "decoding_rules/grid.rs"]
 mod grid;
+#[path = "decoding_rules/grid_spec.rs"]
+mod grid_spec;
 #[path = "decoding_rules/heartbeat.rs"]
 mod heartbeat;
 #[path = "decoding_rules/latency.rs"]
@@ -34,7 +36,8 @@ mod switch;
 use modbot_ipc_schema::value::Values;
 use modbot_ipc_schema::{OwnedValue, Value};
 
-/// The values of a run in the payload encoding (a ledger, status rows, an `assembly()` answer).
+/// The values of a run in the payload encoding (a ledger, status rows, an `assembly()` answer,
+/// a checked grid).
 pub fn run_values(bytes: &[u8]) -> Vec<OwnedValue> {
     Values::new(bytes, 0)
         .map(|v| v.unwrap().to_owned_value())

@@ -376,6 +376,84 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 assert_eq!((view.max(), view.total()), (max, values.len() as u64));
                 bytes
             }
+            "grid_spec" => {
+                use modbot_ipc_schema::grid::{
+                    GridClock, OverrunPolicy, ParamType, ParamValue, PortType,
+                };
+                use modbot_ipc_schema::grid_spec::{
+                    decode, encode, ComponentImage, GridImage, InfoImage, ParamDeclImage, PortImage,
+                };
+                let n = |k| field(&desc, k).parse::<u64>().unwrap();
+                let list = |k| field(&desc, k).split(',').filter(|w| !w.is_empty());
+                // `NAME:TYPE=VALUE`, the value an f64 (the golden line's one kind).
+                let param = |w: &str| {
+                    let (name, rest) = w.split_once(':').unwrap();
+                    let (ty, value) = rest.split_once('=').unwrap();
+                    assert_eq!(ty, "f64", "{w}");
+                    let value = ParamValue::F64(value.parse().unwrap());
+                    (name.to_owned(), ParamType::F64, value)
+                };
+                let ports = |k| -> Vec<PortImage> {
+                    list(k)
+                        .map(|w| {
+                            let (name, ty) = w.split_once(':').unwrap();
+                            PortImage {
+                                name: name.to_owned(),
+                                ty: PortType::parse(ty).unwrap(),
+                            }
+                        })
+                        .collect()
+                };
+                for none in ["assembly", "declared", "connections"] {
+                    assert_eq!(n(none), 0, "the golden image has no {none}");
+                }
+                let info = InfoImage {
+                    type_name: field(&desc, "type").to_owned(),
+                    doc: field(&desc, "doc").to_owned(),
+                    inputs: ports("inputs"),
+                    outputs: ports("outputs"),
+                    params: list("param_decls")
+                        .map(param)
+                        .map(|(name, ty, default)| ParamDeclImage {
+                            name,
+                            ty,
+                            default: Some(default),
+                        })
+                        .collect(),
+                };
+                let component = ComponentImage {
+                    name: field(&desc, "name").to_owned(),
+                    type_name: field(&desc, "type").to_owned(),
+                    program: Some(field(&desc, "program").to_owned()).filter(|p| !p.is_empty()),
+                    host: field(&desc, "host").to_owned(),
+                    period: n("period"),
+                    policy: OverrunPolicy::from_name(field(&desc, "policy")).unwrap(),
+                    line: n("component_line") as u32,
+                    params: list("params")
+                        .map(param)
+                        .map(|(name, _, value)| (name, value))
+                        .collect(),
+                    info,
+                };
+                let image = GridImage {
+                    base_period_ns: n("base_period_ns"),
+                    cpus: list("cpus").map(|c| c.parse().unwrap()).collect(),
+                    priority: Some(n("priority") as u8).filter(|&p| p != 0),
+                    mlock: field(&desc, "mlock").parse().unwrap(),
+                    line: n("line") as u32,
+                    clock: GridClock::from_name(field(&desc, "clock")).unwrap(),
+                    track_ticks: n("track_ticks"),
+                    spin_us: n("spin_us"),
+                    assembly: None,
+                    declared: vec![],
+                    components: vec![component],
+                    connections: vec![],
+                };
+                let mut bytes = Vec::new();
+                encode(&image, &mut bytes);
+                assert_eq!(decode(&bytes).unwrap(), image);
+                bytes
+            }
             "snapshot" => snapshot_of(&desc),
             _ => {
                 let num = |k| field(&desc, k).parse::<u8>().unwrap();

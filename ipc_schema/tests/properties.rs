@@ -168,6 +168,205 @@ fn bus_switch() -> impl Strategy<Value = modbot_ipc_schema::bus::Switch> {
         })
 }
 
+fn port_type() -> impl Strategy<Value = modbot_ipc_schema::grid::PortType> {
+    use modbot_ipc_schema::grid::PortType;
+    prop_oneof![
+        Just(PortType::Bool),
+        Just(PortType::I64),
+        Just(PortType::F64),
+        (1usize..=8).prop_map(PortType::F64s),
+    ]
+}
+
+fn param_value() -> impl Strategy<Value = modbot_ipc_schema::grid::ParamValue> {
+    use modbot_ipc_schema::grid::ParamValue;
+    prop_oneof![
+        any::<bool>().prop_map(ParamValue::Bool),
+        any::<i64>().prop_map(ParamValue::I64),
+        (-1e9..1e9f64).prop_map(ParamValue::F64),
+        proptest::collection::vec(-1e9..1e9f64, 0..4).prop_map(ParamValue::F64s),
+        text().prop_map(ParamValue::Text),
+    ]
+}
+
+fn param_decl() -> impl Strategy<Value = modbot_ipc_schema::grid_spec::ParamDeclImage> {
+    use modbot_ipc_schema::grid::ParamType;
+    let ty = proptest::sample::select(vec![
+        ParamType::Bool,
+        ParamType::I64,
+        ParamType::F64,
+        ParamType::F64s,
+        ParamType::Text,
+    ]);
+    ("[a-z]{1,6}", ty, proptest::option::of(param_value())).prop_map(|(name, ty, default)| {
+        modbot_ipc_schema::grid_spec::ParamDeclImage { name, ty, default }
+    })
+}
+
+/// An interface with these inputs, and outputs and parameters of its own.
+fn info(
+    inputs: Vec<modbot_ipc_schema::grid::PortType>,
+) -> impl Strategy<Value = modbot_ipc_schema::grid_spec::InfoImage> {
+    use modbot_ipc_schema::grid_spec::{InfoImage, PortImage};
+    let ports = |types: Vec<modbot_ipc_schema::grid::PortType>, prefix: &str| -> Vec<PortImage> {
+        types
+            .into_iter()
+            .enumerate()
+            .map(|(i, ty)| PortImage {
+                name: format!("{prefix}{i}"),
+                ty,
+            })
+            .collect()
+    };
+    (
+        "[a-z_]{1,8}",
+        text(),
+        proptest::collection::vec(port_type(), 0..4),
+        proptest::collection::vec(param_decl(), 0..3),
+    )
+        .prop_map(move |(type_name, doc, outputs, params)| InfoImage {
+            type_name,
+            doc,
+            inputs: ports(inputs.clone(), "u"),
+            outputs: ports(outputs, "y"),
+            params,
+        })
+}
+
+/// A valid checked grid: components whose inputs are each fed by one output of its type
+/// (chosen by `feeds`), declared types, perhaps an assembly.
+fn grid_image() -> impl Strategy<Value = modbot_ipc_schema::grid_spec::GridImage> {
+    use modbot_ipc_schema::grid::{Generation, GridClock, OverrunPolicy};
+    use modbot_ipc_schema::grid_spec::{
+        AssemblyImage, ComponentImage, ConnectionImage, DeclaredImage, GridImage, PortAt,
+    };
+    let count = 0..=i64::MAX as u64;
+    let component = (
+        (
+            "[a-z]{0,6}",
+            "[a-z_]{1,8}",
+            proptest::option::of("[a-z_]{1,8}"),
+            module_name(),
+            1..=u64::from(u32::MAX),
+            any::<bool>(),
+            any::<u32>(),
+        ),
+        proptest::collection::vec(("[a-z]{1,6}", param_value()), 0..4),
+        info(vec![]),
+        // Each input: which output (modulo all outputs) feeds it.
+        proptest::collection::vec(any::<usize>(), 0..5),
+    );
+    let declared = ("[a-z_]{1,8}", any::<u32>(), info(vec![])).prop_map(|(program, line, info)| {
+        DeclaredImage {
+            program,
+            line,
+            info,
+        }
+    });
+    (
+        (
+            1..=i64::MAX as u64,
+            proptest::collection::vec(0usize..=4095, 0..4),
+            proptest::option::of(1u8..=99),
+            any::<bool>(),
+            any::<u32>(),
+            any::<bool>(),
+            count.clone(),
+            count,
+        ),
+        proptest::option::of((assembly_name(), 1..=u16::MAX, any::<usize>())),
+        proptest::collection::vec(declared, 0..3),
+        proptest::collection::vec(component, 0..5),
+        any::<u32>(),
+    )
+        .prop_map(
+            |(
+                (base_period_ns, cpus, priority, mlock, line, lockstep, track_ticks, spin_us),
+                assembly,
+                declared,
+                components,
+                connection_line,
+            )| {
+                let mut image = GridImage {
+                    base_period_ns,
+                    cpus,
+                    priority,
+                    mlock,
+                    line,
+                    clock: if lockstep {
+                        GridClock::Lockstep
+                    } else {
+                        GridClock::RealTime
+                    },
+                    track_ticks,
+                    spin_us,
+                    assembly: None,
+                    declared,
+                    components: Vec::new(),
+                    connections: Vec::new(),
+                };
+                let mut feeds = Vec::new();
+                for (
+                    i,
+                    ((name, type_name, program, host, period, fault, line), params, info, inputs),
+                ) in components.into_iter().enumerate()
+                {
+                    image.components.push(ComponentImage {
+                        name: format!("c{i}{name}"),
+                        type_name,
+                        program,
+                        host,
+                        period,
+                        policy: if fault {
+                            OverrunPolicy::Fault
+                        } else {
+                            OverrunPolicy::Hold
+                        },
+                        line,
+                        params,
+                        info,
+                    });
+                    feeds.push(inputs);
+                }
+                let outputs: Vec<(usize, usize)> = image
+                    .components
+                    .iter()
+                    .enumerate()
+                    .flat_map(|(c, comp)| (0..comp.info.outputs.len()).map(move |p| (c, p)))
+                    .collect();
+                for (c, inputs) in feeds.into_iter().enumerate() {
+                    if outputs.is_empty() {
+                        break;
+                    }
+                    for (port, pick) in inputs.into_iter().enumerate() {
+                        let (from_c, from_p) = outputs[pick % outputs.len()];
+                        let ty = image.components[from_c].info.outputs[from_p].ty;
+                        image.components[c].info.inputs.push(
+                            modbot_ipc_schema::grid_spec::PortImage {
+                                name: format!("u{port}"),
+                                ty,
+                            },
+                        );
+                        image.connections.push(ConnectionImage {
+                            from: PortAt {
+                                component: from_c,
+                                port: from_p,
+                            },
+                            to: PortAt { component: c, port },
+                            line: connection_line,
+                        });
+                    }
+                }
+                image.assembly = assembly.map(|(name, generation, base)| AssemblyImage {
+                    name,
+                    generation: Generation(generation),
+                    base: base % (image.components.len() + 1),
+                });
+                image
+            },
+        )
+}
+
 proptest! {
     #[test]
     fn frames_round_trip_through_encode_and_decode(
@@ -327,5 +526,25 @@ proptest! {
             }
             decode(bytes);
         }
+    }
+    /// Generated valid grids read back, and cut or flipped images are refused or read as an
+    /// image whose connections index existing ports (the fuzz target's walk), never a panic.
+    #[test]
+    fn checked_grids_round_trip_and_survive_mutation(
+        image in grid_image(),
+        flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6),
+        cut in any::<usize>(),
+    ) {
+        use modbot_ipc_schema::{fuzz, grid_spec};
+        prop_assert_eq!(image.check(), Ok(()));
+        let mut bytes = Vec::new();
+        grid_spec::encode(&image, &mut bytes);
+        prop_assert_eq!(grid_spec::decode(&bytes), Ok(image));
+        fuzz::grid_spec(&bytes[..cut % (bytes.len() + 1)]);
+        for (at, byte) in &flips {
+            let i = at % bytes.len();
+            bytes[i] ^= byte;
+        }
+        fuzz::grid_spec(&bytes);
     }
 }

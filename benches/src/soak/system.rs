@@ -151,7 +151,7 @@ mod tests {
         assert_eq!(journal.args, ["--journal", "/tmp/soak \"journal\""]);
         let grid = sut.grid.as_ref().expect("the arm's grid");
         let assembly = grid.assembly.as_ref().expect("the arm's assemblies");
-        assert_eq!(assembly.dir, examples.assemblies);
+        assert_eq!(assembly.source.as_ref().unwrap().dir, examples.assemblies);
         assert_eq!(sut.supervision.heartbeat_timeout.as_secs_f64(), 3.0);
     }
 

@@ -17,8 +17,12 @@
 //! `notices.rs`.
 
 mod notices;
+mod param;
+mod timing;
 
 pub use notices::{Done, Prepare, PrepareNameError, Release, PREPARE_NAME_MAX};
+pub use param::{ParamType, ParamValue};
+pub use timing::{GridClock, OverrunPolicy};
 
 use thiserror::Error;
 use zerocopy::byteorder::little_endian::U64;

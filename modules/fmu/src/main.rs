@@ -4,7 +4,7 @@
 //! components are FMUs, so a crashing FMU takes only its own host down.
 
 fn main() -> std::process::ExitCode {
-    let mut registry = modbot_runtime::components::builtin();
+    let mut registry = modbot_components::builtin();
     modbot_fmu::register(&mut registry);
     modbot_grid_processes::host_process::host_main("modbot-fmu-host", registry)
 }

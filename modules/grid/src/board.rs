@@ -4,10 +4,10 @@
 //! `modbot bb host_ctrl_g3` shows what an assembly's components do, and a robot program reads
 //! them (`read("settle.settled")`).
 
-use modbot_runtime::blackboard::{BlackboardError, ItemId};
-use modbot_runtime::grid::outputs_view::{copy_port, OutputsView, SharedOutputs};
-use modbot_runtime::grid::PortValue;
-use modbot_runtime::{Blackboard, OwnedValue, Value};
+use modbot_core::blackboard::{BlackboardError, ItemId};
+use modbot_core::{Blackboard, OwnedValue, Value};
+use modbot_grid::outputs_view::{copy_port, OutputsView, SharedOutputs};
+use modbot_grid::PortValue;
 
 /// The blackboard's side of the view.
 pub struct Board {

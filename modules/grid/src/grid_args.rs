@@ -1,69 +1,73 @@
-//! The options of the grid's programs: the system description they all load.
+//! The option of the grid's programs: which checked grid they serve. The supervisor reads the
+//! system description (and every assembly file) and writes each assembly generation's checked
+//! grid into the domain (`modbot_transport::spec_image`); a grid process reads the one it is
+//! told, so no grid process evaluates a description.
 
-use std::path::PathBuf;
+use std::sync::Arc;
 
 use clap::Args;
-use modbot_runtime::grid::component::Generation;
-use modbot_runtime::grid::GridSpec;
-use modbot_runtime::system::{self, DefaultResolver};
+use modbot_core::domain::Domain;
+use modbot_core::transport::spec_image::SpecImageError;
+use modbot_grid::component::{Generation, Registry};
+use modbot_grid::host::{LoadAssembly, LoadError};
+use modbot_grid::GridSpec;
+use modbot_ipc_schema::grid_spec::GridSpecError;
 
-/// The options of the grid's programs (coordinator, hosts, bus bridge): the system
-/// description they all load, with its variables.
+/// The options of the grid's programs (coordinator, hosts, bus bridge).
 #[derive(Debug, Clone, Args)]
 pub struct GridArgs {
-    /// The system description with the grid.
-    #[arg(long)]
-    pub system: PathBuf,
-    /// A variable for the description (`vars.KEY`); repeatable.
-    #[arg(long = "var", value_parser = system::parse_var)]
-    pub vars: Vec<(String, String)>,
-    /// The assembly whose components this host steps (its hosts are started with it).
-    #[arg(long, requires = "generation")]
-    pub assembly: Option<String>,
-    /// The assembly's generation.
-    #[arg(long, requires = "assembly")]
-    pub generation: Option<u16>,
-    /// Run the grid in lockstep whatever the description says (`modbot up --lockstep`).
-    #[arg(long)]
-    pub lockstep: bool,
+    /// The assembly generation of the checked grid this process serves (0: a grid without
+    /// assemblies), as the supervisor wrote it for the domain.
+    #[arg(long, value_name = "N")]
+    pub spec_generation: u16,
 }
 
 impl GridArgs {
-    /// Loads the description and returns its grid, with the built-in component types.
-    pub fn load(&self) -> anyhow::Result<GridSpec> {
-        self.load_with(&modbot_runtime::components::builtin())
+    /// The checked grid of `--spec-generation` in `domain`.
+    pub fn load(&self, domain: &str) -> anyhow::Result<GridSpec> {
+        Ok(read_grid(
+            &Domain::new(domain)?,
+            Generation(self.spec_generation),
+        )?)
     }
 
-    /// Loads the description and returns its grid, with the component types of `registry`
-    /// (a host program's own, checked against what the description declares of them).
-    pub fn load_with(&self, registry: &modbot_runtime::grid::Registry) -> anyhow::Result<GridSpec> {
-        let resolver = DefaultResolver::for_file(&self.system);
-        let spec = system::load_with_registry(&self.system, &resolver, &self.vars, registry)?;
-        let mut grid = spec
-            .grid
-            .ok_or_else(|| anyhow::anyhow!("{}: no grid", self.system.display()))?;
-        if self.lockstep {
-            grid.set_clock(modbot_runtime::grid::GridClock::Lockstep);
-        }
-        match (&self.assembly, self.generation) {
-            (Some(name), Some(generation)) => Ok(system::load_assembly(
-                &grid,
-                name,
-                Generation(generation),
-                registry,
-            )?),
-            _ => Ok(grid),
-        }
+    /// [`GridArgs::load`] for a host program with component types of its own (`registry`):
+    /// what the description declares of them must be what the program registers.
+    pub fn load_with(&self, domain: &str, registry: &Registry) -> anyhow::Result<GridSpec> {
+        let grid = self.load(domain)?;
+        registry.with_declared(&grid.declared)?;
+        Ok(grid)
     }
 }
 
-/// Loads an assembly of the running grid with the built-in components (what a host hands
-/// [`modbot_runtime::grid::host::Host::prepare_step`]).
-pub fn load_assembly(
-    system: &GridSpec,
-    name: &str,
-    generation: Generation,
-) -> Result<GridSpec, modbot_runtime::grid::host::LoadError> {
-    let registry = modbot_runtime::components::builtin();
-    Ok(system::load_assembly(system, name, generation, &registry)?)
+/// The checked grid of a generation cannot be had.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckedGridError {
+    #[error(transparent)]
+    Read(#[from] SpecImageError),
+    #[error("{}: {source}", path.display())]
+    Malformed {
+        path: std::path::PathBuf,
+        source: GridSpecError,
+    },
+}
+
+/// The checked grid of `generation` in `domain`.
+pub fn read_grid(domain: &Domain, generation: Generation) -> Result<GridSpec, CheckedGridError> {
+    let image = domain.read_spec_image(generation.0)?;
+    GridSpec::from_image(&image).map_err(|source| CheckedGridError::Malformed {
+        path: domain.spec_image_path(generation.0),
+        source,
+    })
+}
+
+/// How a host of the system's own components gets an assembly the coordinator announces: the
+/// checked grid the supervisor wrote for its generation.
+pub fn assembly_loader(domain: &str) -> anyhow::Result<LoadAssembly> {
+    let domain = Domain::new(domain)?;
+    Ok(Arc::new(
+        move |_: &GridSpec, _: &str, generation: Generation| {
+            read_grid(&domain, generation).map_err(LoadError::from)
+        },
+    ))
 }

@@ -1,5 +1,5 @@
 //! What every host process of the grid does around its clocked work — `modbot-host` and the
-//! bus bridge `modbot-bus` are this plus their loop: load the grid, open the node, make the
+//! bus bridge `modbot-bus` are this plus their loop: read the checked grid, open the node, make the
 //! host's components, serve the process's module on a thread of normal priority, then make
 //! this thread the real-time one.
 
@@ -7,15 +7,15 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use clap::Args;
+use modbot_core::transport::channels::Channels;
+use modbot_core::{signals, IpcTransport, ModuleBuilder};
+use modbot_grid::component::Registry;
+use modbot_grid::host::{Host, LoadAssembly};
+use modbot_grid::GridSpec;
 use modbot_modules::common::ModuleArgs;
-use modbot_runtime::grid::component::Registry;
-use modbot_runtime::grid::host::Host;
-use modbot_runtime::grid::GridSpec;
-use modbot_runtime::transport::channels::Channels;
-use modbot_runtime::{signals, IpcTransport, ModuleBuilder};
 
 use crate::board::Board;
-use crate::grid_args::GridArgs;
+use crate::grid_args::{assembly_loader, GridArgs};
 use crate::service_thread::serve_module;
 
 /// The command line of a host process: the module's options, the grid's, and the host.
@@ -36,6 +36,8 @@ pub struct HostProcess {
     /// The grid's channels, through the host's node.
     pub node: Arc<dyn Channels>,
     pub host: Host,
+    /// How an assembly the coordinator announces is loaded: its checked grid.
+    loader: LoadAssembly,
     args: HostArgs,
     transport: Option<IpcTransport>,
 }
@@ -48,16 +50,15 @@ impl HostProcess {
         args: HostArgs,
         registry: impl FnOnce(&GridSpec) -> anyhow::Result<Registry>,
     ) -> anyhow::Result<HostProcess> {
-        let grid = args.grid.load()?;
+        let grid = args.grid.load(&args.module.domain)?;
         let registry = registry(&grid)?;
         Self::start_loaded(args, grid, &registry)
     }
 
-    /// Like [`HostProcess::start`], with the component types of `registry` from the start:
-    /// the description is loaded with them (a host program's own types are checked against
-    /// what the description declares of them).
+    /// Like [`HostProcess::start`], with the component types of `registry` from the start (a
+    /// host program's own types are checked against what the description declares of them).
     pub fn start_with(args: HostArgs, registry: &Registry) -> anyhow::Result<HostProcess> {
-        let grid = args.grid.load_with(registry)?;
+        let grid = args.grid.load_with(&args.module.domain, registry)?;
         Self::start_loaded(args, grid, registry)
     }
 
@@ -75,9 +76,16 @@ impl HostProcess {
             grid,
             node,
             host,
+            loader: assembly_loader(&args.module.domain)?,
             args,
             transport: Some(transport),
         })
+    }
+
+    /// Between releases: a bounded piece of the preparation of an assembly the coordinator
+    /// announced (see [`Host::prepare_step`]).
+    pub fn prepare_step(&mut self) -> anyhow::Result<()> {
+        Ok(self.host.prepare_step(&self.node, &self.loader)?)
     }
 
     /// The host name it steps.
@@ -118,11 +126,8 @@ impl HostProcess {
             },
             move |module| board.refresh(&mut module.ctx().bb),
         )?;
-        modbot_runtime::supervisor::env::apply_mlockall();
-        modbot_runtime::supervisor::rt::real_time_thread(
-            self.grid.host_priority(),
-            "serving thread",
-        );
+        modbot_core::transport::launch::apply_mlockall();
+        modbot_core::realtime::real_time_thread(self.grid.host_priority(), "serving thread");
         Ok(service)
     }
 
@@ -172,13 +177,12 @@ pub fn host_main_with(
         let mut p = HostProcess::start_with(cli.host, &registry)?;
         let name = p.grid.host_module(p.host_name());
         let service = p.serve(name, 200, declare, ())?;
-        let now = || modbot_runtime::clock::Clock::now_ns(&modbot_runtime::clock::MonotonicClock);
+        let now = || modbot_core::clock::Clock::now_ns(&modbot_core::clock::MonotonicClock);
         while HostProcess::running(&service) {
             // Wakes up for its releases; every 5 ms also to look at the termination flag.
             p.host
                 .wait_and_serve(Some(std::time::Duration::from_millis(5)), &now)?;
-            p.host
-                .prepare_step(&p.node, crate::grid_args::load_assembly)?;
+            p.prepare_step()?;
         }
         p.finish(service)
     })

@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use modbot_runtime::{signals, Module};
+use modbot_core::{signals, Module};
 
 /// Starts the thread: it opens the module with `open` (so the module announces itself only
 /// after the caller opened its grid channels), then serves it until a termination signal,

@@ -8,14 +8,11 @@ use modbot_core::calls::CallOptions;
 use modbot_core::error::CallError;
 use modbot_core::tool::Calls;
 use modbot_grid::component::Generation;
-use modbot_grid::spec::host_module_of;
+use modbot_grid::spec::{host_module_of, BUS_HOST};
 use modbot_ipc_schema::{NakCode, OwnedValue, Value};
 use thiserror::Error;
 
 use crate::robot_state::{RobotState, RobotStateError};
-
-/// The host whose components the bus bridge steps (the supervisor's `BUS_HOST`).
-const BUS_HOST: &str = "bus";
 
 /// How long a reset may take from the ask to its answer.
 pub const RESET_TIMEOUT: Duration = Duration::from_secs(15);

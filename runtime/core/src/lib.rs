@@ -21,6 +21,7 @@
 //! - [`cli`]: the command line every module program takes ([`ModuleArgs`]).
 //! - [`tool`]: how a tool (the CLI) reaches a running system, also when every address is taken.
 //! - [`clock`], [`signals`], [`error`]: injected time, termination, error types.
+//! - [`realtime`]: a grid process's one SCHED_FIFO thread.
 //! - [`transport`], [`domain`]: re-exported from `modbot-transport`.
 //!
 //! No file imports another in a circle (`tests/layout.rs` checks every library crate): the
@@ -37,6 +38,7 @@ pub mod hooks;
 mod manager;
 pub mod module;
 pub mod phonebook;
+pub mod realtime;
 pub mod run;
 pub mod served;
 pub mod signals;

@@ -39,8 +39,10 @@ use modbot_core::transport::TransportError;
 type Source = Versions;
 
 /// Loads assembly `name` as generation `generation` for the running grid `system` (the
-/// system descriptions' loader: the grid itself reads no description).
-pub type LoadAssembly = fn(&GridSpec, &str, Generation) -> Result<GridSpec, LoadError>;
+/// checked grid the supervisor wrote for that generation: the grid itself reads no description).
+pub type LoadAssembly = std::sync::Arc<
+    dyn Fn(&GridSpec, &str, Generation) -> Result<GridSpec, LoadError> + Send + Sync,
+>;
 
 /// Why an assembly could not be loaded: the loader's own error (the grid, which reads no
 /// description, does not know its type).
@@ -360,7 +362,7 @@ impl Host {
     pub fn prepare_step(
         &mut self,
         node: &std::sync::Arc<dyn Channels>,
-        load: LoadAssembly,
+        load: &LoadAssembly,
     ) -> Result<(), TransportError> {
         let Some(notices) = self.prepare.as_ref() else {
             return Ok(());
@@ -390,7 +392,7 @@ impl Host {
                 continue;
             }
             let (tx, rx) = std::sync::mpsc::channel();
-            let system = self.spec.clone();
+            let (system, load) = (self.spec.clone(), load.clone());
             std::thread::spawn(move || {
                 let loaded = load(&system, &name, generation);
                 let _ = tx.send(loaded);

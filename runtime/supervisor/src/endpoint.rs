@@ -1,9 +1,11 @@
 //! The supervisor's own module, `supervisor` in the domain: its methods (`status`, `down`,
-//! and the hosts' `spawn_host`, `retire` and `current_assembly`) and the state they share with
+//! the coordinator's `load_assembly`, and the hosts' `spawn_host`, `retire` and
+//! `current_assembly`) and the state they share with
 //! the supervisor.
 
 use modbot_ipc_schema::{Addr, Args, Value};
 
+use super::assemblies::load_assembly_method;
 use super::hosts::{current_assembly_method, retire_method, spawn_host_method};
 use super::shared::Shared;
 use super::status;
@@ -32,6 +34,7 @@ pub(super) fn open_endpoint(
             .method("spawn_host", spawn_host_method)
             .method("retire", retire_method)
             .method("current_assembly", current_assembly_method)
+            .method("load_assembly", load_assembly_method)
             .on_done(relay::on_done)
             .open(transport.clone(), Shared::default());
         match opened {

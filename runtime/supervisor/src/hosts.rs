@@ -11,6 +11,8 @@ use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 use thiserror::Error;
 
+use super::assemblies::assembly_generation;
+use super::processes::{spec_generation_args, SPEC_GENERATION_ARG};
 use super::shared::{HostRequest, Shared};
 use super::status::RunState;
 use super::{Slot, Supervisor, SupervisorError};
@@ -100,14 +102,10 @@ impl Supervisor {
         let mut m = template;
         m.name = name.clone();
         m.addr = addr;
-        m.args.extend([
-            "--host".to_owned(),
-            host.to_owned(),
-            "--assembly".to_owned(),
-            assembly.to_owned(),
-            "--generation".to_owned(),
-            generation.to_string(),
-        ]);
+        // The template's arguments name the first generation's checked grid: this host serves
+        // its assembly's.
+        m.args = spec_generation_args(generation);
+        m.args.extend(["--host".to_owned(), host.to_owned()]);
         let slot = Slot::new(m.restart.clone());
         // A retired slot is reused, so that a run of many swaps keeps a short table.
         let reuse = self
@@ -138,7 +136,7 @@ impl Supervisor {
     }
 
     /// From now on a host of the system's own components starts (and restarts) with
-    /// `assembly` as generation `generation`: its `--assembly` and `--generation` arguments.
+    /// `assembly` as generation `generation`: the checked grid of that generation.
     fn current_assembly(&mut self, assembly: &str, generation: Generation) {
         for m in &mut self.spec.modules {
             let system_host = matches!(
@@ -148,23 +146,18 @@ impl Supervisor {
             if !system_host || !m.args.iter().any(|a| a == "--host") {
                 continue;
             }
-            let mut args = Vec::with_capacity(m.args.len() + 4);
+            let mut args = spec_generation_args(generation);
             let mut old = m.args.iter();
             while let Some(a) = old.next() {
-                if a == "--assembly" || a == "--generation" {
+                if a == SPEC_GENERATION_ARG {
                     old.next();
                 } else {
                     args.push(a.clone());
                 }
             }
-            args.extend([
-                "--assembly".to_owned(),
-                assembly.to_owned(),
-                "--generation".to_owned(),
-                generation.to_string(),
-            ]);
             m.args = args;
         }
+        tracing::debug!("the system's hosts restart with assembly {assembly} from now on");
     }
 
     /// Stops module `name` for good (SIGTERM; SIGKILL after the grace period, by `watch`).
@@ -204,9 +197,7 @@ pub(super) fn spawn_host_method(
             "this system has no assemblies: no host can be started".into(),
         ));
     }
-    let generation = u16::try_from(generation)
-        .map(Generation)
-        .map_err(|_| MethodError::Failed(format!("generation {generation} is out of range")))?;
+    let generation = assembly_generation(generation)?;
     modbot_grid::spec::check_host(host).map_err(|e| MethodError::Failed(e.to_string()))?;
     modbot_system::assembly::check_assembly_name(assembly)
         .map_err(|e| MethodError::Failed(e.to_string()))?;
@@ -251,11 +242,7 @@ pub(super) fn current_assembly_method(
     if !shared.hosts_allowed {
         return Err(MethodError::Failed("this system has no assemblies".into()));
     }
-    let generation = u16::try_from(generation)
-        .ok()
-        .filter(|g| *g >= 1)
-        .map(Generation)
-        .ok_or_else(|| MethodError::Failed(format!("generation {generation} is out of range")))?;
+    let generation = assembly_generation(generation)?;
     modbot_system::assembly::check_assembly_name(assembly)
         .map_err(|e| MethodError::Failed(e.to_string()))?;
     shared.requests.push(HostRequest::Current {

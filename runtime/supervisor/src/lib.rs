@@ -37,6 +37,7 @@
 //! - [`rt`]: CPU affinity and SCHED_FIFO for a module process.
 //! - [`status`]: the status rows and table.
 
+mod assemblies;
 mod child;
 mod endpoint;
 mod hosts;
@@ -115,6 +116,9 @@ pub enum SupervisorError {
     Transport(#[from] TransportError),
     #[error(transparent)]
     Module(#[from] modbot_core::error::ModuleError),
+    /// The checked grid could not be written for the grid's processes.
+    #[error(transparent)]
+    SpecImage(#[from] modbot_core::transport::spec_image::SpecImageError),
 }
 
 /// The longest the supervisor sleeps between looks at heartbeats and deadlines (calls to it
@@ -250,8 +254,21 @@ impl Supervisor {
         };
         let roster = Roster::new(&transport).map_err(in_use)?;
         let relay = Relay::new(&transport).map_err(in_use)?;
+        // The grid's processes read the checked grid, written after the sweep (which removes
+        // what an earlier run of the domain left).
+        if let Some(grid) = &spec.grid {
+            assemblies::write_image(&domain, grid)?;
+        }
         let mut endpoint = open_endpoint(&transport, &used)?;
         endpoint.state_mut().hosts_allowed = spec.host_template.is_some();
+        endpoint.state_mut().assemblies =
+            spec.grid
+                .as_ref()
+                .filter(|g| g.assembly.is_some())
+                .map(|grid| shared::AssemblyLoader {
+                    grid: grid.clone(),
+                    domain: domain.clone(),
+                });
         let heartbeats = HeartbeatMonitor::new(&transport)?;
         // A child's end interrupts the supervisor's wait and is looked for at once.
         let child_signal = modbot_core::signals::install_child_handler();

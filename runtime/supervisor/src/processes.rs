@@ -1,19 +1,21 @@
 //! The processes of a grid: one component host per host name, and the coordinator. The
 //! supervisor starts them like modules — hosts first, the coordinator last, so that every
-//! host listens before the first tick — and they load the same system description.
+//! host listens before the first tick. None of them reads the description: each reads the
+//! checked grid the supervisor wrote for its assembly generation (`--spec-generation N`, the
+//! image `modbot_transport::spec_image`), so a description edited while the system runs
+//! changes nothing until the next `modbot up`.
 
 use std::path::{Path, PathBuf};
 
 use modbot_core::transport::ReceiveMode;
+use modbot_grid::component::Generation;
 use modbot_system::{ModuleSpec, ProgramResolver, Restart, RestartPolicy, SystemSpec};
 
-pub use modbot_grid::spec::COORDINATOR;
+pub use modbot_grid::spec::{BUS_HOST, COORDINATOR};
 /// The program of the coordinator.
 pub const COORDINATOR_PROGRAM: &str = "modbot-coordinator";
 /// The program of a component host.
 pub const HOST_PROGRAM: &str = "modbot-host";
-/// The host whose components the bus bridge process steps: it owns the drives.
-pub const BUS_HOST: &str = "bus";
 /// The program of the bus bridge.
 pub const BUS_PROGRAM: &str = "modbot-bus";
 
@@ -21,6 +23,11 @@ pub const BUS_PROGRAM: &str = "modbot-bus";
 /// assemblies (an assembly's hosts: [`modbot_grid::GridSpec::host_module`]).
 pub fn host_module(host: &str) -> String {
     modbot_grid::spec::host_module_of(host, modbot_grid::component::Generation::SYSTEM)
+}
+
+/// The arguments that make a grid process serve the checked grid of `generation`.
+pub fn spec_generation_args(generation: Generation) -> Vec<String> {
+    vec![SPEC_GENERATION_ARG.to_owned(), generation.to_string()]
 }
 
 /// The program of host `host`: the bus bridge for [`BUS_HOST`], else the generic host.
@@ -85,15 +92,22 @@ pub enum GridProcessError {
     NoAddress { what: &'static str },
 }
 
-/// Adds the grid's processes to `spec`'s modules, if it has a grid. `file` and `vars` are
-/// what the processes load the description from.
+/// The option that tells a grid process the assembly generation of the checked grid it serves.
+pub const SPEC_GENERATION_ARG: &str = "--spec-generation";
+
+/// Adds the grid's processes to `spec`'s modules, if it has a grid (`file`: the description,
+/// for messages). `--lockstep` is set in the grid itself, so the checked grid carries it.
 pub fn add_processes(
     spec: &mut SystemSpec,
     resolver: &dyn ProgramResolver,
     file: &Path,
-    vars: &[(String, String)],
     run: &GridRun,
 ) -> Result<(), GridProcessError> {
+    if run.lockstep {
+        if let Some(grid) = &mut spec.grid {
+            grid.set_clock(modbot_grid::GridClock::Lockstep);
+        }
+    }
     let Some(grid) = spec.grid.clone() else {
         if run.ticks.is_some() || run.trace.is_some() || run.lockstep || !run.switches.is_empty() {
             let file = file.to_path_buf();
@@ -101,16 +115,9 @@ pub fn add_processes(
         }
         return Ok(());
     };
-    let file = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
-    let mut common = vec!["--system".to_owned(), file.display().to_string()];
-    for (k, v) in vars {
-        common.push("--var".into());
-        common.push(format!("{k}={v}"));
-    }
-    if run.lockstep {
-        common.push("--lockstep".into());
-    }
+    let common = spec_generation_args(grid.generation());
     if !run.switches.is_empty() && grid.assembly.is_none() {
+        let file = file.to_path_buf();
         return Err(GridProcessError::NoAssemblies { file });
     }
     let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
@@ -166,14 +173,6 @@ pub fn add_processes(
         }
         let mut args = common.clone();
         args.extend(["--host".to_owned(), host.clone()]);
-        if let (Some(a), g @ 1..) = (&grid.assembly, grid.host_generation(&host).0) {
-            args.extend([
-                "--assembly".to_owned(),
-                a.name.clone(),
-                "--generation".to_owned(),
-                g.to_string(),
-            ]);
-        }
         added.push(ModuleSpec {
             name,
             addr: next_addr().ok_or(GridProcessError::NoAddress {

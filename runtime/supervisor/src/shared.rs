@@ -2,7 +2,9 @@
 //! requests the handlers leave for the supervisor's loop (`down`, assembly hosts), relayed
 //! answers.
 
+use modbot_core::domain::Domain;
 use modbot_grid::component::Generation;
+use modbot_grid::GridSpec;
 
 use super::status::Row;
 
@@ -33,6 +35,16 @@ pub(super) struct Shared {
     pub(super) requests: Vec<HostRequest>,
     /// Whether the system can start assembly hosts (it has a grid with assemblies).
     pub(super) hosts_allowed: bool,
+    /// What loading the grid's assemblies needs (a grid with assemblies only).
+    pub(super) assemblies: Option<AssemblyLoader>,
     /// Relayed calls that ended: their handles and the tools' answers.
     pub(super) relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
+}
+
+/// What loading an assembly needs: the system's grid as the description gave it (with the
+/// loader's context), and the domain the images go to.
+#[derive(Debug)]
+pub(super) struct AssemblyLoader {
+    pub(super) grid: GridSpec,
+    pub(super) domain: Domain,
 }

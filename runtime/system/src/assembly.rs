@@ -13,10 +13,11 @@
 //! (types, parameters, every input connected once); an error names the assembly file and line.
 
 use std::path::Path;
+use std::sync::Arc;
 
 use super::{fmus, lua, record_decl, SystemError};
 use modbot_grid::component::Generation;
-use modbot_grid::spec::{Assembly, GridError, GridSpec, RecordDecl};
+use modbot_grid::spec::{Assembly, AssemblySource, GridError, GridSpec, RecordDecl};
 use modbot_grid::Registry;
 
 /// Lines of assembly declarations are offset by this while the combined grid is checked, so
@@ -56,22 +57,30 @@ pub fn load_assembly(
             "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }",
         ));
     };
-    let system_file = current.system_file.as_str();
+    let Some(origin) = &current.source else {
+        return Err(SystemError::new(
+            "",
+            None,
+            "this grid came checked from the supervisor, without its description: only the \
+             supervisor loads assemblies",
+        ));
+    };
+    let system_file = origin.system_file.as_str();
     check_assembly_name(name).map_err(|e| SystemError::new(system_file, None, e.to_string()))?;
-    let path = current.dir.join(format!("{name}.lua"));
+    let path = origin.dir.join(format!("{name}.lua"));
     let file = path.display().to_string();
     let source = match std::fs::read(&path) {
         Ok(bytes) => String::from_utf8(bytes)
             .map_err(|_| SystemError::new(&file, None, "the assembly file is not UTF-8 text"))?,
         Err(e) => {
-            let known = assembly_names(&current.dir);
+            let known = assembly_names(&origin.dir);
             if e.kind() != std::io::ErrorKind::NotFound {
                 let message = format!("cannot read the assembly file: {e}");
                 return Err(SystemError::new(&file, None, message).because(e));
             }
             let message = format!(
                 "no assembly named '{name}' in {} (assemblies: {})",
-                current.dir.display(),
+                origin.dir.display(),
                 if known.is_empty() {
                     "none".to_owned()
                 } else {
@@ -81,7 +90,7 @@ pub fn load_assembly(
             return Err(SystemError::new(&file, None, message));
         }
     };
-    let decls = lua::evaluate(&file, &source, &current.vars, current.data.as_deref())?;
+    let decls = lua::evaluate(&file, &source, &origin.vars, origin.data.as_deref())?;
     let stray = [
         decls.domain.as_ref().map(|d| d.1),
         decls.supervision.as_ref().map(|s| s.1),
@@ -97,7 +106,7 @@ pub fn load_assembly(
              supervision and the grid belong to the system description)",
         ));
     }
-    let (grid, base_components, base_connections) = current.decls.clone();
+    let (grid, base_components, base_connections) = origin.decls.clone();
     let base_hosts: Vec<&str> = base_components.iter().map(|c| c.host.as_str()).collect();
     let on_base_host = decls
         .components
@@ -125,7 +134,7 @@ pub fn load_assembly(
     let base = base_components.len();
     let mut components = base_components.clone();
     let mut own = decls.components;
-    fmus::find_files(&mut own, &current.dir);
+    fmus::find_files(&mut own, &origin.dir);
     components.extend(own.into_iter().map(|mut c| {
         c.line += LINE_OFFSET;
         c
@@ -152,9 +161,9 @@ pub fn load_assembly(
         spec.timing = system.timing;
         let records: Vec<RecordDecl> = (decls.records.into_iter())
             .filter_map(|mut r| {
-                r.file = record_decl::file_of(&r.file, &current.vars, Some(name))?;
+                r.file = record_decl::file_of(&r.file, &origin.vars, Some(name))?;
                 r.line += LINE_OFFSET;
-                r.sources = vec![record_decl::absolute(&current.system_file), file.clone()];
+                r.sources = vec![record_decl::absolute(&origin.system_file), file.clone()];
                 Some(r)
             })
             .collect();
@@ -178,12 +187,14 @@ pub fn load_assembly(
     spec.assembly = Some(Assembly {
         name: name.to_owned(),
         generation,
-        dir: current.dir.clone(),
         base,
-        decls: (grid, base_components, base_connections),
-        vars: current.vars.clone(),
-        system_file: current.system_file.clone(),
-        data: current.data.clone(),
+        source: Some(Arc::new(AssemblySource {
+            dir: origin.dir.clone(),
+            decls: (grid, base_components, base_connections),
+            vars: origin.vars.clone(),
+            system_file: origin.system_file.clone(),
+            data: origin.data.clone(),
+        })),
     });
     Ok(spec)
 }

@@ -81,6 +81,8 @@ mod fmu_tests;
 #[cfg(test)]
 mod grid_tests;
 #[cfg(test)]
+mod image_tests;
+#[cfg(test)]
 mod in_process_tests;
 #[cfg(test)]
 mod let_tests;

@@ -7,6 +7,7 @@
 
 use std::collections::HashMap;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use std::path::Path;
 
@@ -18,7 +19,7 @@ use super::{ProgramResolver, SystemError, SystemSpec};
 use modbot_grid::component::{DeclaredType, Generation};
 use modbot_grid::spec::GridError;
 use modbot_grid::spec::{
-    Assembly, ComponentDecl, ConnectDecl, GridDecl, Period, RecordDecl, Signals,
+    Assembly, AssemblySource, ComponentDecl, ConnectDecl, GridDecl, Period, RecordDecl, Signals,
 };
 use modbot_grid::{GridSpec, Registry};
 
@@ -265,12 +266,14 @@ fn with_assemblies(
             assembly: Some(Assembly {
                 name: String::new(),
                 generation: Generation::SYSTEM,
-                dir: dir.clone(),
                 base: components.len(),
-                decls: (grid.clone(), components, connections),
-                vars: vars.to_vec(),
-                system_file: file.to_owned(),
-                data: Some(modbot_data::path_for(domain)),
+                source: Some(Arc::new(AssemblySource {
+                    dir: dir.clone(),
+                    decls: (grid.clone(), components, connections),
+                    vars: vars.to_vec(),
+                    system_file: file.to_owned(),
+                    data: Some(modbot_data::path_for(domain)),
+                })),
             }),
         };
         load_assembly(&unloaded, &decl.first, Generation(1), registry).map_err(|mut e| {

@@ -43,6 +43,7 @@ pub mod domain;
 pub mod ipc;
 pub mod launch;
 pub mod local;
+pub mod spec_image;
 
 use core::time::Duration;
 

@@ -5,19 +5,19 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use clap::Parser;
+use modbot_bus::bridge::{self, Bridge, BusView};
+use modbot_bus::{robot, Backend, DriveFault, DriveParams, SimBackend};
+use modbot_core::clock::{Clock, MonotonicClock};
+use modbot_core::{Ctx, MethodError, ModuleBuilder, Reply};
 use modbot_ethercat::EthercatBackend;
 use modbot_ethercat::EthercatConfig;
-use modbot_grid_processes::grid_args::load_assembly;
+use modbot_grid::component::Generation;
+use modbot_grid::spec::{host_module_of, BUS_HOST};
 use modbot_grid_processes::grid_args::GridArgs;
 use modbot_grid_processes::host_process::{HostArgs, HostProcess};
 use modbot_grid_processes::watchdog_check::{self, Budget, Seen};
 use modbot_ipc_schema::{Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
-use modbot_runtime::bus::bridge::{self, Bridge, BusView};
-use modbot_runtime::bus::{robot, Backend, DriveFault, DriveParams, SimBackend};
-use modbot_runtime::clock::{Clock, MonotonicClock};
-use modbot_runtime::supervisor::processes::{host_module, BUS_HOST};
-use modbot_runtime::{Ctx, MethodError, ModuleBuilder, Reply};
 
 /// The bus bridge. The supervisor starts it for the grid's host named `bus`; its `bus`
 /// component is served every tick. Methods: `bus()` → the bus ledger (see `modbot bus`);
@@ -219,8 +219,8 @@ fn check_watchdog(budget: Budget, priority: Option<u8>) {
     let looked = std::thread::Builder::new()
         .name("watchdog check".into())
         .spawn(move || {
-            modbot_runtime::supervisor::rt::real_time_thread(priority, "watchdog check");
-            let fifo = modbot_runtime::supervisor::rt::runs_fifo();
+            modbot_core::realtime::real_time_thread(priority, "watchdog check");
+            let fifo = modbot_core::realtime::runs_fifo();
             let period = Duration::from_nanos(budget.period_ns);
             let (late_p99_ns, late_max_ns) =
                 watchdog_check::measure(period, watchdog_check::SAMPLES);
@@ -269,7 +269,7 @@ fn run() -> anyhow::Result<()> {
         );
         axes = bus.params.i64("axes").unwrap_or(6).clamp(1, 16) as usize;
         let period_ns = grid.base_period.as_nanos() as u64;
-        let lockstep = grid.timing.clock == modbot_runtime::grid::GridClock::Lockstep;
+        let lockstep = grid.timing.clock == modbot_grid::GridClock::Lockstep;
         let backend: Box<dyn Backend> =
             match robot::backend(&bus.params).map_err(anyhow::Error::msg)? {
                 "ethercat" => {
@@ -310,7 +310,7 @@ fn run() -> anyhow::Result<()> {
         } else {
             bridge
         }));
-        let mut registry = modbot_runtime::components::builtin();
+        let mut registry = modbot_components::builtin();
         robot::register_bridge(&mut registry, made.clone());
         shared = Some(made);
         Ok(registry)
@@ -337,7 +337,12 @@ fn run() -> anyhow::Result<()> {
             .method("reset", reset_method)
             .method("reset_answer", reset_answer_method)
     };
-    let service = p.serve(host_module(p.host_name()), 199, declare, ledger)?;
+    let service = p.serve(
+        host_module_of(p.host_name(), Generation::SYSTEM),
+        199,
+        declare,
+        ledger,
+    )?;
     if let Some(budget) = watchdog_budget {
         check_watchdog(budget, p.grid.host_priority());
     }
@@ -384,7 +389,7 @@ fn run() -> anyhow::Result<()> {
                 b.next_look_ns(now())
             };
             // Idle: a bounded piece of an assembly's preparation, then sleep.
-            p.host.prepare_step(&p.node, load_assembly)?;
+            p.prepare_step()?;
             // At most 5 ms at a time, to look at the termination flag.
             p.host
                 .wait(Some(Duration::from_nanos(next.clamp(1_000, 5_000_000))));

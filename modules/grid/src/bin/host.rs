@@ -2,8 +2,5 @@
 //! of the built-in component types (see [`modbot_grid_processes::host_process::host_main`]).
 
 fn main() -> std::process::ExitCode {
-    modbot_grid_processes::host_process::host_main(
-        "modbot-host",
-        modbot_runtime::components::builtin(),
-    )
+    modbot_grid_processes::host_process::host_main("modbot-host", modbot_components::builtin())
 }

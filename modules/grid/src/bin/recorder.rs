@@ -9,8 +9,8 @@
 
 use std::path::PathBuf;
 
+use modbot_core::{Ctx, MethodError, Reply};
 use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::{Ctx, MethodError, Reply};
 
 fn start(_: &mut (), ctx: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
     let file = PathBuf::from(args.text(0)?);
@@ -32,7 +32,7 @@ fn stop(_: &mut (), ctx: &mut Ctx, _: &Args<'_>, reply: &mut Reply) -> Result<()
 }
 
 fn main() -> std::process::ExitCode {
-    let mut registry = modbot_runtime::components::builtin();
+    let mut registry = modbot_components::builtin();
     modbot_record::register(&mut registry);
     modbot_grid_processes::host_process::host_main_with("modbot-recorder", registry, |module| {
         module.method("start", start).method("stop", stop)

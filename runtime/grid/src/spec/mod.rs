@@ -12,6 +12,7 @@ use std::collections::HashMap;
 use std::time::Duration;
 
 use modbot_ipc_schema::grid::MAX_SOURCES;
+pub use modbot_ipc_schema::grid::{GridClock, OverrunPolicy};
 
 use super::component::{
     ComponentInfo, DeclaredType, Generation, Params, PortDecl, PortType, Registry, AUTOMATIC_PARAMS,
@@ -19,6 +20,7 @@ use super::component::{
 use modbot_core::transport::check_name;
 
 mod error;
+mod image;
 mod record;
 pub use error::{GridError, GridErrorKind, HostNameError, HostPrograms, PeriodError};
 pub use record::{expand as expand_record, RecordDecl, Signals};
@@ -27,34 +29,6 @@ pub use record::{expand as expand_record, RecordDecl, Signals};
 pub const MAX_COMPONENTS: usize = 65535;
 /// The longest period, in base ticks.
 pub const MAX_PERIOD_TICKS: u64 = u32::MAX as u64;
-
-/// What the coordinator does when a component misses its deadline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum OverrunPolicy {
-    /// Its previous outputs stay valid; the overrun is counted.
-    #[default]
-    Hold,
-    /// The assembly is faulted.
-    Fault,
-}
-
-impl OverrunPolicy {
-    /// The name used in descriptions: `hold` or `fault`.
-    pub fn name(self) -> &'static str {
-        match self {
-            OverrunPolicy::Hold => "hold",
-            OverrunPolicy::Fault => "fault",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<OverrunPolicy> {
-        match name {
-            "hold" => Some(OverrunPolicy::Hold),
-            "fault" => Some(OverrunPolicy::Fault),
-            _ => None,
-        }
-    }
-}
 
 /// A checked grid.
 #[derive(Debug, Clone, PartialEq)]
@@ -81,35 +55,6 @@ pub struct GridSpec {
     /// programs of their own: every process that loads this grid or its assemblies knows
     /// them (see [`Registry::with_declared`]).
     pub declared: Vec<DeclaredType>,
-}
-
-/// Where the base tick comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum GridClock {
-    /// The coordinator's timerfd: tick n at start + n·T, whatever happens (the default).
-    #[default]
-    RealTime,
-    /// The coordinator advances to tick n + 1 only when every release due at n + 1 can be
-    /// made, as fast as the machine goes: no overruns by construction, byte-identical traces
-    /// whatever the load. A simulation mode: no drive would follow it in real time.
-    Lockstep,
-}
-
-impl GridClock {
-    pub fn name(self) -> &'static str {
-        match self {
-            GridClock::RealTime => "realtime",
-            GridClock::Lockstep => "lockstep",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<GridClock> {
-        match name {
-            "realtime" => Some(GridClock::RealTime),
-            "lockstep" => Some(GridClock::Lockstep),
-            _ => None,
-        }
-    }
 }
 
 /// How the grid keeps time: `grid { clock = ..., track_ticks = ..., spin_us = ... }`.
@@ -147,10 +92,19 @@ pub struct Assembly {
     /// Counts the assemblies loaded in a run, from 1: it names the assembly's services and
     /// host processes, so an assembly being prepared never meets the one running.
     pub generation: Generation,
-    /// Where the assembly files are.
-    pub dir: std::path::PathBuf,
     /// The number of the system's own components: indices below it are the system's.
     pub base: usize,
+    /// Where it was loaded from, to load other assemblies against (`None` in a grid process,
+    /// whose spec came checked from the supervisor: only the supervisor loads assemblies).
+    pub source: Option<std::sync::Arc<AssemblySource>>,
+}
+
+/// What loading another assembly against a system's grid needs: the loader's context, kept
+/// by the process that reads descriptions (the supervisor, `modbot check`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AssemblySource {
+    /// Where the assembly files are.
+    pub dir: std::path::PathBuf,
     /// The system's grid declarations, to combine with another assembly's.
     pub decls: (GridDecl, Vec<ComponentDecl>, Vec<ConnectDecl>),
     /// The description's variables (assembly files see them as `vars` too).
@@ -265,6 +219,9 @@ fn at(line: u32, kind: GridErrorKind) -> GridError {
 
 /// The coordinator's module name.
 pub const COORDINATOR: &str = "coordinator";
+
+/// The host whose components the bus bridge process steps: it owns the drives.
+pub const BUS_HOST: &str = "bus";
 
 /// The module name of the process of `host` of assembly generation `generation` (0: a host of
 /// the system's own components, or of a grid without assemblies).

@@ -520,15 +520,20 @@ impl Transport for IpcTransport {
             // A system may be starting: its first node is invisible to a listing for a
             // moment, and removing its files would cut it off. Dead nodes are reaped above
             // (iceoryx2 removes what they held); what stays after a clean exit is the
-            // prefix's global management file and the wake-up table, removed when nothing
-            // else of the domain exists.
+            // prefix's global management file, the wake-up table and the checked grids'
+            // images, removed when nothing else of the domain exists.
             let files = self.domain.files();
             let table = format!("{}{}", self.domain.prefix(), wake::FILE_SUFFIX);
+            let images = format!(
+                "{}{}",
+                self.domain.prefix(),
+                crate::spec_image::SPEC_IMAGE_INFIX
+            );
             let only_management = !files.is_empty()
                 && files.iter().all(|f| {
                     f.file_name().is_some_and(|n| {
                         let n = n.to_string_lossy();
-                        n.ends_with(".global_mgmt") || n == table.as_str()
+                        n.ends_with(".global_mgmt") || n == table.as_str() || n.starts_with(&images)
                     })
                 });
             return only_management && self.domain.remove_files_older_than(before) > 0;

@@ -15,14 +15,15 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::Parser;
+use modbot_core::transport::channels::Channels;
+use modbot_core::{
+    signals, CallError, CallHandle, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply,
+};
+use modbot_grid::coordinator::Coordinator;
+use modbot_grid::offload::Offload;
 use modbot_grid_processes::grid_args::GridArgs;
 use modbot_ipc_schema::{switch, Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
-use modbot_runtime::grid::coordinator::Coordinator;
-use modbot_runtime::grid::offload::Offload;
-use modbot_runtime::grid::GridSpec;
-use modbot_runtime::transport::channels::Channels;
-use modbot_runtime::{signals, CallOptions, Ctx, MethodError, Module, ModuleBuilder, Reply};
 
 use switching::Switching;
 use ticker::{FromTick, ToTick};
@@ -49,14 +50,12 @@ struct Cli {
     trace: Option<PathBuf>,
     /// Switch to assembly NAME at tick TICK (`TICK:NAME`; repeatable). In lockstep the grid
     /// waits at that tick while the assembly is prepared, so the run is reproducible.
-    #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_runtime::grid::switch::parse_scripted)]
+    #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
     switches: Vec<(u64, String)>,
 }
 
 /// The ledger as last encoded, for the `ledger` method, and the assembly switches.
 struct Shared {
-    /// The system's grid as started (assemblies are loaded against it).
-    grid: GridSpec,
     ledger: Vec<u8>,
     /// Whether the grid runs assemblies.
     assemblies: bool,
@@ -64,6 +63,10 @@ struct Shared {
     requested: Option<(String, u16)>,
     /// A switch is under way (asked for, or being prepared).
     busy: bool,
+    /// The supervisor's `load_assembly` call of the switch under way.
+    loading: Option<CallHandle>,
+    /// Its answer: loaded (the checked grid is written), or why not.
+    loaded: Option<Result<(), String>>,
     /// The generation the next switch gets.
     next_generation: u16,
     /// `assembly()`'s answer, encoded (`modbot_ipc_schema::switch`), kept current by the main
@@ -90,7 +93,7 @@ fn request_switch(s: &mut Shared, name: &str) -> Result<u16, MethodError> {
             "this grid has no assemblies: declare grid { assemblies = \"DIR\", assembly = \"NAME\" }".into(),
         ));
     }
-    modbot_runtime::system::assembly::check_assembly_name(name)
+    modbot_grid::switch::check_assembly_name(name)
         .map_err(|e| MethodError::Failed(e.to_string()))?;
     if s.busy {
         return Err(MethodError::Busy(
@@ -126,6 +129,16 @@ fn ledger_method(
     Ok(())
 }
 
+/// An answer to a call of the service thread's: the supervisor's `load_assembly` is kept for
+/// the switch under way (the others, `spawn_host` and the like, fail loudly on the
+/// supervisor's side).
+fn on_done(s: &mut Shared, _: &mut Ctx, call: CallHandle, result: Result<&Args<'_>, &CallError>) {
+    if s.loading == Some(call) {
+        s.loading = None;
+        s.loaded = Some(result.map(|_| ()).map_err(|e| e.to_string()));
+    }
+}
+
 fn main() -> std::process::ExitCode {
     modbot_modules::common::finish("modbot-coordinator", run())
 }
@@ -133,7 +146,7 @@ fn main() -> std::process::ExitCode {
 fn run() -> anyhow::Result<()> {
     init_logging();
     let cli = Cli::parse();
-    let grid = cli.grid.load()?;
+    let grid = cli.grid.load(&cli.module.domain)?;
     let period_ns = grid.base_period.as_nanos() as u64;
     let hosts: Vec<String> = grid.hosts().iter().map(|h| grid.host_module(h)).collect();
     let assemblies = grid.assembly.is_some();
@@ -160,15 +173,17 @@ fn run() -> anyhow::Result<()> {
     .method("ledger", ledger_method)
     .method("switch", switch_method)
     .method("assembly", assembly_method)
+    .on_done(on_done)
     .open(
         transport,
         Shared {
             assemblies,
             next_generation: coord.spec().generation().0.saturating_add(1),
-            grid,
             ledger: Vec::new(),
             requested: None,
             busy: false,
+            loading: None,
+            loaded: None,
             status: {
                 let mut answer = Vec::new();
                 switch::Status::default().encode(&mut answer);
@@ -183,7 +198,8 @@ fn run() -> anyhow::Result<()> {
     coord.encode_ledger(false, &mut module.state_mut().ledger);
     let (to_tick, commands) = std::sync::mpsc::channel();
     let (tell, from_tick) = std::sync::mpsc::sync_channel(1024);
-    let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies)?;
+    let domain = modbot_core::Domain::new(&cli.module.domain)?;
+    let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies, domain)?;
     // The tick thread puts itself under SCHED_FIFO (the grid's priority); this thread keeps
     // normal scheduling, so its work never delays a tick.
     // Ledger buffers go back to the tick thread, so it does not allocate a new one each time.
@@ -196,7 +212,7 @@ fn run() -> anyhow::Result<()> {
         shutdown: shutdown.clone(),
     };
     // `grid { mlock = true }`: locked before the tick thread starts.
-    modbot_runtime::supervisor::env::apply_mlockall();
+    modbot_core::transport::launch::apply_mlockall();
     let ticker = std::thread::Builder::new()
         .name("tick".into())
         .spawn(move || ticker::run(coord, run, commands, tell))?;

@@ -1,25 +1,27 @@
-//! An assembly switch, driven by the service thread: the assembly file is loaded on a thread,
-//! the supervisor starts its hosts, a thread opens the coordinator's links to them and hands
+//! An assembly switch, driven by the service thread: the supervisor loads the assembly file
+//! and writes its checked grid (`load_assembly`), the supervisor starts its hosts, a thread opens the coordinator's links to them and hands
 //! them to the tick thread, the prepared hosts are pinged until they answer, and the tick
 //! thread is asked to announce the switch; the outcome is kept for `assembly()`.
 
-use std::sync::mpsc::{Receiver, Sender};
+use std::sync::mpsc::Sender;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use modbot_core::domain::Domain;
+use modbot_core::transport::channels::Channels;
+use modbot_core::{CallOptions, Module};
+use modbot_grid::component::Generation;
+use modbot_grid::coordinator::{link, SwitchState};
+use modbot_grid::switch::{Outcome, State, Status};
+use modbot_grid::wire::{self, Pub};
+use modbot_grid::GridSpec;
 use modbot_ipc_schema::grid::Prepare;
 use modbot_ipc_schema::Value;
-use modbot_runtime::grid::component::Generation;
-use modbot_runtime::grid::coordinator::{link, SwitchState};
-use modbot_runtime::grid::switch::{Outcome, State, Status};
-use modbot_runtime::grid::wire::{self, Pub};
-use modbot_runtime::grid::GridSpec;
-use modbot_runtime::transport::channels::Channels;
-use modbot_runtime::{system, Module};
 use zerocopy::IntoBytes;
 
 use crate::ticker::ToTick;
 use crate::Shared;
+use modbot_grid_processes::grid_args::read_grid;
 
 /// How long a new assembly may take to be prepared.
 const PREPARE_TIMEOUT: Duration = Duration::from_secs(20);
@@ -29,8 +31,8 @@ const PREPARE_TIMEOUT: Duration = Duration::from_secs(20);
 enum Phase {
     #[default]
     Idle,
-    /// The assembly file is being loaded on a thread.
-    Loading(Receiver<Result<GridSpec, String>>),
+    /// The supervisor loads the assembly file; its answer comes to `Shared::loaded`.
+    Loading,
     /// The tick thread was asked to begin; its answer is awaited.
     Beginning(Box<GridSpec>),
     /// Its hosts start, the system's hosts load it, the links open.
@@ -57,6 +59,8 @@ pub struct Switching {
     /// The assembly notices to the system's hosts (only in a grid with assemblies).
     prepare: Option<Pub>,
     to_tick: Sender<ToTick>,
+    /// Where the supervisor writes the assemblies' checked grids.
+    domain: Domain,
 }
 
 impl Switching {
@@ -64,6 +68,7 @@ impl Switching {
         node: Arc<dyn Channels>,
         to_tick: Sender<ToTick>,
         assemblies: bool,
+        domain: Domain,
     ) -> anyhow::Result<Switching> {
         Ok(Switching {
             phase: Phase::Idle,
@@ -79,6 +84,7 @@ impl Switching {
             },
             node,
             to_tick,
+            domain,
         })
     }
 
@@ -220,22 +226,21 @@ impl Switching {
     /// One step: starts a switch asked for, and moves the one under way along.
     pub fn step(&mut self, module: &mut Module<Shared>) {
         if let Some((name, generation)) = module.state_mut().requested.take() {
-            let (tx, rx) = std::sync::mpsc::channel();
-            let system = module.state().grid.clone();
-            let loading = name.clone();
-            std::thread::spawn(move || {
-                let loaded = system::load_assembly(
-                    &system,
-                    &loading,
-                    Generation(generation),
-                    &modbot_runtime::components::builtin(),
-                )
-                .map_err(|e| e.to_string());
-                let _ = tx.send(loaded);
-            });
             tracing::info!("switch to assembly {name} (generation {generation}) asked for");
-            self.job = Some((name, generation, Instant::now()));
-            self.phase = Phase::Loading(rx);
+            self.job = Some((name.clone(), generation, Instant::now()));
+            self.phase = Phase::Loading;
+            let args = [Value::Text(&name), Value::I64(i64::from(generation))];
+            let opts = CallOptions {
+                timeout: PREPARE_TIMEOUT,
+                ..CallOptions::default()
+            };
+            match module
+                .ctx()
+                .call_with("supervisor", "load_assembly", &args, opts)
+            {
+                Ok(call) => module.state_mut().loading = Some(call),
+                Err(e) => return self.fail(module, format!("the supervisor cannot load it: {e}")),
+            }
             self.publish(module);
         }
         let Some((_, _, asked)) = self.job.clone() else {
@@ -248,16 +253,16 @@ impl Switching {
         }
         match &mut self.phase {
             Phase::Idle | Phase::Beginning(_) | Phase::Announcing => {}
-            Phase::Loading(rx) => match rx.try_recv() {
-                Ok(Ok(spec)) => {
-                    let _ = self.to_tick.send(ToTick::Begin(Box::new(spec.clone())));
-                    self.phase = Phase::Beginning(Box::new(spec));
-                }
-                Ok(Err(why)) => self.fail(module, why),
-                Err(std::sync::mpsc::TryRecvError::Empty) => {}
-                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                    self.fail(module, "the assembly could not be loaded".into())
-                }
+            Phase::Loading => match module.state_mut().loaded.take() {
+                Some(Ok(())) => match read_grid(&self.domain, Generation(self.job_generation())) {
+                    Ok(spec) => {
+                        let _ = self.to_tick.send(ToTick::Begin(Box::new(spec.clone())));
+                        self.phase = Phase::Beginning(Box::new(spec));
+                    }
+                    Err(e) => self.fail(module, format!("its checked grid cannot be read: {e}")),
+                },
+                Some(Err(why)) => self.fail(module, why),
+                None => {}
             },
             Phase::Preparing { last_ping } => {
                 if let SwitchState::Preparing {
@@ -295,6 +300,11 @@ impl Switching {
         }
     }
 
+    /// The generation of the switch under way.
+    fn job_generation(&self) -> u16 {
+        self.job.as_ref().map_or(0, |j| j.1)
+    }
+
     fn fail(&mut self, module: &mut Module<Shared>, why: String) {
         let (name, generation) = self
             .job
@@ -320,7 +330,11 @@ impl Switching {
         if self.status.outcomes.len() > 64 {
             let _ = self.status.outcomes.remove(0);
         }
-        module.state_mut().busy = false;
+        let shared = module.state_mut();
+        shared.busy = false;
+        // A late answer of the supervisor's to this switch's load is not taken for the next.
+        shared.loading = None;
+        shared.loaded = None;
         self.publish(module);
     }
 

@@ -6,14 +6,14 @@
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
 use std::time::{Duration, Instant};
 
-use modbot_runtime::clock::{Clock, MonotonicClock};
-use modbot_runtime::grid::coordinator::{BeginSwitchError, Coordinator, HostLink, SwitchState};
-use modbot_runtime::grid::ledger;
-use modbot_runtime::grid::tick::{FreeTicks, TickSource, TimerTicks};
-use modbot_runtime::grid::{GridClock, GridSpec};
-use modbot_runtime::signals::Shutdown;
+use modbot_core::clock::{Clock, MonotonicClock};
+use modbot_core::signals::Shutdown;
+use modbot_grid::coordinator::{BeginSwitchError, Coordinator, HostLink, SwitchState};
+use modbot_grid::ledger;
+use modbot_grid::tick::{FreeTicks, TickSource, TimerTicks};
+use modbot_grid::{GridClock, GridSpec};
 
-pub type Coord = Coordinator<modbot_runtime::grid::offload::Offload<std::fs::File>>;
+pub type Coord = Coordinator<modbot_grid::offload::Offload<std::fs::File>>;
 
 /// Ticks between the announcement and the earliest switch, beyond two longest periods.
 const SWITCH_LEAD: u64 = 5;
@@ -84,7 +84,7 @@ pub struct Run {
 
 /// Runs the grid until a termination signal or `max_ticks`; tells `out` what happens.
 pub fn run(mut coord: Coord, run: Run, commands: Receiver<ToTick>, out: SyncSender<FromTick>) {
-    modbot_runtime::supervisor::rt::real_time_thread(coord.spec().priority, "tick thread");
+    modbot_core::realtime::real_time_thread(coord.spec().priority, "tick thread");
     let shutdown = run.shutdown.clone();
     let wanted = run.max_ticks;
     if let Err(e) = tick(&mut coord, run, &commands, &out) {
