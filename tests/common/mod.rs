@@ -5,6 +5,7 @@
 
 pub mod arm;
 pub mod python;
+pub mod segment;
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Output, Stdio};
