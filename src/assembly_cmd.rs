@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::Subcommand;
-use modbot_runtime::grid::switch;
+use modbot_grid::switch;
 
 /// What `modbot assembly` does.
 #[derive(Debug, Subcommand)]

@@ -6,8 +6,8 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use modbot_runtime::system::{self, DefaultResolver, ModuleSpec, SystemSpec};
-use modbot_runtime::ReceiveMode;
+use modbot_core::ReceiveMode;
+use modbot_system::{self as system, DefaultResolver, ModuleSpec, SystemSpec};
 
 /// `modbot check FILE [--var KEY=VALUE]...`.
 pub fn run(file: &Path, vars: &[(String, String)]) -> ExitCode {
@@ -34,7 +34,7 @@ pub fn run(file: &Path, vars: &[(String, String)]) -> ExitCode {
 }
 
 /// Loads every assembly of the grid's directory; prints one line each, or the first error.
-fn check_assemblies(grid: &modbot_runtime::grid::GridSpec) -> Result<(), system::SystemError> {
+fn check_assemblies(grid: &modbot_grid::GridSpec) -> Result<(), system::SystemError> {
     let Some((a, source)) = grid
         .assembly
         .as_ref()
@@ -42,7 +42,7 @@ fn check_assemblies(grid: &modbot_runtime::grid::GridSpec) -> Result<(), system:
     else {
         return Ok(());
     };
-    let registry = modbot_runtime::components::builtin();
+    let registry = modbot_components::builtin();
     for name in system::assembly_names(&source.dir) {
         let spec = system::load_assembly(grid, &name, a.generation, &registry)?;
         let hosts = spec.assembly_hosts();
@@ -105,7 +105,7 @@ fn summary(spec: &SystemSpec) -> String {
 }
 
 /// The grid as `modbot check` prints it: base period, components, connections.
-fn grid_summary(grid: &modbot_runtime::grid::GridSpec) -> String {
+fn grid_summary(grid: &modbot_grid::GridSpec) -> String {
     let mut out = format!(
         "grid: base period {:?}, {} components on hosts {}, {} connections\n",
         grid.base_period,
@@ -114,7 +114,7 @@ fn grid_summary(grid: &modbot_runtime::grid::GridSpec) -> String {
         grid.connections.len()
     );
     for t in &grid.declared {
-        let ports = |ps: &[modbot_runtime::grid::component::PortDecl]| {
+        let ports = |ps: &[modbot_grid::component::PortDecl]| {
             ps.iter()
                 .map(|p| format!("{}:{}", p.name, p.ty))
                 .collect::<Vec<_>>()

@@ -118,7 +118,7 @@ enum Command {
         lockstep: bool,
         /// Switch to assembly NAME at tick TICK (repeatable); with --lockstep the run is
         /// reproducible, switches included.
-        #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_runtime::grid::switch::parse_scripted)]
+        #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
         switches: Vec<(u64, String)>,
         /// Record to this HDF5 file: the description's `record { ... }` writes here, or, if it
         /// declares none, every output of the system's own components is recorded.
@@ -236,16 +236,16 @@ enum Command {
 }
 
 /// `--var KEY=VALUE`; a malformed one is a usage error (exit 2).
-fn parse_var(text: &str) -> Result<(String, String), modbot_runtime::system::VarError> {
-    modbot_runtime::system::parse_var(text)
+fn parse_var(text: &str) -> Result<(String, String), modbot_system::VarError> {
+    modbot_system::parse_var(text)
 }
 
 /// `vars` with `--record FILE` as the variable every process of the run loads the description
-/// with ([`modbot_runtime::system::RECORD_VAR`]), the file made absolute.
+/// with ([`modbot_system::RECORD_VAR`]), the file made absolute.
 fn with_record(mut vars: Vec<(String, String)>, record: Option<PathBuf>) -> Vec<(String, String)> {
     if let Some(file) = record {
         let file = std::path::absolute(&file).unwrap_or(file);
-        let key = modbot_runtime::system::RECORD_VAR.to_owned();
+        let key = modbot_system::RECORD_VAR.to_owned();
         vars.push((key, file.display().to_string()));
     }
     vars
@@ -307,7 +307,7 @@ fn main() -> ExitCode {
             given_domain.as_deref(),
             run_for,
             &with_record(vars, record),
-            &modbot_runtime::supervisor::processes::GridRun {
+            &modbot_supervisor::processes::GridRun {
                 ticks,
                 trace,
                 lockstep,

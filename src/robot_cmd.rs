@@ -6,10 +6,10 @@ use std::time::Duration;
 
 use clap::Subcommand;
 use modbot_bus::ask::{self as robot_state, RESET_TIMEOUT};
+use modbot_bus::DriveFault;
+use modbot_core::tool::Calls;
+use modbot_core::CallOptions;
 use modbot_ipc_schema::Value;
-use modbot_runtime::bus::DriveFault;
-use modbot_runtime::tool::Calls;
-use modbot_runtime::CallOptions;
 
 use super::tool;
 

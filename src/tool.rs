@@ -4,10 +4,10 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context};
+use modbot_core::tool::{Calls, Tool};
+use modbot_core::{CallError, CallOptions, Domain, Stats};
 use modbot_ipc_schema::{sysmethod, Args, OwnedValue, SnapshotView, Value};
-use modbot_runtime::supervisor::status::{self, Row};
-use modbot_runtime::tool::{Calls, Tool};
-use modbot_runtime::{CallError, CallOptions, Domain, Stats};
+use modbot_supervisor::status::{self, Row};
 
 /// Joins the domain: at a free address, or through the supervisor when every address is
 /// taken.
@@ -406,7 +406,7 @@ pub fn bb(
 /// `modbot top`: the coordinator's ledger as a table, and the robot's state, refreshed in
 /// place.
 pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
-    use modbot_runtime::grid::ledger;
+    use modbot_grid::ledger;
     let mut tool = open(domain)?;
     loop {
         let frame = tool.call_blocking(
@@ -447,11 +447,9 @@ pub fn top(domain: &str, once: bool) -> anyhow::Result<ExitCode> {
 
 /// `modbot bus`: the bus bridge's ledger, or with `--switches` its record of switches.
 pub fn bus(domain: &str, switches: bool, timeout_ms: u64) -> anyhow::Result<ExitCode> {
-    use modbot_runtime::bus::bridge::render_switches;
+    use modbot_bus::bridge::render_switches;
     let mut tool = open(domain)?;
-    let module = modbot_runtime::supervisor::processes::host_module(
-        modbot_runtime::supervisor::processes::BUS_HOST,
-    );
+    let module = modbot_supervisor::processes::host_module(modbot_supervisor::processes::BUS_HOST);
     let text = tool.call_blocking(
         &module,
         if switches { "switches" } else { "bus" },

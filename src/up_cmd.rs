@@ -4,11 +4,11 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use modbot_runtime::signals::Shutdown;
-use modbot_runtime::supervisor::processes::{self, GridRun};
-use modbot_runtime::supervisor::{status, RunOptions, Supervisor, SupervisorError};
-use modbot_runtime::system::{self, DefaultResolver};
-use modbot_runtime::{Domain, IpcTransport};
+use modbot_core::signals::Shutdown;
+use modbot_core::{Domain, IpcTransport};
+use modbot_supervisor::processes::{self, GridRun};
+use modbot_supervisor::{status, RunOptions, Supervisor, SupervisorError};
+use modbot_system::{self as system, DefaultResolver};
 
 /// `modbot up FILE [--for SECONDS] [--var KEY=VALUE]... [--ticks N] [--trace OUT]`; `domain`,
 /// when the command line (or MODBOT_DOMAIN) gives one, overrides the description's.

@@ -11,8 +11,8 @@ use std::time::Duration;
 
 use common::arm::{all_axes, arm, bus_ledger, one_arm_at_a_time, wait_enabled};
 use common::TestDomain;
+use modbot_bus::bridge::render_switches;
 use modbot_ipc_schema::{bus, hex};
-use modbot_runtime::bus::bridge::render_switches;
 use nix::sys::signal::Signal;
 
 /// `switched to NAME (generation G) at tick T, announced for tick A, ...` → (G, T, A).

@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use common::TestDomain;
-use modbot_runtime::grid::{reference_trace, reference_trace_with, Overruns};
-use modbot_runtime::system::{self, DefaultResolver};
+use modbot_grid::{reference_trace, reference_trace_with, Overruns};
+use modbot_system::{self as system, DefaultResolver};
 use nix::sys::signal::Signal;
 
 /// One grid at a time: each is a coordinator and real-time hosts on a 2-core machine.
@@ -51,7 +51,7 @@ fn traced_run(
     sut.traced_up(file, ticks, more, tag).0
 }
 
-fn grid_of(file: &std::path::Path, domain: &str) -> modbot_runtime::grid::GridSpec {
+fn grid_of(file: &std::path::Path, domain: &str) -> modbot_grid::GridSpec {
     let vars = vec![("domain".to_owned(), domain.to_owned())];
     let spec = system::load_with_vars(file, &DefaultResolver::for_file(file), &vars).unwrap();
     spec.grid.unwrap()
@@ -59,11 +59,7 @@ fn grid_of(file: &std::path::Path, domain: &str) -> modbot_runtime::grid::GridSp
 
 /// What logical execution time predicts, computed in this process.
 fn expected(file: &std::path::Path, domain: &str, ticks: u64) -> String {
-    reference_trace(
-        &grid_of(file, domain),
-        &modbot_runtime::components::builtin(),
-        ticks,
-    )
+    reference_trace(&grid_of(file, domain), &modbot_components::builtin(), ticks)
 }
 
 /// Checks a run's trace line by line against the reference run with the overruns the run
@@ -71,13 +67,8 @@ fn expected(file: &std::path::Path, domain: &str, ticks: u64) -> String {
 fn assert_trace_is_let(file: &std::path::Path, domain: &str, ticks: u64, trace: &str) -> usize {
     let grid = grid_of(file, domain);
     let overruns = Overruns::from_trace(&grid, trace).unwrap();
-    let want = reference_trace_with(
-        &grid,
-        &modbot_runtime::components::builtin(),
-        ticks,
-        &overruns,
-    )
-    .unwrap();
+    let want =
+        reference_trace_with(&grid, &modbot_components::builtin(), ticks, &overruns).unwrap();
     let got: Vec<&str> = trace
         .lines()
         .filter(|l| !l.starts_with("# overrun"))

@@ -25,7 +25,6 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-system", "runtime/system", 7),
     ("modbot-supervisor", "runtime/supervisor", 8),
     ("modbot-program", "runtime/program", 8),
-    ("modbot-runtime", "runtime", 9),
     ("modbot-grid-processes", "modules/grid", 10),
     ("modbot-fmu-host", "modules/fmu", 11),
     ("modbot", ".", 11),
@@ -68,6 +67,60 @@ fn internal_dependencies(dir: &str) -> BTreeSet<String> {
     found
 }
 
+/// The code of a crate (its `src/` and `build.rs`), without comments.
+fn sources_of(dir: &str) -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
+    let mut files = Vec::new();
+    for part in ["src", "build.rs"] {
+        let path = root.join(part);
+        if path.is_dir() {
+            rust_files(&path, &mut files);
+        } else if path.is_file() {
+            files.push(path);
+        }
+    }
+    let mut code = String::new();
+    for file in files {
+        let text = std::fs::read_to_string(file).unwrap();
+        for line in text.lines().filter(|l| !l.trim_start().starts_with("//")) {
+            code.push_str(line);
+            code.push('\n');
+        }
+    }
+    code
+}
+
+/// Dependencies a crate declares for what they do, not for a name its code uses.
+const USED_WITHOUT_NAMING: &[(&str, &str, &str)] = &[
+    // Its build script builds the project's FMUs and puts them beside the programs, where the
+    // FMU benchmark finds them.
+    ("modbot-benches", "modbot-fmus", "builds the FMUs"),
+];
+
+#[test]
+fn every_crate_uses_every_dependency_it_declares() {
+    let mut unused = Vec::new();
+    for (name, dir, _) in LAYERS {
+        let code = sources_of(dir);
+        for dependency in dependencies(dir) {
+            let ident = dependency.replace('-', "_");
+            let named = code.match_indices(&ident).any(|(i, _)| {
+                let before = code[..i].chars().next_back();
+                let after = code[i + ident.len()..].chars().next();
+                !before.is_some_and(|c| c.is_alphanumeric() || c == '_')
+                    && !after.is_some_and(|c| c.is_alphanumeric() || c == '_')
+            });
+            let excused = USED_WITHOUT_NAMING
+                .iter()
+                .any(|(n, d, _)| n == name && *d == dependency);
+            if !named && !excused {
+                unused.push(format!("{name}: {dependency}"));
+            }
+        }
+    }
+    assert!(unused.is_empty(), "declared and not used: {unused:?}");
+}
+
 #[test]
 fn every_crate_depends_only_on_crates_below_it() {
     let layer: BTreeMap<&str, u8> = LAYERS.iter().map(|(n, _, l)| (*n, *l)).collect();
@@ -87,13 +140,17 @@ fn every_crate_depends_only_on_crates_below_it() {
 
 #[test]
 fn the_module_programs_link_neither_the_grid_nor_the_bus_nor_lua() {
-    // The grid and the bus are modbot-grid's, the system descriptions (mlua) modbot-system's;
-    // modbot-runtime is the facade over all of them.
+    // The grid and the bus are modbot-grid's and modbot-bus's, the system descriptions (mlua)
+    // modbot-system's.
     let seen = reached_from("modbot-modules");
-    assert!(
-        !seen.contains("modbot-runtime"),
-        "modbot-modules reaches {seen:?}"
-    );
+    for far in [
+        "modbot-grid",
+        "modbot-bus",
+        "modbot-system",
+        "modbot-program",
+    ] {
+        assert!(!seen.contains(far), "modbot-modules reaches {seen:?}");
+    }
     let manifest =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("modules/Cargo.toml"))
             .unwrap();
@@ -123,12 +180,7 @@ fn the_grid_processes_read_no_description_and_link_no_lua() {
         "modbot-example-first-component",
     ] {
         let seen = reached_from(program);
-        for lua in [
-            "modbot-system",
-            "modbot-supervisor",
-            "modbot-program",
-            "modbot-runtime",
-        ] {
+        for lua in ["modbot-system", "modbot-supervisor", "modbot-program"] {
             assert!(!seen.contains(lua), "{program} reaches {lua}: {seen:?}");
         }
     }

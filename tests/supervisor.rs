@@ -714,17 +714,16 @@ fn the_cli_and_the_benchmarks_refuse_in_one_line_without_a_backtrace() {
 /// removes what is left.
 #[test]
 fn a_tool_that_outlives_modbot_up_keeps_its_files_and_reaches_the_next_system() {
-    use modbot_runtime::{CallOptions, IpcTransport, ModuleBuilder};
+    use modbot_core::{CallOptions, IpcTransport, ModuleBuilder};
     let mut sut = TestDomain::new("outlive");
     let first = start_up(&mut sut, MRA, &["sonar", "mobility"]);
-    let domain = modbot_runtime::Domain::new(sut.name()).unwrap();
+    let domain = modbot_core::Domain::new(sut.name()).unwrap();
     let mut console = ModuleBuilder::new("console", 0)
         .open_tool(IpcTransport::new(&domain).unwrap(), ())
         .unwrap();
     let patient = CallOptions::timeout(Duration::from_secs(60)).waiting_for_peer();
-    let ranges = |console: &mut modbot_runtime::Module<()>| {
-        console.call_owned("sonar", "ranges", &[], patient)
-    };
+    let ranges =
+        |console: &mut modbot_core::Module<()>| console.call_owned("sonar", "ranges", &[], patient);
     assert!(ranges(&mut console).is_ok(), "the first system answers");
 
     sut.signal(first, Signal::SIGTERM);

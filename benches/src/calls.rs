@@ -15,7 +15,7 @@
 //! Every path copies the payload in on the way out and out on the way back, on both sides:
 //! the modbot client copies the answer out of shared memory, as the raw client does. The echo
 //! module answers with its arguments. Frames beyond the default 64 KiB need a domain with a
-//! larger maximum frame ([`modbot_runtime::Domain::with_max_frame`]): every size class runs in
+//! larger maximum frame ([`modbot_core::Domain::with_max_frame`]): every size class runs in
 //! a domain sized for it, so small calls are not measured in a 1 MiB system.
 //!
 //! Child role `calls-echo DOMAIN MAX_FRAME MODE CORE PRIO LOOK_US`: the echo module (LOOK_US:
@@ -24,11 +24,11 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
-use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::{
+use modbot_core::{
     CallError, CallOptions, Ctx, Domain, IpcTransport, MethodError, Module, ModuleBuilder,
     ReceiveMode, Reply,
 };
+use modbot_ipc_schema::{Args, Value};
 
 use crate::interleave::{interleave, Side, BLOCKS};
 use crate::opts::Opts;
@@ -37,7 +37,7 @@ use crate::raw::{RawPorts, Wait};
 use crate::report::{Report, Row};
 use crate::sample::{self, size_label, Plan};
 use crate::uds;
-use modbot_runtime::transport::launch::inbox_senders_for;
+use modbot_core::transport::launch::inbox_senders_for;
 
 /// The payloads, in bytes.
 pub const SIZES: [usize; 5] = [8, 64, 4096, 64 * 1024, 1 << 20];
@@ -54,7 +54,7 @@ pub fn frame_for(bytes: usize) -> usize {
 fn size_classes(sizes: &[usize]) -> Vec<(usize, Vec<usize>)> {
     let mut classes: Vec<(usize, Vec<usize>)> = Vec::new();
     for &s in sizes {
-        let frame = frame_for(s).max(modbot_runtime::domain::DEFAULT_MAX_FRAME);
+        let frame = frame_for(s).max(modbot_core::domain::DEFAULT_MAX_FRAME);
         match classes.iter_mut().find(|(f, _)| *f == frame) {
             Some((_, v)) => v.push(s),
             None => classes.push((frame, vec![s])),
@@ -226,7 +226,7 @@ pub(crate) trait Path {
 
 /// How long modbot's blocking side looks before sleeping: the default of [`CallOptions::spin`]
 /// and of [`ModuleBuilder::linger`], which is defined as the same.
-pub(crate) const LOOK: Duration = modbot_runtime::module::DEFAULT_LINGER;
+pub(crate) const LOOK: Duration = modbot_core::module::DEFAULT_LINGER;
 
 /// The pause before each call of the paced rows: long enough for both sides to sleep.
 const PACE: Duration = Duration::from_micros(200);
@@ -365,7 +365,7 @@ impl ModbotPath {
     /// Notes the shared memory a big domain took, and stops the echo module.
     pub(crate) fn close(self, report: &mut Report, sizes: &[usize]) -> anyhow::Result<()> {
         let max_frame = self.scratch.domain.max_frame();
-        if max_frame > modbot_runtime::domain::DEFAULT_MAX_FRAME {
+        if max_frame > modbot_core::domain::DEFAULT_MAX_FRAME {
             let (reserved, used) = procs::shm_usage(&self.scratch.domain);
             report.note(format!(
                 "calls: the {} domain with a max frame of {} (two modules, {} mode) reserved {} \
@@ -671,7 +671,7 @@ mod tests {
         assert_eq!(
             classes[0],
             (
-                modbot_runtime::domain::DEFAULT_MAX_FRAME,
+                modbot_core::domain::DEFAULT_MAX_FRAME,
                 vec![8, 64, 4096, 65536]
             )
         );

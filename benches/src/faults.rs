@@ -28,8 +28,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use hdrhistogram::Histogram;
-use modbot_runtime::bus::bridge::LOST_AFTER;
-use modbot_runtime::{CallOptions, RetryPolicy};
+use modbot_bus::bridge::LOST_AFTER;
+use modbot_core::{CallOptions, RetryPolicy};
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 
@@ -268,7 +268,7 @@ pub(crate) fn wait_drives_enabled(sys: &mut Supervised, timeout: Duration) -> an
 }
 
 /// The bus ledger (`modbot bus`), if the bridge answers.
-pub(crate) fn bus_ledger(tool: &mut modbot_runtime::Module<()>) -> Option<String> {
+pub(crate) fn bus_ledger(tool: &mut modbot_core::Module<()>) -> Option<String> {
     tool.call_blocking(
         "host_bus",
         "bus",

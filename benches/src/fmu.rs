@@ -15,9 +15,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use hdrhistogram::Histogram;
+use modbot_core::IpcTransport;
+use modbot_grid::wire;
 use modbot_ipc_schema::grid::{Done, PING, READY};
-use modbot_runtime::grid::wire;
-use modbot_runtime::IpcTransport;
 
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};

@@ -33,11 +33,11 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use hdrhistogram::Histogram;
 use iceoryx2::prelude::*;
+use modbot_core::{CallOptions, Domain, IpcTransport};
+use modbot_grid::ledger;
+use modbot_grid::tick::{TickSource, TimerTicks};
+use modbot_grid::wire;
 use modbot_ipc_schema::grid::{Done, Release, PING, READY};
-use modbot_runtime::grid::ledger;
-use modbot_runtime::grid::tick::{TickSource, TimerTicks};
-use modbot_runtime::grid::wire;
-use modbot_runtime::{CallOptions, Domain, IpcTransport};
 
 use crate::hogs::Hogs;
 use crate::opts::Opts;
@@ -516,7 +516,7 @@ fn ticker(args: &[String]) -> anyhow::Result<()> {
         .map_err(ix("wake notifier"))?;
     let _fifo = procs::set_fifo(parse_prio(prio)?)?;
     let limit: u64 = limit.parse().context("TICKS")?;
-    let mut timer = TimerTicks::new(PERIOD_NS, modbot_runtime::signals::Shutdown::on_signals()?)?;
+    let mut timer = TimerTicks::new(PERIOD_NS, modbot_core::signals::Shutdown::on_signals()?)?;
     let (mut n, mut expirations) = (0, 0);
     while n < limit && !procs::interrupted() {
         match timer.wait() {

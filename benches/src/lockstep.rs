@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
-use modbot_runtime::grid::reference_trace;
-use modbot_runtime::system::{self, DefaultResolver};
+use modbot_grid::reference_trace;
+use modbot_system::{self as system, DefaultResolver};
 
 use crate::calls::{Path as _, RawPath};
 use crate::hogs::Hogs;
@@ -73,11 +73,7 @@ fn reference(file: &Path, domain: &str, ticks: u64) -> anyhow::Result<String> {
     let vars = vec![("domain".to_owned(), domain.to_owned())];
     let spec = system::load_with_vars(file, &DefaultResolver::for_file(file), &vars)?;
     let grid = spec.grid.context("grid_demo.lua has no grid")?;
-    Ok(reference_trace(
-        &grid,
-        &modbot_runtime::components::builtin(),
-        ticks,
-    ))
+    Ok(reference_trace(&grid, &modbot_components::builtin(), ticks))
 }
 
 /// Measures the lockstep runs and adds their rows and a note.

@@ -275,7 +275,7 @@ fn run_benches(args: &RunArgs, benches: &[&Bench]) -> anyhow::Result<()> {
 
 /// [`run_benches`] with the options made already (the soak's carry its plan).
 fn run_with(opts: Opts, benches: &[&Bench]) -> anyhow::Result<()> {
-    if let Err(e) = modbot_runtime::signals::install_termination_handler() {
+    if let Err(e) = modbot_core::signals::install_termination_handler() {
         eprintln!("warning: Ctrl-C will not stop the run cleanly: {e}");
     }
     let mut report = Report {

@@ -12,7 +12,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
-use modbot_runtime::Domain;
+use modbot_core::Domain;
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 
@@ -123,14 +123,14 @@ pub fn child_setup() {
     if let Err(e) = nix::sys::prctl::set_pdeathsig(Signal::SIGTERM) {
         eprintln!("warning: the child will not follow its parent's death: {e}");
     }
-    if let Err(e) = modbot_runtime::signals::install_termination_handler() {
+    if let Err(e) = modbot_core::signals::install_termination_handler() {
         eprintln!("warning: cannot handle SIGTERM: {e}");
     }
 }
 
 /// Whether this process was asked to stop (SIGTERM/SIGINT).
 pub fn interrupted() -> bool {
-    modbot_runtime::signals::termination_requested()
+    modbot_core::signals::termination_requested()
 }
 
 /// An error when this process was asked to stop: measuring loops call it now and then.

@@ -12,7 +12,7 @@ use anyhow::{bail, Context};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
-use modbot_runtime::Domain;
+use modbot_core::Domain;
 
 use crate::procs::{self, Proc};
 

@@ -79,7 +79,7 @@ pub fn record(
 /// CLOCK_MONOTONIC in nanoseconds: one time base for every process of the machine, so a
 /// stamp taken in one process can be compared with the clock in another.
 pub fn now_ns() -> u64 {
-    use modbot_runtime::clock::{Clock, MonotonicClock};
+    use modbot_core::clock::{Clock, MonotonicClock};
     MonotonicClock.now_ns()
 }
 

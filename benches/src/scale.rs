@@ -28,11 +28,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use hdrhistogram::Histogram;
-use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::{
+use modbot_core::{
     CallError, CallHandle, CallOptions, Ctx, Domain, IpcTransport, MethodError, Module,
     ModuleBuilder, ReceiveMode, Reply, RetryPolicy,
 };
+use modbot_ipc_schema::{Args, Value};
 
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};
@@ -409,7 +409,7 @@ fn kill_and_recover(
     modules: &[u32],
     budget: Duration,
 ) -> anyhow::Result<Histogram<u64>> {
-    use modbot_runtime::tool::{Calls, Tool};
+    use modbot_core::tool::{Calls, Tool};
     let mut tool = Tool::open(domain, "bench").context("the benchmark cannot join the domain")?;
     let mut h = crate::sample::histogram();
     let deadline = Instant::now() + budget.min(Duration::from_secs(120));
@@ -779,9 +779,9 @@ fn scale_module(args: &[String]) -> anyhow::Result<()> {
         return Ok(());
     }
     // Busy mode, but spinning only while measured: the other modules start and run meanwhile.
-    modbot_runtime::signals::install_termination_handler()?;
+    modbot_core::signals::install_termination_handler()?;
     let mut measured = false;
-    while !modbot_runtime::signals::termination_requested() {
+    while !modbot_core::signals::termination_requested() {
         let mut served = 0;
         while served < 64 && module.poll_once()? {
             served += 1;

@@ -31,9 +31,9 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+use modbot_core::blackboard::ItemId;
+use modbot_core::{Blackboard, Domain, IpcTransport, Module, ModuleBuilder, ReceiveMode};
 use modbot_ipc_schema::{OwnedValue, Value};
-use modbot_runtime::blackboard::ItemId;
-use modbot_runtime::{Blackboard, Domain, IpcTransport, Module, ModuleBuilder, ReceiveMode};
 
 use crate::opts::Opts;
 use crate::procs::{self, Proc, Scratch};

@@ -36,8 +36,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use hdrhistogram::Histogram;
+use modbot_core::ReceiveMode;
 use modbot_ipc_schema::ledger;
-use modbot_runtime::ReceiveMode;
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 use serde_json::Value as Json;
@@ -151,7 +151,7 @@ fn watched_against_alone(opts: &Opts, report: &mut Report) -> anyhow::Result<()>
     let mut echo = ModbotPath::open(
         opts,
         ReceiveMode::BusyPoll,
-        modbot_runtime::domain::DEFAULT_MAX_FRAME,
+        modbot_core::domain::DEFAULT_MAX_FRAME,
         None,
         LOOK,
     )?;
@@ -363,7 +363,7 @@ impl Watching {
     /// returns when the station counts them.
     fn start(
         opts: &Opts,
-        domain: &modbot_runtime::Domain,
+        domain: &modbot_core::Domain,
         profiles: &[PathBuf],
         n: usize,
     ) -> anyhow::Result<Watching> {

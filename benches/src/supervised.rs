@@ -8,9 +8,9 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+use modbot_core::{CallOptions, Domain, IpcTransport, Module, ModuleBuilder, ReceiveMode};
 use modbot_ipc_schema::{ArgError, Args};
-use modbot_runtime::supervisor::status;
-use modbot_runtime::{CallOptions, Domain, IpcTransport, Module, ModuleBuilder, ReceiveMode};
+use modbot_supervisor::status;
 
 use crate::opts::Opts;
 use crate::procs::{self, Proc};

@@ -19,8 +19,8 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
+use modbot_grid::switch;
 use modbot_ipc_schema::bus::Switches;
-use modbot_runtime::grid::switch;
 
 use crate::faults::start_arm;
 use crate::opts::Opts;
@@ -229,10 +229,10 @@ fn coordinator_missed(sys: &mut Supervised) -> Option<u64> {
         "coordinator",
         "ledger",
         &[],
-        modbot_runtime::CallOptions::timeout(Duration::from_secs(1)),
+        modbot_core::CallOptions::timeout(Duration::from_secs(1)),
         |r| r.ok().and_then(|a| a.bytes(0).ok().map(<[u8]>::to_vec)),
     )?;
-    modbot_runtime::grid::ledger::decode(&bytes)
+    modbot_grid::ledger::decode(&bytes)
         .ok()
         .map(|(g, _)| g.missed)
 }

@@ -13,8 +13,8 @@
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use modbot_core::{CallError, CallHandle, CallOptions, Ctx, Module, ModuleBuilder, ReceiveMode};
 use modbot_ipc_schema::{Args, Value};
-use modbot_runtime::{CallError, CallHandle, CallOptions, Ctx, Module, ModuleBuilder, ReceiveMode};
 
 use crate::calls::{copy_answer, echo, two_module_system};
 use crate::interleave::{interleave, Side};

@@ -20,7 +20,7 @@ use modbot_bus::{AxisActual, AxisCommand, Backend, BusFault};
 use modbot_ethercat::config::{DEFAULT_COUNTS_PER_RAD, DEFAULT_TORQUE_PER_NM};
 use modbot_ethercat::pdo::Scale;
 use modbot_ethercat::{DriveConfig, EthercatBackend, EthercatConfig};
-use modbot_runtime::grid::tick::{TickSource, TimerTicks};
+use modbot_grid::tick::{TickSource, TimerTicks};
 use serde::{Deserialize, Serialize};
 
 use crate::interleave::{interleave, Side};
@@ -468,7 +468,7 @@ fn timed_loop(
     mut work: Option<&mut dyn FnMut() -> anyhow::Result<bool>>,
     acc: &mut Acc<'_>,
 ) -> anyhow::Result<()> {
-    let shutdown = modbot_runtime::signals::Shutdown::on_signals()?;
+    let shutdown = modbot_core::signals::Shutdown::on_signals()?;
     let mut timer = TimerTicks::new(period_ns, shutdown)?;
     let periods = WARM_PERIODS + span.as_nanos() as u64 / period_ns;
     let mut expirations = 0u64;

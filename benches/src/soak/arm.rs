@@ -10,7 +10,7 @@
 
 use std::time::Duration;
 
-use modbot_runtime::supervisor::status;
+use modbot_supervisor::status;
 
 use crate::supervised::Supervised;
 

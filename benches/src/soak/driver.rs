@@ -14,7 +14,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use modbot_runtime::{
+use modbot_core::{
     Args, CallError, CallHandle, CallOptions, Ctx, Domain, IpcTransport, ModuleBuilder,
     ReceiveMode, RetryPolicy, Value,
 };

@@ -16,7 +16,7 @@
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
-use modbot_runtime::supervisor::status;
+use modbot_supervisor::status;
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 
@@ -62,7 +62,7 @@ pub const FLOOD_FRAMES: u64 = 500;
 pub const SPAM_REPORTS: u64 = 1000;
 
 /// The name of the grid's coordinator.
-const COORDINATOR: &str = modbot_runtime::supervisor::processes::COORDINATOR;
+const COORDINATOR: &str = modbot_supervisor::processes::COORDINATOR;
 
 /// A module faults are injected into, and the kinds it takes.
 #[derive(Debug, Clone, PartialEq)]

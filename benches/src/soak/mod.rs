@@ -54,7 +54,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use modbot_runtime::supervisor::status;
+use modbot_supervisor::status;
 
 use crate::opts::Opts;
 use crate::procs::{self, Scratch};

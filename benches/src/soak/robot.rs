@@ -23,7 +23,7 @@ use std::time::Duration;
 use hdrhistogram::Histogram;
 use modbot_bus::ask as robot_state;
 use modbot_bus::RobotState;
-use modbot_runtime::supervisor::status;
+use modbot_supervisor::status;
 
 use crate::supervised::Supervised;
 
@@ -199,7 +199,7 @@ impl Watch {
                 let why = why.to_string();
                 *self.refused.entry(reason(&why)).or_default() += 1;
                 if why.starts_with("the running assembly faulted") {
-                    match modbot_runtime::grid::switch::switch(sys.tool()?, HOLD, SWITCH_TIMEOUT) {
+                    match modbot_grid::switch::switch(sys.tool()?, HOLD, SWITCH_TIMEOUT) {
                         Ok(_) => self.switches.0 += 1,
                         Err(e) => self.switches.1.push(e.to_string()),
                     }

@@ -14,8 +14,8 @@
 use std::collections::BTreeMap;
 use std::time::Duration;
 
-use modbot_runtime::supervisor::status;
-use modbot_runtime::Domain;
+use modbot_core::Domain;
+use modbot_supervisor::status;
 
 /// One process at one moment.
 #[derive(Debug, Clone, PartialEq)]

@@ -126,7 +126,7 @@ fn lua_string(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use modbot_runtime::system::{self, Restart};
+    use modbot_system::{self as system, Restart};
 
     fn load(text: &str) -> system::SystemSpec {
         let vars = [

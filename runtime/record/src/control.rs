@@ -77,7 +77,7 @@ fn the_recorder() -> Result<Arc<Handle>, String> {
 
 /// Hands a request to the writer and waits for its answer, calling `meanwhile` every
 /// [`BETWEEN`] (closing a large file on a slow disk takes seconds, and the method's module
-/// must go on beating meanwhile: [`modbot_runtime::Ctx::keep_alive`]).
+/// must go on beating meanwhile: [`modbot_core::Ctx::keep_alive`]).
 fn ask<T>(
     make: impl FnOnce(Sender<Result<T, String>>) -> Control,
     meanwhile: &mut dyn FnMut(),

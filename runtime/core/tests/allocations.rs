@@ -8,14 +8,12 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
+use modbot_core::transport::ipc::DirectoryWriter;
+use modbot_core::transport::ReceiveMode;
+use modbot_core::{Blackboard, CallOptions, Ctx, IpcTransport, MethodError, ModuleBuilder, Reply};
 use modbot_ipc_schema::directory::Listing;
 use modbot_ipc_schema::heartbeat::ModuleState;
 use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
-use modbot_runtime::transport::ipc::DirectoryWriter;
-use modbot_runtime::transport::ReceiveMode;
-use modbot_runtime::{
-    Blackboard, CallOptions, Ctx, IpcTransport, MethodError, ModuleBuilder, Reply,
-};
 use modbot_testkit::TestDomain;
 
 /// Counts the allocations (and reallocations) of counted threads.
@@ -199,7 +197,7 @@ fn calls_and_snapshots_allocate_nothing(test: &str, mode: ReceiveMode) {
     let opts = CallOptions::timeout(Duration::from_secs(10));
     let payload = [7u8; 64];
     let args = [Value::I64(42), Value::Bytes(&payload)];
-    let round = |caller: &mut modbot_runtime::Module<()>| {
+    let round = |caller: &mut modbot_core::Module<()>| {
         let ok = caller.call_blocking("server", "echo", &args, opts, |r| {
             r.is_ok_and(|a| a.len() == 2)
         });
@@ -214,7 +212,7 @@ fn calls_and_snapshots_allocate_nothing(test: &str, mode: ReceiveMode) {
     for _ in 0..2000 {
         round(&mut caller);
     }
-    let at = |caller: &mut modbot_runtime::Module<()>, on: bool| -> i64 {
+    let at = |caller: &mut modbot_core::Module<()>, on: bool| -> i64 {
         caller.call_blocking("server", "count", &[Value::Bool(on)], opts, |r| {
             r.unwrap().i64(0).unwrap()
         })

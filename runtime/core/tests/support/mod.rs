@@ -21,12 +21,12 @@ use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
-use modbot_runtime::transport::Transport;
-use modbot_runtime::{
+use modbot_core::transport::Transport;
+use modbot_core::{
     CallError, CallHandle, Ctx, Domain, IpcTransport, LocalTransport, Module, ModuleBuilder,
     ModuleError, Report,
 };
+use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
 
 /// How long one test may take before the watchdog fails it: a hang detector, longer than any
 /// wait of a test ([`PATIENCE`]), so a wait that times out fails with its own message.
@@ -104,12 +104,7 @@ pub fn run_test<B: Backend>(name: &str, test: fn(&mut TestDomain<B>)) {
 /// [`modbot_testkit::watchdog`]). Module threads install the runtime's SIGINT/SIGTERM
 /// handler (`Module::run` does); in a test process that must still end the process.
 pub fn watchdog(name: &str, limit: Duration, f: impl FnOnce() + Send + 'static) {
-    modbot_testkit::watchdog(
-        name,
-        limit,
-        modbot_runtime::signals::termination_requested,
-        f,
-    );
+    modbot_testkit::watchdog(name, limit, modbot_core::signals::termination_requested, f);
 }
 
 thread_local! {
@@ -256,7 +251,7 @@ impl<B: Backend> TestDomain<B> {
                 };
                 let _ = ready_tx.send(Ok(()));
                 let result = module.run();
-                if modbot_runtime::signals::termination_requested() {
+                if modbot_core::signals::termination_requested() {
                     eprintln!("interrupted");
                     std::process::exit(130);
                 }

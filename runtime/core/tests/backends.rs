@@ -17,15 +17,15 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use modbot_ipc_schema::{
-    Addr, Args, F64s, Frame, FrameKind, FrameSpec, NakCode, OwnedValue, Seq, SnapshotView, Value,
-};
-use modbot_runtime::blackboard::Blackboard;
-use modbot_runtime::calls::RetryPolicy;
-use modbot_runtime::transport::{Dest, Joins, ReceiveMode, Transport, TransportError};
-use modbot_runtime::{
+use modbot_core::blackboard::Blackboard;
+use modbot_core::calls::RetryPolicy;
+use modbot_core::transport::{Dest, Joins, ReceiveMode, Transport, TransportError};
+use modbot_core::{
     CallError, CallOptions, Ctx, MethodError, Module, ModuleBuilder, ModuleError, Reply, Report,
     Stats,
+};
+use modbot_ipc_schema::{
+    Addr, Args, F64s, Frame, FrameKind, FrameSpec, NakCode, OwnedValue, Seq, SnapshotView, Value,
 };
 use support::{crash, eventually, pump, stopping, Backend, Heard, TestDomain, PATIENCE};
 
@@ -934,14 +934,14 @@ fn snapshots_read_in_place_are_never_torn<B: Backend>(fx: &mut TestDomain<B>) {
 }
 
 fn bb_get(
-    caller: &mut modbot_runtime::Module<support::Caller>,
+    caller: &mut modbot_core::Module<support::Caller>,
     item: &str,
 ) -> Result<Vec<OwnedValue>, CallError> {
     caller.call_owned("store", "bb_get", &[Value::Text(item)], opts())
 }
 
 fn bb_set(
-    caller: &mut modbot_runtime::Module<support::Caller>,
+    caller: &mut modbot_core::Module<support::Caller>,
     item: &str,
     v: Value<'_>,
 ) -> Result<Vec<OwnedValue>, CallError> {
@@ -1065,7 +1065,7 @@ fn bb_set_refusals_carry_the_read_only_and_unknown_item_codes<B: Backend>(fx: &m
 // Untrusted frames.
 
 /// The `rejected` counter a module reports in its `describe` answer.
-fn rejected(caller: &mut modbot_runtime::Module<support::Caller>, module: &str) -> i64 {
+fn rejected(caller: &mut modbot_core::Module<support::Caller>, module: &str) -> i64 {
     let d = caller
         .call_owned(module, "describe", &[], opts())
         .expect("describe");

@@ -8,9 +8,9 @@ mod support;
 
 use std::time::Duration;
 
+use modbot_core::blackboard::Blackboard;
+use modbot_core::{Ctx, ModuleBuilder};
 use modbot_ipc_schema::{OwnedValue, Value};
-use modbot_runtime::blackboard::Blackboard;
-use modbot_runtime::{Ctx, ModuleBuilder};
 use support::{pump, Backend, TestDomain};
 
 /// 64 × 64 pixels.
