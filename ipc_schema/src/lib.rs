@@ -62,4 +62,4 @@ pub use addr::Addr;
 pub use args::{ArgError, Args};
 pub use rvmf::{Frame, FrameError, FrameKind, FrameSpec, Kind, NakCode, Seq};
 pub use snapshot::{SnapshotError, SnapshotLayout, SnapshotView};
-pub use value::{AsValue, F64s, OwnedValue, Value, ValueError, ValueKind};
+pub use value::{AsValue, F64s, OwnedValue, ParseValueError, Value, ValueError, ValueKind};

@@ -444,7 +444,7 @@ impl OwnedValue {
     ///
     /// `1.5` is an f64, `3` an i64, `true`/`false` a bool, `[1, 2.5]` an f64 array, `0x0a0b`
     /// bytes; a `kind:` prefix forces a kind (`f64:3`, `text:true`); anything else is text.
-    pub fn parse(text: &str) -> Result<OwnedValue, String> {
+    pub fn parse(text: &str) -> Result<OwnedValue, ParseValueError> {
         let forced = text.split_once(':').and_then(|(kind, rest)| {
             let kind = match kind {
                 "f64" => ValueKind::F64,
@@ -482,8 +482,12 @@ impl OwnedValue {
     }
 
     /// Parses `text` as a value of `kind`.
-    pub fn parse_as(kind: ValueKind, text: &str) -> Result<OwnedValue, String> {
-        let bad = || format!("'{text}' is not a valid {kind}");
+    pub fn parse_as(kind: ValueKind, text: &str) -> Result<OwnedValue, ParseValueError> {
+        let bad = || ParseValueError {
+            text: text.to_owned(),
+            kind,
+            hex: None,
+        };
         Ok(match kind {
             ValueKind::F64 => OwnedValue::F64(text.trim().parse().map_err(|_| bad())?),
             ValueKind::I64 => OwnedValue::I64(text.trim().parse().map_err(|_| bad())?),
@@ -495,7 +499,10 @@ impl OwnedValue {
             ValueKind::Text => OwnedValue::Text(text.to_owned()),
             ValueKind::Bytes => {
                 let hex = text.trim().trim_start_matches("0x");
-                OwnedValue::Bytes(crate::hex::decode(hex).map_err(|e| format!("{}: {e}", bad()))?)
+                OwnedValue::Bytes(crate::hex::decode(hex).map_err(|e| ParseValueError {
+                    hex: Some(e),
+                    ..bad()
+                })?)
             }
             ValueKind::F64s => {
                 let inner = text.trim().trim_start_matches('[').trim_end_matches(']');
@@ -509,6 +516,16 @@ impl OwnedValue {
             }
         })
     }
+}
+
+/// A command-line argument that is not a value of the kind it asks for (`i64:x`).
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("'{text}' is not a valid {kind}{}", .hex.as_ref().map(|e| format!(": {e}")).unwrap_or_default())]
+pub struct ParseValueError {
+    pub text: String,
+    pub kind: ValueKind,
+    /// Why the digits of bytes are not hex.
+    pub hex: Option<crate::hex::HexError>,
 }
 
 impl fmt::Display for OwnedValue {

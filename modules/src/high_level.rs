@@ -116,9 +116,9 @@ impl HighLevel {
     }
 
     /// Plans the path to the current goal from where the base is.
-    fn plan_to_goal(&mut self) -> Result<(), String> {
+    fn plan_to_goal(&mut self) -> Result<(), planner::PlanError> {
         let goal = self.goals[self.goal];
-        self.path = planner::plan(&self.grid, self.odo.at, goal).map_err(|e| e.to_string())?;
+        self.path = planner::plan(&self.grid, self.odo.at, goal)?;
         self.leg = 0;
         Ok(())
     }
@@ -298,11 +298,16 @@ pub fn patrol(
         let _ = ctx.bb.write("state", Value::Text("waiting for a pose"));
         return Ok(());
     }
-    begin_patrol(h, ctx, wing, goals).map_err(MethodError::Failed)
+    begin_patrol(h, ctx, wing, goals).map_err(|e| MethodError::Failed(e.to_string()))
 }
 
 /// Begins patrolling `wing` along `goals` from where the base is.
-fn begin_patrol(h: &mut HighLevel, ctx: &mut Ctx, wing: u8, goals: Vec<P>) -> Result<(), String> {
+fn begin_patrol(
+    h: &mut HighLevel,
+    ctx: &mut Ctx,
+    wing: u8,
+    goals: Vec<P>,
+) -> Result<(), planner::PlanError> {
     h.waiting = None;
     h.wing = wing;
     h.goals = goals;

@@ -104,7 +104,10 @@ pub fn parse(text: &str) -> Result<Message, MessageError> {
                 .iter()
                 .enumerate()
                 .map(|(index, a)| {
-                    OwnedValue::parse(a).map_err(|why| MessageError::Arg { index, why })
+                    OwnedValue::parse(a).map_err(|e| MessageError::Arg {
+                        index,
+                        why: e.to_string(),
+                    })
                 })
                 .collect::<Result<_, _>>()?;
             Ok(Message::Call(Call {

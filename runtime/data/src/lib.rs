@@ -164,7 +164,7 @@ impl Store {
         self.read(RUNS, |table| {
             Ok(table.get(number)?.map(|v| v.value().to_vec()))
         })?
-        .map(|bytes| Run::decode(&bytes).map_err(|e| DataError::corrupt(&self.path, e)))
+        .map(|bytes| Run::decode(&bytes).map_err(|e| DataError::corrupt(&self.path, e.to_string())))
         .transpose()
     }
 
@@ -181,7 +181,7 @@ impl Store {
             .map(|(n, bytes)| {
                 Run::decode(&bytes)
                     .map(|r| (n, r))
-                    .map_err(|e| DataError::corrupt(&self.path, e))
+                    .map_err(|e| DataError::corrupt(&self.path, e.to_string()))
             })
             .collect()
     }

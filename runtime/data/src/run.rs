@@ -11,6 +11,25 @@ use modbot_ipc_schema::{OwnedValue, Value};
 
 use super::DataError;
 
+/// A stored run that cannot be read back.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RunDecodeError {
+    #[error(transparent)]
+    Value(#[from] modbot_ipc_schema::ValueError),
+    #[error("value {index} of a run is {found}, not {expected}")]
+    Kind {
+        index: usize,
+        found: String,
+        expected: &'static str,
+    },
+    #[error("a run in format {0:?}, not {FORMAT}")]
+    Format(String),
+    #[error("a run's results are not key, value pairs")]
+    NotPairs,
+    #[error("a run's result key is {0}, not text")]
+    Key(String),
+}
+
 /// The first value of an encoded run: the format.
 const FORMAT: &str = "run1";
 
@@ -62,32 +81,40 @@ impl Run {
         super::encode(&values)
     }
 
-    pub(super) fn decode(bytes: &[u8]) -> Result<Run, String> {
-        let values = Values::new(bytes, 0)
-            .collect::<Result<Vec<Value<'_>>, _>>()
-            .map_err(|e| e.to_string())?;
+    pub(super) fn decode(bytes: &[u8]) -> Result<Run, RunDecodeError> {
+        let values = Values::new(bytes, 0).collect::<Result<Vec<Value<'_>>, _>>()?;
+        let found = |i: usize| format!("{:?}", values.get(i));
         let text = |i: usize| match values.get(i) {
             Some(Value::Text(t)) => Ok((*t).to_owned()),
-            other => Err(format!("value {i} of a run is {other:?}, not text")),
+            _ => Err(RunDecodeError::Kind {
+                index: i,
+                found: found(i),
+                expected: "text",
+            }),
         };
         let tick = |i: usize| match values.get(i) {
             Some(Value::I64(t)) if *t >= 0 => Ok(*t as u64),
-            other => Err(format!("value {i} of a run is {other:?}, not a tick")),
+            _ => Err(RunDecodeError::Kind {
+                index: i,
+                found: found(i),
+                expected: "a tick",
+            }),
         };
-        if text(0)? != FORMAT {
-            return Err(format!("a run in format {:?}, not {FORMAT}", text(0)?));
+        let format = text(0)?;
+        if format != FORMAT {
+            return Err(RunDecodeError::Format(format));
         }
         let rest = values.get(7..).unwrap_or_default();
         if rest.len() % 2 != 0 {
-            return Err("a run's results are not key, value pairs".into());
+            return Err(RunDecodeError::NotPairs);
         }
         let results = rest
             .chunks(2)
             .map(|pair| match pair[0] {
                 Value::Text(k) => Ok((k.to_owned(), pair[1].to_owned_value())),
-                other => Err(format!("a run's result key is {other:?}, not text")),
+                other => Err(RunDecodeError::Key(format!("{other:?}"))),
             })
-            .collect::<Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Run {
             command: text(1)?,
             assembly: text(2)?,

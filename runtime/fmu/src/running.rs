@@ -49,7 +49,8 @@ impl Running {
         let failed = |why: String| FmuError::new(path, FmuErrorKind::Import(why));
         let instance = match interface.version {
             Version::Fmi2 => {
-                let import: Fmi2Import = super::unpack::import(path).map_err(failed)?;
+                let import: Fmi2Import =
+                    super::unpack::import(path).map_err(|e| failed(e.to_string()))?;
                 let instance = import
                     .instantiate_cs(name, false, false)
                     .map_err(|e| failed(format!("cannot instantiate: {e}{}", log.said())))?;
@@ -59,7 +60,8 @@ impl Running {
                 }
             }
             Version::Fmi3 => {
-                let import: Fmi3Import = super::unpack::import(path).map_err(failed)?;
+                let import: Fmi3Import =
+                    super::unpack::import(path).map_err(|e| failed(e.to_string()))?;
                 let instance = import
                     .instantiate_cs(name, false, false, false, false, &[])
                     .map_err(|e| failed(format!("cannot instantiate: {e}{}", log.said())))?;

@@ -14,23 +14,39 @@ use modbot_core::transport::launch::DOMAIN;
 /// The archive's description of the model, at its root.
 const MODEL_DESCRIPTION: &str = "modelDescription.xml";
 
+/// Why an FMU could not be unpacked and imported.
+#[derive(Debug, thiserror::Error)]
+pub enum UnpackError {
+    #[error("{0}")]
+    Open(std::io::Error),
+    #[error("not an FMU: {0}")]
+    NotAnFmu(zip::result::ZipError),
+    #[error("cannot make a directory to unpack it in: {0}")]
+    TempDir(std::io::Error),
+    #[error("cannot unpack it: {0}")]
+    Extract(zip::result::ZipError),
+    #[error("{MODEL_DESCRIPTION}: {0}")]
+    ModelDescription(std::io::Error),
+    /// The FMI library refused the model description (its error, as it says it).
+    #[error("{0}")]
+    Import(String),
+}
+
 /// Unpacks the FMU at `path` into a temporary directory of the domain and imports it (what
 /// `fmi::import::from_path` does, in a directory of ours).
-pub fn import<Imp: FmiImport>(path: &str) -> Result<Imp, String> {
-    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-    let mut archive = zip::ZipArchive::new(file).map_err(|e| format!("not an FMU: {e}"))?;
+pub fn import<Imp: FmiImport>(path: &str) -> Result<Imp, UnpackError> {
+    let file = std::fs::File::open(path).map_err(UnpackError::Open)?;
+    let mut archive = zip::ZipArchive::new(file).map_err(UnpackError::NotAnFmu)?;
     let dir = tempfile::Builder::new()
         .prefix(&prefix())
         .tempdir()
-        .map_err(|e| format!("cannot make a directory to unpack it in: {e}"))?;
-    archive
-        .extract(dir.path())
-        .map_err(|e| format!("cannot unpack it: {e}"))?;
+        .map_err(UnpackError::TempDir)?;
+    archive.extract(dir.path()).map_err(UnpackError::Extract)?;
     let mut xml = String::new();
     std::fs::File::open(dir.path().join(MODEL_DESCRIPTION))
         .and_then(|mut f| f.read_to_string(&mut xml))
-        .map_err(|e| format!("{MODEL_DESCRIPTION}: {e}"))?;
-    Imp::new(dir, &xml).map_err(|e| e.to_string())
+        .map_err(UnpackError::ModelDescription)?;
+    Imp::new(dir, &xml).map_err(|e| UnpackError::Import(e.to_string()))
 }
 
 /// The name prefix of this process's temporary directories.

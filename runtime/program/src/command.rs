@@ -35,7 +35,7 @@ use modbot_ipc_schema::OwnedValue;
 use modbot_system::sandbox::{self, from_lua, to_lua};
 
 use super::session::{fail, fail_here, CommandInfo, Shared};
-use super::ProgramError;
+use super::{ProgramError, ScriptError};
 
 /// The fields of a command's definition.
 const FIELDS: &[&str] = &["doc", "params", "pre", "run", "done", "eval"];
@@ -79,7 +79,7 @@ pub(crate) fn command_fn(lua: &Lua, shared: &Shared) -> mlua::Result<Function> {
             Some(Value::String(s)) => s.to_string_lossy(),
             _ => {
                 let why = "command takes a name, as in command \"square\" { run = ... }";
-                return Err(fail_here(lua, &shared, why.into()));
+                return Err(fail_here(lua, &shared, why));
             }
         };
         let identifier = name
@@ -119,32 +119,36 @@ pub(crate) fn command_fn(lua: &Lua, shared: &Shared) -> mlua::Result<Function> {
 }
 
 /// Checks a definition's fields; what `help` shows of it.
-fn describe(name: &str, def: &Table, origin: &str) -> Result<CommandInfo, String> {
+fn describe(name: &str, def: &Table, origin: &str) -> Result<CommandInfo, ScriptError> {
+    let lua_failed = |e: mlua::Error| ScriptError::Definition {
+        command: name.to_owned(),
+        why: e.to_string(),
+    };
     let mut doc = String::new();
     let mut params = Vec::new();
     for pair in def.pairs::<Value, Value>() {
-        let (key, value) = pair.map_err(|e| e.to_string())?;
+        let (key, value) = pair.map_err(lua_failed)?;
         let key = match key {
             Value::String(s) => s.to_string_lossy(),
             other => {
-                return Err(format!(
-                    "command \"{name}\": a field named by a {}",
-                    other.type_name()
-                ))
+                return Err(ScriptError::FieldName {
+                    command: name.to_owned(),
+                    found: other.type_name(),
+                })
             }
         };
-        let wrong = |expected: &str| {
-            format!(
-                "command \"{name}\": field '{key}' must be {expected}, not a {}",
-                value.type_name()
-            )
+        let wrong = |expected: &'static str| ScriptError::FieldKind {
+            command: name.to_owned(),
+            field: key.clone(),
+            expected,
+            found: value.type_name(),
         };
         match (key.as_str(), &value) {
             ("doc", Value::String(s)) => doc = s.to_string_lossy(),
             ("doc", _) => return Err(wrong("a text")),
             ("params", Value::Table(t)) => {
                 for pair in t.pairs::<Value, Value>() {
-                    match pair.map_err(|e| e.to_string())? {
+                    match pair.map_err(lua_failed)? {
                         (Value::String(k), Value::String(v)) => {
                             params.push((k.to_string_lossy(), v.to_string_lossy()))
                         }
@@ -156,10 +160,11 @@ fn describe(name: &str, def: &Table, origin: &str) -> Result<CommandInfo, String
             ("pre" | "run" | "done" | "eval", Value::Function(_)) => {}
             ("pre" | "run" | "done" | "eval", _) => return Err(wrong("a function")),
             _ => {
-                return Err(format!(
-                    "command \"{name}\": unknown field '{key}' (expected {})",
-                    FIELDS.join(", ")
-                ))
+                return Err(ScriptError::UnknownField {
+                    command: name.to_owned(),
+                    field: key,
+                    expected: FIELDS.join(", "),
+                })
             }
         }
     }

@@ -39,6 +39,7 @@ mod lua_env;
 mod plot;
 mod recordings;
 pub mod robot;
+mod script_error;
 mod session;
 pub mod system_robot;
 
@@ -49,5 +50,6 @@ pub use error::{ProgramError, RobotError};
 pub use interpreter::{Interpreter, Left, Options, HOLD};
 pub use interrupt::Interrupt;
 pub use robot::Robot;
+pub use script_error::ScriptError;
 pub use session::CommandInfo;
 pub use system_robot::SystemRobot;

@@ -20,7 +20,7 @@ use mlua::{Lua, MultiValue, Value};
 use modbot_system::sandbox::{self, from_lua, to_lua, INSTRUCTION_LIMIT};
 
 use super::session::{fail, fail_here, Shared, WHAT};
-use super::ProgramError;
+use super::{ProgramError, ScriptError};
 
 /// The Lua state of an interpreter, with its functions.
 pub(crate) fn open(shared: &Shared) -> mlua::Result<Lua> {
@@ -62,14 +62,18 @@ pub(crate) fn arm_budget(lua: &Lua, shared: &Shared) {
 }
 
 /// The one text argument of `name(...)`.
-fn text_arg(args: &MultiValue, name: &str, example: &str) -> Result<String, String> {
+fn text_arg(
+    args: &MultiValue,
+    function: &'static str,
+    example: &'static str,
+) -> Result<String, ScriptError> {
     match args.front() {
         Some(Value::String(s)) => Ok(s.to_string_lossy()),
-        Some(other) => Err(format!(
-            "{name} takes a text, as in {example}, not a {}",
-            other.type_name()
-        )),
-        None => Err(format!("{name} takes a text, as in {example}")),
+        found => Err(ScriptError::NotAText {
+            function,
+            example,
+            found: found.map(Value::type_name),
+        }),
     }
 }
 

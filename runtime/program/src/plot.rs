@@ -4,6 +4,8 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
+use super::ScriptError;
+
 /// One line: its name in the legend and its points.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Line {
@@ -34,8 +36,11 @@ fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
 }
 
 /// Writes `lines` to the SVG file at `path`.
-pub fn svg(path: &Path, labels: &Labels, lines: &[Line]) -> Result<(), String> {
-    let err = |e: DrawingAreaErrorKind<_>| format!("{}: {e}", path.display());
+pub fn svg(path: &Path, labels: &Labels, lines: &[Line]) -> Result<(), ScriptError> {
+    let err = |e: DrawingAreaErrorKind<_>| ScriptError::Plot {
+        path: path.to_path_buf(),
+        why: e.to_string(),
+    };
     let all = || lines.iter().flat_map(|l| l.points.iter());
     let (xr, yr) = (range(all().map(|p| p.0)), range(all().map(|p| p.1)));
     let root = SVGBackend::new(path, (1000, 560)).into_drawing_area();

@@ -11,6 +11,7 @@ use mlua::{Lua, MultiValue, Table, Value};
 
 use super::plot::{self, Labels, Line};
 use super::session::{fail_here, Shared};
+use super::ScriptError;
 
 /// Adds the functions to `globals`.
 pub(crate) fn register(lua: &Lua, globals: &Table, shared: &Shared) -> mlua::Result<()> {
@@ -26,7 +27,7 @@ fn absolute_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
             return Err(fail_here(
                 lua,
                 &shared,
-                "absolute takes a path, as in absolute(\"run.h5\")".into(),
+                "absolute takes a path, as in absolute(\"run.h5\")",
             ));
         };
         let path = path.to_string_lossy();
@@ -80,46 +81,44 @@ fn recorded_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
     )
 }
 
-/// A sequence of numbers, or why not.
-fn numbers(t: &Table, what: &str) -> Result<Vec<f64>, String> {
+/// A sequence of numbers, or why not (`what` names it).
+fn numbers(t: &Table, what: impl Fn() -> String) -> Result<Vec<f64>, ScriptError> {
     t.sequence_values::<Value>()
         .map(|v| match v {
             Ok(Value::Integer(i)) => Ok(i as f64),
             Ok(Value::Number(x)) => Ok(x),
-            _ => Err(format!("{what} must hold numbers only")),
+            _ => Err(ScriptError::NotNumbers { what: what() }),
         })
         .collect()
 }
 
 /// The lines of `plot { lines = ... }`.
-fn lines(spec: &Table) -> Result<Vec<Line>, String> {
+fn lines(spec: &Table) -> Result<Vec<Line>, ScriptError> {
     let Ok(Value::Table(lines)) = spec.raw_get::<Value>("lines") else {
-        return Err(
-            "lines = { { name = \"...\", x = { ... }, y = { ... } }, ... } is required".into(),
-        );
+        return Err(ScriptError::NoLines);
     };
     let mut out = Vec::new();
     for (i, line) in lines.sequence_values::<Value>().enumerate() {
         let Ok(Value::Table(line)) = line else {
-            return Err(format!("lines[{}] must be a table", i + 1));
+            return Err(ScriptError::LineNotATable(i + 1));
         };
         let name = line
             .raw_get::<Option<String>>("name")
             .ok()
             .flatten()
             .unwrap_or_else(|| format!("line {}", i + 1));
+        let what = |k: &str| format!("lines[{}].{k}", i + 1);
         let axis = |k: &str| match line.raw_get::<Value>(k) {
-            Ok(Value::Table(t)) => numbers(&t, &format!("lines[{}].{k}", i + 1)),
-            _ => Err(format!("lines[{}].{k} must be a table of numbers", i + 1)),
+            Ok(Value::Table(t)) => numbers(&t, || what(k)),
+            _ => Err(ScriptError::NotNumbers { what: what(k) }),
         };
         let (x, y) = (axis("x")?, axis("y")?);
         if x.len() != y.len() {
-            return Err(format!(
-                "lines[{}] has {} x and {} y values",
-                i + 1,
-                x.len(),
-                y.len()
-            ));
+            return Err(ScriptError::Unequal {
+                line: i + 1,
+                x: x.len(),
+                y: y.len(),
+            });
         }
         out.push(Line {
             name,
@@ -134,7 +133,7 @@ fn plot_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
     lua.create_function(move |lua, args: MultiValue| {
         let Some(Value::Table(spec)) = args.front() else {
             let why = "plot takes a table: plot { file = \"x.svg\", lines = { ... } }";
-            return Err(fail_here(lua, &shared, why.into()));
+            return Err(fail_here(lua, &shared, why));
         };
         let text = |k: &str| {
             spec.raw_get::<Option<String>>(k)
@@ -147,7 +146,7 @@ fn plot_fn(lua: &Lua, shared: &Shared) -> mlua::Result<mlua::Function> {
             return Err(fail_here(
                 lua,
                 &shared,
-                "plot: file = \"x.svg\" is required".into(),
+                "plot: file = \"x.svg\" is required",
             ));
         }
         let labels = Labels {

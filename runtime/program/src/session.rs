@@ -61,7 +61,14 @@ pub(crate) fn fail(shared: &Shared, error: ProgramError) -> mlua::Error {
 }
 
 /// The failure, at the Lua line that called the running Rust function.
-pub(crate) fn fail_here(lua: &mlua::Lua, shared: &Shared, message: String) -> mlua::Error {
+pub(crate) fn fail_here(
+    lua: &mlua::Lua,
+    shared: &Shared,
+    message: impl std::fmt::Display,
+) -> mlua::Error {
     let (file, line) = modbot_system::sandbox::caller(lua).unwrap_or_default();
-    fail(shared, ProgramError::new(&file, Some(line), message))
+    fail(
+        shared,
+        ProgramError::new(&file, Some(line), message.to_string()),
+    )
 }

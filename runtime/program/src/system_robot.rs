@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use modbot_core::calls::CallOptions;
 use modbot_core::domain::Domain;
+use modbot_core::error::CallError;
 use modbot_core::tool::{Calls, Tool};
 use modbot_grid::spec::{GridRole, COORDINATOR};
 use modbot_grid::switch;
@@ -90,7 +91,7 @@ impl SystemRobot {
         Ok(modules.iter().any(|m| m.alive && m.name == name))
     }
 
-    fn bb_get(&mut self, module: &str, item: &str) -> Result<OwnedValue, String> {
+    fn bb_get(&mut self, module: &str, item: &str) -> Result<OwnedValue, BbGetError> {
         self.tool.call_blocking(
             module,
             "bb_get",
@@ -100,8 +101,8 @@ impl SystemRobot {
                 Ok(args) => args
                     .get(0)
                     .map(|v| v.to_owned_value())
-                    .ok_or_else(|| "an empty answer".to_owned()),
-                Err(e) => Err(e.to_string()),
+                    .ok_or(BbGetError::Empty),
+                Err(e) => Err(BbGetError::Call(e.clone())),
             },
         )
     }
@@ -181,6 +182,15 @@ impl SystemRobot {
     }
 }
 
+/// Why a blackboard item could not be read.
+#[derive(Debug, thiserror::Error)]
+enum BbGetError {
+    #[error(transparent)]
+    Call(CallError),
+    #[error("an empty answer")]
+    Empty,
+}
+
 impl Robot for SystemRobot {
     fn switch(&mut self, name: &str) -> Result<u64, RobotError> {
         let switched = switch::switch(&mut self.tool, name, SWITCH_TIMEOUT).map_err(|e| {
@@ -216,9 +226,9 @@ impl Robot for SystemRobot {
             what: what.to_owned(),
             why: "write module.item or component.output".into(),
         })?;
-        let read_error = |why: String| RobotError::Read {
+        let read_error = |why: BbGetError| RobotError::Read {
             what: what.to_owned(),
-            why,
+            why: why.to_string(),
         };
         if self.module_alive(module)? {
             return self.bb_get(module, item).map_err(read_error);
@@ -252,13 +262,17 @@ impl Robot for SystemRobot {
             "ledger",
             &[],
             CallOptions::timeout(CALL_TIMEOUT),
-            |r| -> Result<_, String> {
-                let args = r.map_err(|e| e.to_string())?;
-                let bytes = args.bytes(0).map_err(|e| e.to_string())?;
-                Ok(modbot_ipc_schema::ledger::decode(bytes)?.0)
+            |r| -> Result<_, RobotError> {
+                let failed = |e: &dyn std::fmt::Display| {
+                    RobotError::Grid(format!("the coordinator's ledger: {e}"))
+                };
+                let args = r.map_err(|e| failed(e))?;
+                let bytes = args.bytes(0).map_err(|e| failed(&e))?;
+                let (row, _) = modbot_ipc_schema::ledger::decode(bytes).map_err(|e| failed(&e))?;
+                Ok(row)
             },
         );
-        let row = row.map_err(|e| RobotError::Grid(format!("the coordinator's ledger: {e}")))?;
+        let row = row?;
         Ok(row.state.starts_with("faulted").then_some(row.fault))
     }
 

@@ -14,6 +14,29 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::{bounded, RecvTimeoutError, Sender};
 
+use crate::file::FileError;
+
+/// Why a recording cannot be started or stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    #[error("this host runs no recorder")]
+    NoRecorder,
+    #[error("this host runs {0} recorders: give each a host of its own (record {{ host = ... }})")]
+    SeveralRecorders(usize),
+    #[error("the recorder's writer has stopped")]
+    WriterStopped,
+    #[error("the recorder's writer stopped before it answered")]
+    NoAnswer,
+    #[error("the recorder's writer did not answer within {} s", .0.as_secs())]
+    Timeout(Duration),
+    #[error("signal '{name}' is not the recorder's: it records {known}")]
+    UnknownSignal { name: String, known: String },
+    #[error("nothing is being recorded")]
+    NotRecording,
+    #[error(transparent)]
+    File(#[from] FileError),
+}
+
 /// How long a method waits for the writer (it finishes the batch at hand, closes a file,
 /// creates one).
 const ANSWER: Duration = Duration::from_secs(30);
@@ -37,11 +60,11 @@ pub enum Control {
     Start {
         file: PathBuf,
         signals: Vec<String>,
-        answer: Sender<Result<PathBuf, String>>,
+        answer: Sender<Result<PathBuf, ControlError>>,
     },
     /// Writes what is gathered, closes the file; answers what it was.
     Stop {
-        answer: Sender<Result<Stopped, String>>,
+        answer: Sender<Result<Stopped, ControlError>>,
     },
 }
 
@@ -63,15 +86,13 @@ pub(crate) fn register(handle: &Arc<Handle>) {
 }
 
 /// The one recorder this process runs.
-fn the_recorder() -> Result<Arc<Handle>, String> {
+fn the_recorder() -> Result<Arc<Handle>, ControlError> {
     let running = RUNNING.lock().unwrap_or_else(|p| p.into_inner());
     let live: Vec<Arc<Handle>> = running.iter().filter_map(Weak::upgrade).collect();
     match live.len() {
         1 => Ok(live[0].clone()),
-        0 => Err("this host runs no recorder".into()),
-        n => Err(format!(
-            "this host runs {n} recorders: give each a host of its own (record {{ host = ... }})"
-        )),
+        0 => Err(ControlError::NoRecorder),
+        n => Err(ControlError::SeveralRecorders(n)),
     }
 }
 
@@ -79,28 +100,23 @@ fn the_recorder() -> Result<Arc<Handle>, String> {
 /// [`BETWEEN`] (closing a large file on a slow disk takes seconds, and the method's module
 /// must go on beating meanwhile: [`modbot_core::Ctx::keep_alive`]).
 fn ask<T>(
-    make: impl FnOnce(Sender<Result<T, String>>) -> Control,
+    make: impl FnOnce(Sender<Result<T, ControlError>>) -> Control,
     meanwhile: &mut dyn FnMut(),
-) -> Result<T, String> {
+) -> Result<T, ControlError> {
     let recorder = the_recorder()?;
     let (answer, answered) = bounded(1);
     recorder
         .requests
         .send(make(answer))
-        .map_err(|_| "the recorder's writer has stopped".to_owned())?;
+        .map_err(|_| ControlError::WriterStopped)?;
     recorder.thread.unpark();
     let asked = Instant::now();
     loop {
         match answered.recv_timeout(BETWEEN) {
             Ok(answer) => return answer,
-            Err(RecvTimeoutError::Disconnected) => {
-                return Err("the recorder's writer stopped before it answered".to_owned())
-            }
+            Err(RecvTimeoutError::Disconnected) => return Err(ControlError::NoAnswer),
             Err(RecvTimeoutError::Timeout) if asked.elapsed() >= ANSWER => {
-                return Err(format!(
-                    "the recorder's writer did not answer within {} s",
-                    ANSWER.as_secs()
-                ))
+                return Err(ControlError::Timeout(ANSWER))
             }
             Err(RecvTimeoutError::Timeout) => meanwhile(),
         }
@@ -113,7 +129,7 @@ pub fn start(
     file: PathBuf,
     signals: Vec<String>,
     meanwhile: &mut dyn FnMut(),
-) -> Result<PathBuf, String> {
+) -> Result<PathBuf, ControlError> {
     ask(
         |answer| Control::Start {
             file,
@@ -125,6 +141,6 @@ pub fn start(
 }
 
 /// Stops recording: the file and its rows. `meanwhile` is called while the writer closes it.
-pub fn stop(meanwhile: &mut dyn FnMut()) -> Result<Stopped, String> {
+pub fn stop(meanwhile: &mut dyn FnMut()) -> Result<Stopped, ControlError> {
     ask(|answer| Control::Stop { answer }, meanwhile)
 }

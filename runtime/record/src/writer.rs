@@ -18,7 +18,7 @@ use crossbeam::channel::{unbounded, Receiver};
 use modbot_grid::record_type::Signal;
 
 use super::batch::Batch;
-use super::control::{self, Control, Handle, Stopped};
+use super::control::{self, Control, ControlError, Handle, Stopped};
 use super::file::{FileError, Header, RecordFile};
 use super::rows::Rows;
 
@@ -247,8 +247,8 @@ impl Thread {
             Control::Stop { answer } => {
                 let stopped = match self.close() {
                     Ok(Some(stopped)) => Ok(stopped),
-                    Ok(None) => Err("nothing is being recorded".to_owned()),
-                    Err(e) => Err(e.to_string()),
+                    Ok(None) => Err(ControlError::NotRecording),
+                    Err(e) => Err(e.into()),
                 };
                 if let Ok(s) = &stopped {
                     tracing::info!("recorded {} row(s) to {}", s.rows, s.path.display());
@@ -259,17 +259,16 @@ impl Thread {
     }
 
     /// Closes the file being written, if any, and opens `file` for `signals`.
-    fn start(&mut self, file: &Path, signals: &[String]) -> Result<PathBuf, String> {
+    fn start(&mut self, file: &Path, signals: &[String]) -> Result<PathBuf, ControlError> {
         let recorded = self.chosen(signals)?;
-        self.close().map_err(|e| e.to_string())?;
+        self.close()?;
         let path = super::path::choose(file);
         let chosen: Vec<Signal> = recorded
             .iter()
             .map(|&i| self.recording.signals[i].clone())
             .collect();
         let chunk = self.flush.rows as u64;
-        let created = RecordFile::create(&path, &chosen, &self.recording.header, chunk)
-            .map_err(|e| e.to_string())?;
+        let created = RecordFile::create(&path, &chosen, &self.recording.header, chunk)?;
         self.open = Some(Open {
             batch: batch_of(&self.recording, &recorded),
             file: created,
@@ -280,7 +279,7 @@ impl Thread {
     }
 
     /// The indices of `signals` among the recording's (empty: all of them).
-    fn chosen(&self, signals: &[String]) -> Result<Vec<usize>, String> {
+    fn chosen(&self, signals: &[String]) -> Result<Vec<usize>, ControlError> {
         let all = &self.recording.signals;
         if signals.is_empty() {
             return Ok((0..all.len()).collect());
@@ -290,10 +289,10 @@ impl Thread {
             .map(|name| {
                 all.iter().position(|s| s.name == *name).ok_or_else(|| {
                     let known: Vec<&str> = all.iter().map(|s| s.name.as_str()).collect();
-                    format!(
-                        "signal '{name}' is not the recorder's: it records {}",
-                        known.join(", ")
-                    )
+                    ControlError::UnknownSignal {
+                        name: name.clone(),
+                        known: known.join(", "),
+                    }
                 })
             })
             .collect()
@@ -338,6 +337,7 @@ mod tests {
         assert!(
             control::start(dir.join("run.h5"), vec!["nope.x".into()], &mut || ())
                 .unwrap_err()
+                .to_string()
                 .contains("signal 'nope.x' is not the recorder's: it records a.y, b.q")
         );
         let path = control::start(dir.join("run.h5"), vec!["b.q".into()], &mut || ()).unwrap();
@@ -355,10 +355,10 @@ mod tests {
                 rows: 25
             }
         );
-        assert_eq!(
+        assert!(matches!(
             control::stop(&mut || ()).unwrap_err(),
-            "nothing is being recorded"
-        );
+            control::ControlError::NotRecording
+        ));
         sut.finish().unwrap();
         let file = hdf5::File::open(&path).unwrap();
         let mut names = file.member_names().unwrap();

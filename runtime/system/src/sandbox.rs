@@ -227,7 +227,7 @@ pub fn to_lua(lua: &Lua, value: &OwnedValue) -> mlua::Result<Value> {
 
 /// A Lua value as a modbot value: numbers, integers, booleans, strings, and lists of numbers
 /// (an f64 array; empty tables too). Anything else is refused, saying what it is.
-pub fn from_lua(value: &Value) -> Result<OwnedValue, String> {
+pub fn from_lua(value: &Value) -> Result<OwnedValue, FromLuaError> {
     match value {
         Value::Number(x) => Ok(OwnedValue::F64(*x)),
         Value::Integer(i) => Ok(OwnedValue::I64(*i)),
@@ -240,24 +240,41 @@ pub fn from_lua(value: &Value) -> Result<OwnedValue, String> {
             let len = t.raw_len();
             let mut xs = Vec::with_capacity(len);
             for i in 1..=len {
-                match t.raw_get::<Value>(i).map_err(|e| e.to_string())? {
+                match t
+                    .raw_get::<Value>(i)
+                    .map_err(|e| FromLuaError::Lua(e.to_string()))?
+                {
                     Value::Number(x) => xs.push(x),
                     Value::Integer(n) => xs.push(n as f64),
                     other => {
-                        return Err(format!(
-                            "a list of numbers has a {} at [{i}]",
-                            other.type_name()
-                        ))
+                        return Err(FromLuaError::NotANumber {
+                            index: i,
+                            found: other.type_name(),
+                        })
                     }
                 }
             }
             if t.pairs::<Value, Value>().count() != len {
-                return Err("a table with keys is not a value: use a list of numbers".into());
+                return Err(FromLuaError::Keys);
             }
             Ok(OwnedValue::F64s(xs))
         }
-        other => Err(format!("a {} is not a value", other.type_name())),
+        other => Err(FromLuaError::NotAValue(other.type_name())),
     }
+}
+
+/// A Lua value that is not a modbot value.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FromLuaError {
+    #[error("a list of numbers has a {found} at [{index}]")]
+    NotANumber { index: usize, found: &'static str },
+    #[error("a table with keys is not a value: use a list of numbers")]
+    Keys,
+    #[error("a {0} is not a value")]
+    NotAValue(&'static str),
+    /// Lua could not read the table.
+    #[error("{0}")]
+    Lua(String),
 }
 
 #[cfg(test)]

@@ -18,14 +18,14 @@ fn start(_: &mut (), ctx: &mut Ctx, args: &Args<'_>, reply: &mut Reply) -> Resul
         .map(|i| args.text(i).map(str::to_owned))
         .collect::<Result<Vec<_>, _>>()?;
     let path = modbot_record::control::start(file, signals, &mut || ctx.keep_alive())
-        .map_err(MethodError::Failed)?;
+        .map_err(|e| MethodError::Failed(e.to_string()))?;
     reply.push(Value::Text(&path.display().to_string()));
     Ok(())
 }
 
 fn stop(_: &mut (), ctx: &mut Ctx, _: &Args<'_>, reply: &mut Reply) -> Result<(), MethodError> {
-    let stopped =
-        modbot_record::control::stop(&mut || ctx.keep_alive()).map_err(MethodError::Failed)?;
+    let stopped = modbot_record::control::stop(&mut || ctx.keep_alive())
+        .map_err(|e| MethodError::Failed(e.to_string()))?;
     reply.push(Value::Text(&stopped.path.display().to_string()));
     reply.push(Value::I64(i64::try_from(stopped.rows).unwrap_or(i64::MAX)));
     Ok(())
