@@ -81,23 +81,44 @@ impl Default for Serving {
 
 /// A module's side of the runtime, lent to its methods and tasks.
 pub struct Ctx {
+    /// Its address in the domain.
     pub(crate) addr: Addr,
+    /// Its name in the phone book.
     pub(crate) name: String,
+    /// How it waits for frames (blocking or busy).
     pub(crate) mode: ReceiveMode,
-    pub(crate) tx: Box<dyn Tx>,
-    pub(crate) snapshots: Box<dyn Snapshots>,
-    pub(crate) directory: Box<dyn Directory>,
+    /// Its endpoint's sending side, snapshots and directory.
+    pub(crate) link: Link,
     /// This module's blackboard.
     pub bb: Blackboard,
     /// The calls this module makes.
     pub(crate) out: Outgoing,
+    /// The other modules it knows: addresses, liveness, method tables.
     pub(crate) book: PhoneBook,
+    /// Its time (injected, so tests control it).
     pub(crate) clock: Arc<dyn Clock>,
     /// The frames it serves.
     pub(crate) serving: Serving,
-    pub(crate) stop: bool,
     /// Traffic and call counters and the call latency histogram (the `stats` system method).
     pub(crate) stats: Stats,
+    /// Whether it goes on, is active, and beats.
+    pub(crate) liveness: Liveness,
+}
+
+/// What a module reaches the domain through: its endpoint's parts.
+pub(crate) struct Link {
+    /// Sends frames to other modules' inboxes.
+    pub(crate) tx: Box<dyn Tx>,
+    /// Publishes its blackboard and reads others'.
+    pub(crate) snapshots: Box<dyn Snapshots>,
+    /// The domain's directory of modules.
+    pub(crate) directory: Box<dyn Directory>,
+}
+
+/// Whether a module goes on, whether the operator left it active, and its heartbeats.
+pub(crate) struct Liveness {
+    /// Its code asked it to stop ([`Ctx::stop`]).
+    pub(crate) stop: bool,
     /// Whether the operator left the module active (`activate`/`deactivate`): while not, its
     /// own methods answer NAK not-ready and its tasks do not run.
     pub(crate) active: bool,
@@ -128,7 +149,7 @@ impl Ctx {
     /// waits, or the supervisor, hearing nothing for the heartbeat timeout, judges the module
     /// hung and kills it.
     pub fn keep_alive(&mut self) {
-        if self.heartbeats.due(self.now_ns()) {
+        if self.liveness.heartbeats.due(self.now_ns()) {
             self.beat(ModuleState::Running);
         }
     }
@@ -136,17 +157,18 @@ impl Ctx {
     /// Publishes a heartbeat now.
     pub(crate) fn beat(&mut self, state: ModuleState) {
         let counters = Counters {
-            dropped: self.tx.dropped(),
+            dropped: self.link.tx.dropped(),
             rejected: self.serving.rejected,
             replayed: self.serving.replayed,
         };
-        self.heartbeats
-            .send(self.tx.as_mut(), self.addr, state, counters);
+        self.liveness
+            .heartbeats
+            .send(self.link.tx.as_mut(), self.addr, state, counters);
     }
 
     /// Asks the main loop to stop after this step.
     pub fn stop(&mut self) {
-        self.stop = true;
+        self.liveness.stop = true;
     }
 
     pub fn phone_book(&self) -> &PhoneBook {
@@ -160,7 +182,7 @@ impl Ctx {
 
     /// Frames this module could not deliver.
     pub fn dropped(&self) -> u64 {
-        self.tx.dropped()
+        self.link.tx.dropped()
     }
 
     /// This module's traffic and call counters and its call latencies, as the `stats` system
@@ -172,7 +194,7 @@ impl Ctx {
     /// Whether the module is active: an operator can deactivate it (the `deactivate` system
     /// method), and then it refuses its own methods and pauses its periodic tasks.
     pub fn is_active(&self) -> bool {
-        self.active
+        self.liveness.active
     }
 
     /// Calls `method` of `module` with the default options; the answer comes to the module's
@@ -340,7 +362,7 @@ impl Ctx {
     /// Opens the link to module `addr` now rather than at the first frame sent to it (a
     /// supervisor connects to its modules ahead of its first call).
     pub fn connect(&mut self, addr: Addr) -> Result<(), crate::transport::SendError> {
-        self.tx.connect(addr)
+        self.link.tx.connect(addr)
     }
 
     pub(crate) fn explain(&self, addr: Addr, e: CallError) -> CallError {
@@ -382,7 +404,7 @@ impl Ctx {
 
     /// Re-reads the directory now.
     pub(crate) fn refresh_book(&mut self) -> crate::phonebook::Changes {
-        match self.book.refresh(self.directory.as_ref()) {
+        match self.book.refresh(self.link.directory.as_ref()) {
             Ok(c) => c,
             Err(e) => {
                 tracing::warn!("phone book refresh failed: {e}");
@@ -414,7 +436,8 @@ impl Ctx {
     /// Sends `bytes` to `to` exactly as they are, unchecked: for tools and fault injection
     /// (a receiver must count and drop what is malformed).
     pub fn send_bytes(&mut self, to: Dest<'_>, bytes: &[u8]) -> Result<(), SendError> {
-        self.tx
+        self.link
+            .tx
             .send(to, bytes.len(), &mut |buf| buf.copy_from_slice(bytes))?;
         self.stats.frames_sent += 1;
         Ok(())
@@ -480,7 +503,9 @@ impl Ctx {
         encode: &mut dyn FnMut(&mut [u8]) -> Result<usize, E>,
     ) -> Result<(), CallError> {
         let mut result = Ok(0);
-        self.tx.send(to, len, &mut |buf| result = encode(buf))?;
+        self.link
+            .tx
+            .send(to, len, &mut |buf| result = encode(buf))?;
         self.stats.frames_sent += 1;
         result
             .map(|_| ())
@@ -505,7 +530,8 @@ impl Ctx {
         let mut read = Some(read);
         let mut out = None;
         let mut bad = None;
-        self.snapshots
+        self.link
+            .snapshots
             .read_latest(addr, &mut |bytes| match SnapshotView::parse(bytes) {
                 Ok(view) => out = read.take().map(|f| f(view)),
                 Err(e) => bad = Some(e.to_string()),

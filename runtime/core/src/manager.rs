@@ -216,9 +216,12 @@ fn serve_request<S>(
                 system_method(def, state, ctx, method, &args, reply)
             } else {
                 match def.methods.get(usize::from(method)) {
-                    Some(_) if !ctx.active => Err(UnknownOr::Method(MethodError::NotReady(
-                        format!("module '{}' is deactivated by the operator", ctx.name),
-                    ))),
+                    Some(_) if !ctx.liveness.active => {
+                        Err(UnknownOr::Method(MethodError::NotReady(format!(
+                            "module '{}' is deactivated by the operator",
+                            ctx.name
+                        ))))
+                    }
                     Some((_, f)) => f(state, ctx, &args, reply).map_err(UnknownOr::from),
                     None => Err(unknown_method(method, def)),
                 }
@@ -303,10 +306,10 @@ fn system_method<S>(
             reply.push(Value::Text(ctx.mode.name()));
             reply.push(Value::Text(&methods.join(",")));
             reply.push(Value::Text(&ctx.bb.describe()));
-            reply.push(Value::I64(ctx.tx.dropped() as i64));
+            reply.push(Value::I64(ctx.link.tx.dropped() as i64));
             reply.push(Value::I64(ctx.serving.rejected as i64));
             reply.push(Value::I64(ctx.serving.replayed as i64));
-            reply.push(Value::Bool(ctx.active));
+            reply.push(Value::Bool(ctx.liveness.active));
             Ok(())
         }
         sysmethod::BB_GET => {
@@ -341,8 +344,8 @@ fn system_method<S>(
         }
         sysmethod::ACTIVATE | sysmethod::DEACTIVATE => {
             let active = id == sysmethod::ACTIVATE;
-            if ctx.active != active {
-                ctx.active = active;
+            if ctx.liveness.active != active {
+                ctx.liveness.active = active;
                 let (name, by) = (&ctx.name, ctx.serving.caller);
                 if active {
                     tracing::info!("module {name} activated by {by}");

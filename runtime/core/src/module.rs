@@ -85,20 +85,20 @@ impl<S> Module<S> {
 
     /// The digest of this module's method names (in its heartbeats and the directory).
     pub fn methods_digest(&self) -> u32 {
-        self.ctx.heartbeats.methods_digest
+        self.ctx.liveness.heartbeats.methods_digest
     }
 
     /// Every module of the domain as the directory sees it now.
     pub fn list_modules(&self) -> Result<Vec<PeerInfo>, TransportError> {
         let mut out = Vec::new();
-        self.ctx.directory.list(&mut |p| out.push(p))?;
+        self.ctx.link.directory.list(&mut |p| out.push(p))?;
         out.sort_by_key(|p| (p.addr, !p.alive));
         Ok(out)
     }
 
     /// Removes resources left by dead modules.
     pub fn reap_dead(&self) -> usize {
-        self.ctx.directory.reap_dead()
+        self.ctx.link.directory.reap_dead()
     }
 
     /// Sleeps until a frame arrives in the inbox or `timeout` passed (a loop that also waits
@@ -135,7 +135,7 @@ impl<S> Module<S> {
                     self.next_task_ns[i] + period
                 };
                 // Deactivated: the beat is skipped, so the task resumes on its grid.
-                if self.ctx.active {
+                if self.ctx.liveness.active {
                     f(&mut self.state, &mut self.ctx);
                 }
             }
@@ -143,7 +143,7 @@ impl<S> Module<S> {
         let ctx = &mut self.ctx;
         let (failures, book, describing) =
             (&mut ctx.out.failures, &ctx.book, &mut ctx.out.describing);
-        let (tx, me, sent) = (&mut ctx.tx, ctx.addr, &mut ctx.stats.frames_sent);
+        let (tx, me, sent) = (&mut ctx.link.tx, ctx.addr, &mut ctx.stats.frames_sent);
         ctx.out.calls.expire(
             now,
             |e| {
@@ -172,8 +172,8 @@ impl<S> Module<S> {
             },
         );
         // A published directory says when it changed; a scanned one is read on a timer.
-        let directory_due = if self.ctx.directory.published() {
-            let generation = self.ctx.directory.generation();
+        let directory_due = if self.ctx.link.directory.published() {
+            let generation = self.ctx.link.directory.generation();
             let due = generation != self.book_generation;
             self.book_generation = generation;
             due
@@ -184,7 +184,7 @@ impl<S> Module<S> {
             self.next_refresh_ns = now + REFRESH_NS;
             let changes = self.ctx.refresh_book();
             if !changes.died.is_empty() {
-                self.ctx.directory.reap_dead();
+                self.ctx.link.directory.reap_dead();
             }
             for addr in changes.died {
                 let name = self
@@ -202,7 +202,7 @@ impl<S> Module<S> {
                 // The next process at this address may use a new inbox (its files were swept
                 // while it started, say): open the link again rather than keep sending into
                 // the dead one's.
-                self.ctx.tx.disconnect(addr);
+                self.ctx.link.tx.disconnect(addr);
                 let failures = &mut self.ctx.out.failures;
                 self.ctx.out.calls.fail_peer(addr, |e| {
                     if e.purpose == Purpose::User {
@@ -221,7 +221,7 @@ impl<S> Module<S> {
                 // and calls that wait for it go out again.
                 let ctx = &mut self.ctx;
                 ctx.serving.served.forget(addr);
-                let (tx, me, sent) = (&mut ctx.tx, ctx.addr, &mut ctx.stats.frames_sent);
+                let (tx, me, sent) = (&mut ctx.link.tx, ctx.addr, &mut ctx.stats.frames_sent);
                 ctx.out.calls.resend_to(addr, |r| {
                     match crate::ctx::send_retry(tx.as_mut(), me, r) {
                         Ok(()) => *sent += 1,
@@ -235,7 +235,7 @@ impl<S> Module<S> {
         }
         self.ctx.flush_pending();
         self.deliver_failures(waiter);
-        if self.ctx.heartbeats.due(now) {
+        if self.ctx.liveness.heartbeats.due(now) {
             self.ctx.beat(ModuleState::Running);
             self.realtime = realtime_thread();
         }
@@ -267,7 +267,7 @@ impl<S> Module<S> {
             if let Ok(e) = self.ctx.book.lookup(name) {
                 let addr = e.addr;
                 if e.methods.is_none() {
-                    let _ = self.ctx.tx.connect(addr);
+                    let _ = self.ctx.link.tx.connect(addr);
                     self.ctx.describe(addr);
                 }
             }
@@ -284,6 +284,7 @@ impl<S> Module<S> {
         let (bb, addr) = (&mut self.ctx.bb, self.ctx.addr);
         if let Err(e) = self
             .ctx
+            .link
             .snapshots
             .publish(len, &mut |buf| bb.write_snapshot(buf, addr, now))
         {
@@ -455,7 +456,7 @@ impl<S> Module<S> {
     }
 
     pub(crate) fn should_stop(&self) -> bool {
-        self.ctx.stop || crate::signals::termination_requested()
+        self.ctx.liveness.stop || crate::signals::termination_requested()
     }
 
     /// Time until housekeeping has work next (blocking mode sleeps at most this long, unless a
@@ -464,7 +465,7 @@ impl<S> Module<S> {
     pub(crate) fn idle_budget(&self) -> Duration {
         let now = self.ctx.now_ns();
         // A published directory is looked at on every wake-up, at least once a heartbeat.
-        let refresh = if self.ctx.directory.published() {
+        let refresh = if self.ctx.link.directory.published() {
             u64::MAX
         } else {
             self.next_refresh_ns
@@ -487,7 +488,7 @@ impl<S> Module<S> {
             .copied()
             .chain([
                 refresh,
-                self.ctx.heartbeats.next_ns,
+                self.ctx.liveness.heartbeats.next_ns,
                 self.ctx.out.calls.next_due_ns(),
                 snapshot,
                 pending,
@@ -510,11 +511,11 @@ impl<S> Drop for Module<S> {
         // module, then clean the domain if it was the last one.
         self.ctx.beat(ModuleState::Stopping);
         self.rx = Box::new(Closed);
-        self.ctx.tx = Box::new(Closed);
-        self.ctx.snapshots = Box::new(Closed);
+        self.ctx.link.tx = Box::new(Closed);
+        self.ctx.link.snapshots = Box::new(Closed);
         // The directory too: a supervisor's published one is a service this module holds, and
         // whether anyone still holds it says whether this module may be the last to leave.
-        self.ctx.directory = Box::new(Closed);
+        self.ctx.link.directory = Box::new(Closed);
         if self.transport.sweep_if_empty() {
             tracing::debug!("last module of the domain left: its files are removed");
         }

@@ -124,7 +124,7 @@ impl Supervisor {
                 self.spec.modules.len() - 1
             }
         };
-        self.name_width = self.name_width.max(name.len());
+        self.logs.name_width = self.logs.name_width.max(name.len());
         self.spawn(i).map_err(|e| {
             self.slots[i].state = RunState::Retired;
             SpawnHostError::Spawn(e)
@@ -176,7 +176,7 @@ impl Supervisor {
             }
             None => slot.state = RunState::Retired,
         }
-        self.changes += 1;
+        self.shown.changed();
     }
 }
 

@@ -42,6 +42,7 @@ mod child;
 mod endpoint;
 mod hosts;
 mod shared;
+mod shown;
 mod sweep;
 pub use modbot_transport::launch as env;
 pub mod policy;
@@ -77,6 +78,7 @@ use policy::{Decision, ExitReason, RestartTracker};
 use relay::Relay;
 use roster::Roster;
 use shared::Shared;
+use shown::Shown;
 use status::{Row, RunState};
 use sweep::sweep;
 
@@ -192,32 +194,36 @@ impl Slot {
 
 /// A running system.
 pub struct Supervisor {
+    /// The system: its modules (the grid's processes and assembly hosts added as they come)
+    /// and how they are supervised.
     spec: SystemSpec,
     /// When to stop: handed over by the program that runs the supervisor.
     shutdown: Shutdown,
+    /// The domain the system runs in.
     domain: Domain,
+    /// One per module of `spec`, in its order: its process and what the supervisor knows of it.
     slots: Vec<Slot>,
+    /// The supervisor's own module (`supervisor`): its methods and the state they share.
     endpoint: Module<Shared>,
+    /// The published directory of the domain's modules.
     roster: Roster,
+    /// Relays the calls of tools that found no free address.
     relay: Relay,
+    /// The modules' heartbeats.
     heartbeats: HeartbeatMonitor,
-    logs_tx: Sender<LogLine>,
-    logs: Receiver<LogLine>,
+    /// The modules' output lines, forwarded with their names.
+    logs: Logs,
+    /// When the supervisor started (its clock for deadlines and restarts).
     epoch: Instant,
     /// The same instant on CLOCK_MONOTONIC, which every module gets as `MODBOT_EPOCH_NS`, and
     /// the other settings every module gets alike.
     system: SystemEnv,
-    name_width: usize,
+    /// What went wrong, one line each, for the summary.
     problems: Vec<String>,
+    /// A module did not stop within its grace period when the system stopped.
     stop_failed: bool,
-    /// Counts changes of what the supervisor shows (a module's state, pid, methods); the live
-    /// table, the status rows and the directory each remember the count they last showed.
-    changes: u64,
-    table_shown: u64,
-    rows_shown: u64,
-    directory_shown: u64,
-    /// When the status rows that `status` answers were last built.
-    rows_built: Option<Instant>,
+    /// What the supervisor shows, and when each view is due.
+    shown: Shown,
     /// SIGCHLD tells when a child ended (else every child is looked at on every wake-up).
     child_signal: bool,
     /// When every child was last looked at regardless of SIGCHLD.
@@ -225,6 +231,16 @@ pub struct Supervisor {
     /// Modules that came up and the supervisor has no link to yet: it opens them a few at a
     /// time while idle, so that the first calls it relays for a tool find them open.
     to_connect: Vec<Addr>,
+}
+
+/// The modules' output, as the supervisor forwards it: `name | line`.
+struct Logs {
+    /// Given to each child's output threads.
+    tx: Sender<LogLine>,
+    /// Read by the supervisor's loop.
+    rx: Receiver<LogLine>,
+    /// The width of the name column (the longest module name).
+    name_width: usize,
 }
 
 impl Supervisor {
@@ -275,7 +291,7 @@ impl Supervisor {
         if let Err(e) = &child_signal {
             tracing::debug!("SIGCHLD handler: {e}; children are looked at on every wake-up");
         }
-        let (logs_tx, logs) = unbounded();
+        let (tx, rx) = unbounded();
         let slots = spec
             .modules
             .iter()
@@ -291,18 +307,12 @@ impl Supervisor {
             roster,
             relay,
             heartbeats,
-            logs_tx,
-            logs,
+            logs: Logs { tx, rx, name_width },
             epoch,
             system,
-            name_width,
             problems: Vec::new(),
             stop_failed: false,
-            changes: 1,
-            table_shown: 0,
-            rows_shown: 0,
-            directory_shown: 0,
-            rows_built: None,
+            shown: Shown::new(),
             child_signal: child_signal.is_ok(),
             children_seen: Instant::now(),
             to_connect: Vec::new(),
@@ -346,10 +356,10 @@ impl Supervisor {
             self.watch();
             self.forward_logs();
             if opts.show_status
-                && self.changes != self.table_shown
+                && self.shown.table_stale()
                 && last_table.elapsed() > Duration::from_millis(200)
+                && self.shown.table_due()
             {
-                self.table_shown = self.changes;
                 last_table = Instant::now();
                 self.print_table();
             }
@@ -406,7 +416,7 @@ impl Supervisor {
     /// A line of the supervisor's own, on stdout.
     fn say(&self, text: &str) {
         let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{:>w$} | {text}", "modbot", w = self.name_width);
+        let _ = writeln!(out, "{:>w$} | {text}", "modbot", w = self.logs.name_width);
     }
 
     fn print_table(&mut self) {
@@ -448,7 +458,7 @@ impl Supervisor {
             &self.domain,
             &self.spec.supervision,
             &self.system,
-            &self.logs_tx,
+            &self.logs.tx,
         )
         .map_err(|source| SupervisorError::Spawn {
             module: m.name.clone(),
@@ -465,7 +475,7 @@ impl Supervisor {
         slot.started_ns = now;
         slot.last_beat_ns = 0;
         slot.killed_for = None;
-        self.changes += 1;
+        self.shown.changed();
         Ok(())
     }
 
@@ -515,19 +525,11 @@ impl Supervisor {
 
     /// Serves the supervisor's own calls (`status`, `down`) and keeps its phone book fresh.
     fn serve(&mut self) {
-        if self.changes != self.directory_shown || self.roster.changed() {
-            self.directory_shown = self.changes;
+        if self.shown.directory_due(self.roster.changed()) {
             self.publish_directory();
         }
-        // The rows `status` answers: at once after a change, else fresh counters 4 times a
-        // second (building them for hundreds of modules on every wake-up costs).
-        if self
-            .rows_built
-            .is_none_or(|t| t.elapsed() >= Duration::from_millis(250))
-            || self.changes != self.rows_shown
-        {
-            self.rows_shown = self.changes;
-            self.rows_built = Some(Instant::now());
+        // The rows `status` answers: at once after a change, else with fresh counters.
+        if self.shown.rows_due() {
             let rows = self.rows();
             self.endpoint.state_mut().rows = rows;
         }
@@ -598,11 +600,11 @@ impl Supervisor {
             slot.counters = counters;
             if slot.methods_digest != digest {
                 slot.methods_digest = digest;
-                self.changes += 1;
+                self.shown.changed();
             }
             if slot.state == RunState::Starting && state == ModuleState::Running {
                 slot.state = RunState::Running;
-                self.changes += 1;
+                self.shown.changed();
                 // Its start (loading, opening channels: milliseconds to seconds of work) ran
                 // at normal priority; now that it is up, its real-time settings apply, so a
                 // process starting beside a running grid never holds up the grid's threads.
@@ -666,14 +668,14 @@ impl Supervisor {
         self.publish_directory();
         if self.slots[i].retiring {
             self.slots[i].state = RunState::Retired;
-            self.changes += 1;
+            self.shown.changed();
             return;
         }
         let name = self.spec.modules[i].name.clone();
         let decision = self.slots[i].tracker.on_exit(&reason, now);
         let slot = &mut self.slots[i];
         slot.last_exit = Some(reason.clone());
-        self.changes += 1;
+        self.shown.changed();
         match decision {
             Decision::RestartAt(at) => {
                 slot.state = RunState::Restarting;
@@ -714,7 +716,7 @@ impl Supervisor {
         let name = m.name.clone();
         let stop = m.restart.give_up == GiveUp::StopSystem;
         self.slots[i].state = RunState::Failed;
-        self.changes += 1;
+        self.shown.changed();
         self.say(&format!(
             "{name} FAILED: {why}; {}",
             if stop {
@@ -771,13 +773,13 @@ impl Supervisor {
 
     fn forward_logs(&mut self) {
         let mut out = std::io::stdout().lock();
-        while let Ok(LogLine { module, line }) = self.logs.try_recv() {
+        while let Ok(LogLine { module, line }) = self.logs.rx.try_recv() {
             let name = self
                 .spec
                 .modules
                 .get(module)
                 .map_or("?", |m| m.name.as_str());
-            let _ = writeln!(out, "{name:>w$} | {line}", w = self.name_width);
+            let _ = writeln!(out, "{name:>w$} | {line}", w = self.logs.name_width);
         }
     }
 

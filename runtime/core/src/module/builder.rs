@@ -13,7 +13,7 @@ use super::{
 use crate::beat::Heartbeats;
 use crate::blackboard::Blackboard;
 use crate::clock::{Clock, MonotonicClock};
-use crate::ctx::Ctx;
+use crate::ctx::{Ctx, Link, Liveness};
 use crate::error::ModuleError;
 use crate::phonebook::PhoneBook;
 use crate::stats::Stats;
@@ -219,18 +219,22 @@ impl<S> ModuleBuilder<S> {
             addr: endpoint.addr,
             name: b.name.clone(),
             mode: b.mode,
-            tx: endpoint.tx,
-            snapshots: endpoint.snapshots,
-            directory: endpoint.directory,
+            link: Link {
+                tx: endpoint.tx,
+                snapshots: endpoint.snapshots,
+                directory: endpoint.directory,
+            },
             bb: b.blackboard.unwrap_or_else(Blackboard::empty),
             out: Default::default(),
             book: PhoneBook::new(),
             clock: b.clock,
             serving: Default::default(),
-            stop: false,
             stats: Stats::default(),
-            active: true,
-            heartbeats: Heartbeats::new(beat_period_ns, now, methods_digest),
+            liveness: Liveness {
+                stop: false,
+                active: true,
+                heartbeats: Heartbeats::new(beat_period_ns, now, methods_digest),
+            },
         };
         let tasks = b
             .tasks

@@ -137,17 +137,15 @@ fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
 
 /// The grid's clock and bookkeeping.
 pub struct Coordinator<W: Write> {
+    /// The grid it runs (with assemblies: the running assembly's).
     spec: GridSpec,
+    /// Per component: its period, host, policy, sources and what it is doing now.
     comps: Vec<Comp>,
+    /// Per host: its release publisher and wake-up.
     hosts: Vec<HostLink>,
-    done: Sub,
-    /// Hosts notify it after each batch of done notices: the coordinator sleeps on it while it
-    /// waits for a due one.
-    done_wake: Listener,
-    /// Scratch: the done notices of one sample.
-    done_scratch: Vec<Done>,
-    /// Ends a wait for a due done notice early (see [`Coordinator::with_shutdown`]).
-    shutdown: Shutdown,
+    /// The hosts' done notices, and how long to wait for them.
+    notices: DoneNotices,
+    /// The trace, if one is written.
     recorder: Option<Recorder<W>>,
     /// Scratch: the valid version of every component, for the recorder.
     versions: Vec<u64>,
@@ -155,24 +153,45 @@ pub struct Coordinator<W: Write> {
     tick: u64,
     /// How the wake-ups kept to the base tick.
     timing: TickTiming,
+    /// Why the grid (or the running assembly) faulted, once it did.
     fault: Option<String>,
-    /// How long to wait at a tick for a due component's late done notice before calling it
-    /// an overrun (absorbs the wake-up latency of the notice).
-    grace_ns: u64,
     /// Every overrun (tick, component, the release still running) and stale release (its
     /// tick twice), for the trace.
     /// Only with a trace (it is written at the trace's end).
     overrun_log: Vec<(u64, usize, u64, Miss)>,
     /// The assembly being prepared, if one is.
     incoming: Option<Incoming>,
+    /// What switches left behind: their record, the hosts and links to stop and drop.
+    switched: Switched,
+    /// Scratch: the ledger's state text.
+    state_text: String,
+}
+
+/// The hosts' done notices, as the coordinator waits for them.
+struct DoneNotices {
+    /// The notices.
+    sub: Sub,
+    /// Hosts notify it after each batch of done notices: the coordinator sleeps on it while it
+    /// waits for a due one.
+    wake: Listener,
+    /// Scratch: the done notices of one sample.
+    scratch: Vec<Done>,
+    /// Ends a wait for a due done notice early (see [`Coordinator::with_shutdown`]).
+    shutdown: Shutdown,
+    /// How long to wait at a tick for a due component's late done notice before calling it
+    /// an overrun (absorbs the wake-up latency of the notice).
+    grace_ns: u64,
+}
+
+/// What assembly switches left behind, for the service thread to take.
+#[derive(Default)]
+struct Switched {
     /// Switches done: (generation, assembly, announced tick, tick it took over).
-    switches: Vec<(Generation, String, u64, u64)>,
+    record: Vec<(Generation, String, u64, u64)>,
     /// Host processes of replaced assemblies, to be stopped (module names).
     retired: Vec<String>,
     /// Links to hosts no longer released, to be dropped off the tick thread.
     retired_links: Vec<HostLink>,
-    /// Scratch: the ledger's state text.
-    state_text: String,
 }
 
 impl<W: Write> Coordinator<W> {
@@ -196,21 +215,21 @@ impl<W: Write> Coordinator<W> {
             versions: vec![0; comps.len()],
             comps,
             hosts,
-            done: wire::done_subscriber(node)?,
-            done_wake: wire::done_wake_listener(node)?,
-            done_scratch: Vec::with_capacity(wire::DONE_BATCH),
-            shutdown: Shutdown::new(),
+            notices: DoneNotices {
+                sub: wire::done_subscriber(node)?,
+                wake: wire::done_wake_listener(node)?,
+                scratch: Vec::with_capacity(wire::DONE_BATCH),
+                shutdown: Shutdown::new(),
+                grace_ns: 0,
+            },
             recorder,
             spec,
             tick: 0,
             timing: TickTiming::default(),
             fault: None,
-            grace_ns: 0,
             overrun_log: Vec::new(),
             incoming: None,
-            switches: Vec::new(),
-            retired: Vec::new(),
-            retired_links: Vec::new(),
+            switched: Switched::default(),
             state_text: String::with_capacity(128),
         })
     }
@@ -218,14 +237,14 @@ impl<W: Write> Coordinator<W> {
     /// Stops waiting for a due done notice when `shutdown` is requested (a lockstep grid waits
     /// for them without a limit of time otherwise).
     pub fn with_shutdown(mut self, shutdown: Shutdown) -> Self {
-        self.shutdown = shutdown;
+        self.notices.shutdown = shutdown;
         self
     }
 
     /// Waits up to `grace_ns` at a tick for a due component's done notice before counting an
     /// overrun.
     pub fn with_grace(mut self, grace_ns: u64) -> Self {
-        self.grace_ns = grace_ns;
+        self.notices.grace_ns = grace_ns;
         self
     }
 
@@ -251,7 +270,7 @@ impl<W: Write> Coordinator<W> {
             }
             let mut answered = 0;
             while answered < self.hosts.len() && std::time::Instant::now() < until {
-                let received = self.done.receive(&mut |sample| {
+                let received = self.notices.sub.receive(&mut |sample| {
                     if let Ok(batch) = Done::batch(sample) {
                         answered += batch
                             .filter(|d| d.component.get() == PING && d.tick.get() == round)
@@ -373,9 +392,9 @@ impl<W: Write> Coordinator<W> {
         loop {
             // Copied out of the sample (no allocation: a sample holds at most
             // `wire::DONE_BATCH` notices), so the sample goes back before they are taken.
-            let mut scratch = std::mem::take(&mut self.done_scratch);
+            let mut scratch = std::mem::take(&mut self.notices.scratch);
             scratch.clear();
-            let received = self.done.receive(&mut |sample| {
+            let received = self.notices.sub.receive(&mut |sample| {
                 if let Ok(batch) = Done::batch(sample) {
                     scratch.extend(batch.copied());
                 }
@@ -383,7 +402,7 @@ impl<W: Write> Coordinator<W> {
             for done in &scratch {
                 self.take_one_done(n, base, current, done);
             }
-            self.done_scratch = scratch;
+            self.notices.scratch = scratch;
             if !matches!(received, Ok(true)) {
                 break;
             }
@@ -501,14 +520,14 @@ impl<W: Write> Coordinator<W> {
     /// keeping a core from the hosts), in lockstep until they are done.
     fn await_due(&mut self, n: u64) {
         let lockstep = self.spec.timing.clock == GridClock::Lockstep;
-        if (!lockstep && self.grace_ns == 0) || !self.due_pending(n) {
+        if (!lockstep && self.notices.grace_ns == 0) || !self.due_pending(n) {
             return;
         }
         let start = std::time::Instant::now();
         let budget = if lockstep {
             LOCKSTEP_STUCK
         } else {
-            core::time::Duration::from_nanos(self.grace_ns)
+            core::time::Duration::from_nanos(self.notices.grace_ns)
         };
         let spin = core::time::Duration::from_micros(self.spec.timing.spin_us).min(budget);
         while start.elapsed() < spin {
@@ -520,13 +539,13 @@ impl<W: Write> Coordinator<W> {
         }
         loop {
             // Taken before looking: a done notice sent after this wakes the wait below.
-            self.done_wake.drain();
+            self.notices.wake.drain();
             self.take_done(n);
             if !self.due_pending(n) {
                 return;
             }
             let left = budget.saturating_sub(start.elapsed());
-            if left.is_zero() || self.shutdown.requested() {
+            if left.is_zero() || self.notices.shutdown.requested() {
                 if lockstep && left.is_zero() {
                     tracing::error!(
                         "lockstep: a release due at tick {n} is not done after {} s (a host \
@@ -542,7 +561,7 @@ impl<W: Write> Coordinator<W> {
             } else {
                 left
             };
-            self.done_wake.wait(Some(slice));
+            self.notices.wake.wait(Some(slice));
         }
     }
 

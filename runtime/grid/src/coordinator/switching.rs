@@ -170,7 +170,7 @@ impl<W: Write> Coordinator<W> {
             .into_iter()
             .partition(|h| h.generation == Generation::SYSTEM);
         self.hosts = keep;
-        self.retired_links.extend(old_links);
+        self.switched.retired_links.extend(old_links);
         let offset = self.hosts.len();
         self.hosts.extend(inc.hosts);
         self.comps.truncate(base);
@@ -193,14 +193,16 @@ impl<W: Write> Coordinator<W> {
             .map_or(String::new(), |a| a.name.clone());
         let generation = self.spec.generation();
         let announced = inc.schedule.map_or(n, |(_, at)| at);
-        self.switches.push((generation, name.clone(), announced, n));
+        self.switched
+            .record
+            .push((generation, name.clone(), announced, n));
         if let Some(why) = self.fault.take() {
             tracing::info!("the fault ends with the switch: {why}");
         }
         tracing::info!(
             "tick {n}: assembly {name} (generation {generation}) took over from generation {old}"
         );
-        self.retired.extend(old_hosts);
+        self.switched.retired.extend(old_hosts);
     }
 
     /// Begins preparing `spec` (a grid with the next assembly, of a new generation): its
@@ -292,7 +294,7 @@ impl<W: Write> Coordinator<W> {
     pub fn abort_switch(&mut self) -> Vec<String> {
         match self.incoming.take() {
             Some(mut inc) => {
-                self.retired_links.append(&mut inc.hosts);
+                self.switched.retired_links.append(&mut inc.hosts);
                 inc.host_names
                     .iter()
                     .map(|h| inc.spec.host_module(h))
@@ -330,16 +332,16 @@ impl<W: Write> Coordinator<W> {
 
     /// The switches done: (generation, assembly, announced tick, tick it took over).
     pub fn switches(&self) -> &[(Generation, String, u64, u64)] {
-        &self.switches
+        &self.switched.record
     }
 
     /// The module names of the hosts of replaced assemblies, to be stopped; each once.
     /// The links to the hosts of the assembly that was replaced, to be dropped elsewhere.
     pub fn take_retired_links(&mut self) -> Vec<HostLink> {
-        std::mem::take(&mut self.retired_links)
+        std::mem::take(&mut self.switched.retired_links)
     }
 
     pub fn take_retired(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.retired)
+        std::mem::take(&mut self.switched.retired)
     }
 }
