@@ -15,6 +15,8 @@
 //! - `units`: `comp.port=unit` joined by `;` (empty: none known);
 //! - `sources`: the description files whose text the recording keeps (the system's, then the
 //!   assembly's), joined by newlines;
+//! - `source_texts`: their texts as the system was loaded from them, in the same order, each
+//!   ended by a NUL character (empty: the recorder reads the files);
 //! - `lossless`: wait for the writer rather than drop a row when it is behind — the lockstep
 //!   clock's choice, where a release may take as long as it needs (default false: a release
 //!   never waits, a row that finds no room is dropped and counted).
@@ -35,7 +37,18 @@ pub const SIGNALS: &str = "signals";
 pub const FILE: &str = "file";
 pub const UNITS: &str = "units";
 pub const SOURCES: &str = "sources";
+pub const SOURCE_TEXTS: &str = "source_texts";
 pub const LOSSLESS: &str = "lossless";
+
+/// The `source_texts` param of `texts`: each ended by a NUL character.
+pub fn texts_param<'a>(texts: impl Iterator<Item = &'a str>) -> String {
+    texts.flat_map(|t| [t, "\0"]).collect()
+}
+
+/// The texts of a `source_texts` param (none for an empty one).
+pub fn parse_texts(param: &str) -> Vec<&str> {
+    param.split_terminator('\0').collect()
+}
 
 /// One recorded signal: the output it reads (`comp.port`, also its input's name) and its type.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -112,6 +125,7 @@ pub fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
             ParamDecl::required(FILE, ParamType::Text),
             ParamDecl::optional(UNITS, ParamType::Text, text()),
             ParamDecl::optional(SOURCES, ParamType::Text, text()),
+            ParamDecl::optional(SOURCE_TEXTS, ParamType::Text, text()),
             ParamDecl::optional(LOSSLESS, ParamType::Bool, ParamValue::Bool(false)),
         ],
     })

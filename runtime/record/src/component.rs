@@ -35,6 +35,25 @@ pub fn register(registry: &mut Registry) {
     registry.register(record_type::info, make);
 }
 
+/// The description files and their texts: as the system was loaded (`source_texts`), or else
+/// as the files hold them now.
+fn sources(p: &Params) -> Result<Vec<(String, String)>, ComponentError> {
+    let paths: Vec<&str> = p.text(record_type::SOURCES)?.lines().collect();
+    let texts = record_type::parse_texts(p.text(record_type::SOURCE_TEXTS)?);
+    Ok(paths
+        .iter()
+        .enumerate()
+        .map(|(i, path)| {
+            let text = match texts.get(i) {
+                Some(text) if texts.len() == paths.len() => (*text).to_owned(),
+                _ => std::fs::read_to_string(path)
+                    .unwrap_or_else(|e| format!("(the description could not be read: {e})")),
+            };
+            ((*path).to_owned(), text)
+        })
+        .collect())
+}
+
 /// A recorder for these (complete) params: creates its file and starts its writer.
 pub fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
     let signals = record_type::parse_signals(p.text(record_type::SIGNALS)?)?;
@@ -49,15 +68,7 @@ pub fn make(p: &Params) -> Result<Box<dyn Component>, ComponentError> {
         base_period_s,
         period_s,
         units: record_type::parse_units(p.text(record_type::UNITS)?),
-        sources: p
-            .text(record_type::SOURCES)?
-            .lines()
-            .map(|path| {
-                let text = std::fs::read_to_string(path)
-                    .unwrap_or_else(|e| format!("(the description could not be read: {e})"));
-                (path.to_owned(), text)
-            })
-            .collect(),
+        sources: sources(p)?,
     };
     let width = HEAD_WORDS + signals.iter().map(|s| s.ty.wire_len() / 8).sum::<usize>();
     let per_second = 1.0 / period_s;

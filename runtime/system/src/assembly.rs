@@ -163,7 +163,13 @@ pub fn load_assembly(
             .filter_map(|mut r| {
                 r.file = record_decl::file_of(&r.file, &origin.vars, Some(name))?;
                 r.line += LINE_OFFSET;
-                r.sources = vec![record_decl::absolute(&origin.system_file), file.clone()];
+                r.sources = vec![
+                    (
+                        record_decl::absolute(&origin.system_file),
+                        origin.system_text.clone(),
+                    ),
+                    (file.clone(), source.clone()),
+                ];
                 Some(r)
             })
             .collect();
@@ -193,6 +199,7 @@ pub fn load_assembly(
             decls: (grid, base_components, base_connections),
             vars: origin.vars.clone(),
             system_file: origin.system_file.clone(),
+            system_text: origin.system_text.clone(),
             data: origin.data.clone(),
         })),
     });

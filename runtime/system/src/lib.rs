@@ -393,7 +393,7 @@ pub fn load_str_with_registry(
     registry: &Registry,
 ) -> Result<SystemSpec, SystemError> {
     let declarations = lua::evaluate(file_name, source, vars, None)?;
-    validate::build(file_name, declarations, resolver, registry, vars)
+    validate::build(file_name, source, declarations, resolver, registry, vars)
 }
 
 /// Reads one `--var KEY=VALUE`: the key is what comes before the first `=`, made of ASCII

@@ -53,6 +53,11 @@ fn a_record_becomes_a_component_on_a_host_of_its_own_fed_by_its_signals() {
     assert_eq!(text(sut, "file"), "/data/run.h5");
     assert_eq!(text(sut, "units"), "A.y=m");
     assert!(text(sut, "sources").ends_with("robot.lua"));
+    // The text as loaded: a recorder started later keeps it, whatever the file holds then.
+    assert_eq!(
+        record_type::parse_texts(text(sut, record_type::SOURCE_TEXTS)),
+        [source.as_str()]
+    );
     assert_eq!(sut.params.get("lossless"), Some(&ParamValue::Bool(false)));
     let grid = spec.grid.as_ref().unwrap();
     let fed = grid

@@ -27,6 +27,7 @@ use modbot_grid::{GridSpec, Registry};
 /// against the component types of `registry`.
 pub(super) fn build(
     file: &str,
+    text: &str,
     decls: Declarations,
     resolver: &dyn ProgramResolver,
     registry: &Registry,
@@ -156,11 +157,17 @@ pub(super) fn build(
         &mut components,
         Path::new(file).parent().unwrap_or(Path::new("")),
     );
-    let records = records(file, decls.records, &components, decls.grid.as_ref(), vars)?;
+    let records = records(
+        (file, text),
+        decls.records,
+        &components,
+        decls.grid.as_ref(),
+        vars,
+    )?;
     let refused = |e: GridError| SystemError::caused(file, e.line, e.kind);
     let grid = match decls.grid {
         Some(grid) if grid.assemblies.is_some() => Some(with_assemblies(
-            file,
+            (file, text),
             &domain,
             grid,
             (components, decls.connections),
@@ -224,7 +231,7 @@ pub(super) fn build(
 // The description's parts a grid with assemblies is made of, each its own argument.
 #[allow(clippy::too_many_arguments)]
 fn with_assemblies(
-    file: &str,
+    (file, text): (&str, &str),
     domain: &str,
     grid: GridDecl,
     (mut components, mut connections): (Vec<ComponentDecl>, Vec<ConnectDecl>),
@@ -272,6 +279,7 @@ fn with_assemblies(
                     decls: (grid.clone(), components, connections),
                     vars: vars.to_vec(),
                     system_file: file.to_owned(),
+                    system_text: text.to_owned(),
                     data: Some(modbot_data::path_for(domain)),
                 })),
             }),
@@ -350,13 +358,13 @@ fn runtime_programs(
 /// components. A declared one without a file and without FILE runs only `on_demand`, writing
 /// between a program's `record { }` and `stop_record { }` (an empty `file`).
 fn records(
-    file: &str,
+    (file, text): (&str, &str),
     mut records: Vec<RecordDecl>,
     components: &[ComponentDecl],
     grid: Option<&GridDecl>,
     vars: &[(String, String)],
 ) -> Result<Vec<RecordDecl>, SystemError> {
-    let source = record_decl::absolute(file);
+    let source = (record_decl::absolute(file), text.to_owned());
     for r in &mut records {
         r.sources = vec![source.clone()];
     }

@@ -111,6 +111,8 @@ pub struct AssemblySource {
     pub vars: Vec<(String, String)>,
     /// The system description's file, for messages.
     pub system_file: String,
+    /// Its text as the system was loaded from it (what an assembly's recorder keeps).
+    pub system_text: String,
     /// The domain's assembly data (`modbot-data`), which assembly files read with `data(key)`
     /// (`None`: they read nothing).
     pub data: Option<std::path::PathBuf>,

@@ -32,8 +32,10 @@ pub struct RecordDecl {
     pub period: Period,
     /// The units the declaration knows: (signal, unit).
     pub units: Vec<(String, String)>,
-    /// The description files whose text the recording keeps: the system's, then an assembly's.
-    pub sources: Vec<String>,
+    /// The description files the recording keeps, with their text as the system was loaded
+    /// from it (path, text): the system's, then an assembly's. The recorder stores this text,
+    /// not what the file holds when it starts (a description edited meanwhile changes nothing).
+    pub sources: Vec<(String, String)>,
     pub line: u32,
 }
 
@@ -134,7 +136,22 @@ pub fn expand(
         )
         .with(record_type::FILE, text(r.file.clone()))
         .with(record_type::UNITS, text(record_type::units_text(&r.units)))
-        .with(record_type::SOURCES, text(r.sources.join("\n")))
+        .with(
+            record_type::SOURCES,
+            text(
+                r.sources
+                    .iter()
+                    .map(|(p, _)| p.as_str())
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            ),
+        )
+        .with(
+            record_type::SOURCE_TEXTS,
+            text(record_type::texts_param(
+                r.sources.iter().map(|(_, t)| t.as_str()),
+            )),
+        )
         .with(record_type::LOSSLESS, ParamValue::Bool(lossless));
     let connections = signals
         .iter()
