@@ -14,6 +14,7 @@ mod assembly_cmd;
 mod check_cmd;
 mod data_cmd;
 mod program_cmd;
+mod record_cmd;
 mod robot_cmd;
 mod rvmf_cmd;
 mod tool;
@@ -182,6 +183,11 @@ enum Command {
         #[command(subcommand)]
         command: data_cmd::DataCommand,
     },
+    /// Recordings (HDF5 files of the data recorder): `modbot record compare A.h5 B.h5`.
+    Record {
+        #[command(subcommand)]
+        command: record_cmd::RecordCommand,
+    },
     /// The robot's state as the bus bridge owns it (operational, safe stop, fault, disabled;
     /// since which tick and why), and `modbot robot reset`: an operator's reset after a safe
     /// stop or a drive fault, without a restart.
@@ -336,6 +342,7 @@ fn main() -> ExitCode {
         Command::Assembly { command } => assembly_cmd::run(&domain, command),
         Command::Program { command } => program_cmd::run(&domain, command),
         Command::Data { command } => data_cmd::run(&domain, command),
+        Command::Record { command } => record_cmd::run(command),
         Command::Down => tool::down(&domain),
         Command::Ls { tsv } => tool::ls(&domain, tsv),
         Command::Call {

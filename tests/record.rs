@@ -220,3 +220,71 @@ fn rows(path: &Path) -> u64 {
         .and_then(|out| String::from_utf8_lossy(&out.stdout).trim().parse().ok())
         .unwrap_or(0)
 }
+
+/// The arm in lockstep (holding, then `ptp` from tick 300), recorded three times: two runs
+/// alike are identical to the last bit in every row (`modbot record compare`, exit 0); a run
+/// whose `ptp` dwells 50 ms at its points differs, and the comparison names the first tick and
+/// signal that differ (exit 1).
+#[test]
+fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_first_difference() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("reccmp");
+    let arm = arm();
+    let domain = format!("domain={}", sut.name());
+    let mut run = |tag: &str, dwell: &str| {
+        let file = std::env::temp_dir().join(format!("{}.{tag}.h5", sut.name()));
+        let dwell = format!("dwell={dwell}");
+        let args = [
+            "up",
+            arm.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--var",
+            &dwell,
+            "--lockstep",
+            "--ticks",
+            "2500",
+            "--switch",
+            "300:ptp",
+            "--record",
+            file.to_str().unwrap(),
+        ];
+        let up = sut.spawn_logged("modbot", &args);
+        let status = sut.wait_exit(up, Duration::from_secs(300));
+        assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+        file
+    };
+    let (a, b, c) = (run("a", "0"), run("b", "0"), run("c", "0.05"));
+    let compare = |x: &PathBuf, y: &PathBuf| {
+        sut.modbot(&[
+            "record",
+            "compare",
+            x.to_str().unwrap(),
+            y.to_str().unwrap(),
+        ])
+    };
+    let same = compare(&a, &b);
+    let said = String::from_utf8_lossy(&same.stdout).into_owned();
+    assert_eq!(same.status.code(), Some(0), "{said}");
+    assert!(
+        said.starts_with("identical through tick 2499 (2500 rows,"),
+        "{said}"
+    );
+    let other = compare(&a, &c);
+    let said = String::from_utf8_lossy(&other.stdout).into_owned();
+    assert_eq!(other.status.code(), Some(1), "{said}");
+    assert!(said.starts_with("first differs at tick "), "{said}");
+    let tick: u64 = said["first differs at tick ".len()..]
+        .split(':')
+        .next()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{said}"));
+    assert!(
+        tick > 300,
+        "the runs are alike until ptp has reached its first point: {said}"
+    );
+    for f in [a, b, c] {
+        let _ = std::fs::remove_file(f);
+    }
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}

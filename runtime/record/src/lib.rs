@@ -21,6 +21,7 @@
 //! - [`read`]: a signal read back from a recording.
 
 pub mod batch;
+pub mod compare;
 pub mod component;
 pub mod control;
 pub mod file;
