@@ -351,8 +351,8 @@ fn master(args: &[String]) -> anyhow::Result<()> {
         let mut side = LoopSide::default();
         let mut work = || {
             let ok = bus.cycle();
-            if let Some((last, _, _)) = bus.backend.sync0_offset_ns() {
-                offsets.saturating_record(last.max(1));
+            if let Some(phase) = bus.backend.sync0_phase() {
+                offsets.saturating_record(phase.last_ns.max(1));
             }
             ok
         };

@@ -68,6 +68,22 @@ pub trait Backend: Send {
         actuals: &mut [AxisActual],
     ) -> Result<(), BusFault>;
 
+    /// One bus cycle of the grid's tick whose nominal time is `tick_ns` (ns of
+    /// CLOCK_MONOTONIC, the clock the coordinator's ticks are on; `None` for a cycle the
+    /// bridge runs on its own, or a grid that does not follow real time): a backend that
+    /// phase-locks its bus to the grid (distributed clocks) uses it; the others run
+    /// [`Backend::cycle`], the default.
+    fn cycle_at(
+        &mut self,
+        tick_ns: Option<u64>,
+        dt_s: f64,
+        commands: &[AxisCommand],
+        actuals: &mut [AxisActual],
+    ) -> Result<(), BusFault> {
+        let _ = tick_ns;
+        self.cycle(dt_s, commands, actuals)
+    }
+
     /// `fault` in words for the log and the ledger, naming the slave as the backend knows it.
     fn describe(&self, fault: &BusFault) -> String {
         fault.to_string()
@@ -108,14 +124,33 @@ pub trait Backend: Send {
     }
 
     /// With distributed clocks: where in the slaves' SYNC0 cycle the cycle's frame reached
-    /// the reference clock, ns: at the last cycle, the least and the most seen. `None` for a
-    /// backend without them.
-    fn sync0_offset_ns(&self) -> Option<(u64, u64, u64)> {
+    /// the reference clock, and whether SYNC0 is phase-locked to the grid's tick. `None` for
+    /// a backend without them.
+    fn sync0_phase(&self) -> Option<Sync0Phase> {
         None
     }
 
     /// The backend's name for logs and `modbot top`.
     fn name(&self) -> &'static str;
+}
+
+/// Where the cycle's frame reaches the reference clock in the slaves' SYNC0 cycle (ns after
+/// the last SYNC0 pulse, on the reference clock), and the phase lock of SYNC0 to the grid's
+/// tick.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Sync0Phase {
+    /// At the last cycle.
+    pub last_ns: u64,
+    /// The least seen since the lock was last won or lost (since the first cycle before).
+    pub least_ns: u64,
+    /// The most seen since then.
+    pub most_ns: u64,
+    /// Where a locked frame lands (SYNC0 fires one period minus this after the tick's
+    /// nominal time); `None` while the backend is not locking (no tick time: a lockstep grid).
+    pub target_ns: Option<u64>,
+    /// SYNC0 keeps a fixed phase to the tick: the frames' mean distance to the target is
+    /// within the lock window (see `modbot_ethercat::dc`).
+    pub locked: bool,
 }
 
 /// A bus cycle that did not reach every drive.

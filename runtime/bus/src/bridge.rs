@@ -18,10 +18,13 @@
 
 use std::sync::Mutex;
 
-use super::backend::{AxisActual, AxisCommand, Backend, BlockError, BusFault, DriveFault};
+use super::backend::{
+    AxisActual, AxisCommand, Backend, BlockError, BusFault, DriveFault, Sync0Phase,
+};
 use super::cia402::DriveState;
 use super::reset::{self, Recovery, ResetAsk};
 use super::robot_state::{self, RobotState};
+use super::tick_time::TickClock;
 
 /// Base periods without a release after which the coordinator counts as lost.
 pub const LOST_AFTER: u64 = 3;
@@ -117,6 +120,8 @@ pub struct Bridge {
     state: (usize, u64),
     /// The grid stopped normally: its silence is no lost coordinator.
     grid_stopped: bool,
+    /// The nominal time of the grid's ticks, for a backend that phase-locks its bus to them.
+    ticks: TickClock,
 }
 
 impl Bridge {
@@ -155,6 +160,7 @@ impl Bridge {
             sent: vec![0; n],
             state: (0, 0),
             grid_stopped: false,
+            ticks: TickClock::default(),
         }
     }
 
@@ -307,7 +313,13 @@ impl Bridge {
             *before = *last;
             *last = c.target_position;
         }
-        self.cycle(now_ns);
+        // In lockstep the ticks do not follow real time: nothing to lock to.
+        let tick_ns = if self.lockstep {
+            None
+        } else {
+            self.ticks.tick_ns(served.tick, now_ns, self.period_ns)
+        };
+        self.cycle(now_ns, tick_ns);
         self.recovery_cycle();
         self.note_state();
         &self.actuals
@@ -510,9 +522,13 @@ impl Bridge {
         self.backend.inject(axis, fault, on)
     }
 
-    fn cycle(&mut self, now_ns: u64) {
+    /// One bus cycle at `now_ns`, of the tick whose nominal time is `tick_ns` (`None`: a cycle
+    /// the bridge runs on its own).
+    fn cycle(&mut self, now_ns: u64, tick_ns: Option<u64>) {
         let dt = self.period_ns as f64 * 1e-9;
-        let result = self.backend.cycle(dt, &self.commands, &mut self.actuals);
+        let result = self
+            .backend
+            .cycle_at(tick_ns, dt, &self.commands, &mut self.actuals);
         self.bus_failure = match &result {
             Ok(()) => None,
             Err(fault) => Some(self.backend.describe(fault)),
@@ -621,7 +637,7 @@ impl Bridge {
             ));
         }
         if now_ns.saturating_sub(self.last_cycle_ns) >= self.period_ns {
-            self.cycle(now_ns);
+            self.cycle(now_ns, None);
             self.note_state();
             return true;
         }
@@ -751,8 +767,8 @@ pub struct BusView {
     pub max_step: f64,
     pub max_velocity_step: f64,
     pub actuals: Vec<AxisActual>,
-    /// With distributed clocks: the frame's place in the SYNC0 cycle (last, least, most), ns.
-    pub sync0_offset_ns: Option<(u64, u64, u64)>,
+    /// With distributed clocks: the frame's place in the SYNC0 cycle, and the phase lock.
+    pub sync0: Option<Sync0Phase>,
     /// The robot's state.
     pub robot: Option<RobotState>,
 }
@@ -779,7 +795,7 @@ impl BusView {
         self.max_step = b.max_step;
         self.max_velocity_step = b.max_velocity_step;
         self.actuals.clone_from(&b.actuals);
-        self.sync0_offset_ns = b.backend.sync0_offset_ns();
+        self.sync0 = b.backend.sync0_phase();
         // Cloned (its cause allocates) only when it changed.
         let kind_since = |r: &RobotState| (r.code(), r.since_tick());
         let now = (
@@ -834,13 +850,8 @@ impl BusView {
             }
         );
         out.push_str(&format!("robot {}\n", self.robot_state()));
-        if let Some((last, least, most)) = self.sync0_offset_ns {
-            out.push_str(&format!(
-                "distributed clocks: the frame reaches the reference clock {:.1} us into the SYNC0 cycle (least {:.1}, most {:.1})\n",
-                last as f64 / 1e3,
-                least as f64 / 1e3,
-                most as f64 / 1e3
-            ));
+        if let Some(phase) = &self.sync0 {
+            out.push_str(&sync0_line(phase));
         }
         if let Some(last) = self.switches.last() {
             out.push_str(&format!(
@@ -892,6 +903,29 @@ pub fn render_switches(record: &Switches) -> String {
         ));
     }
     text
+}
+
+/// The ledger's line of the distributed clocks: where the frame reaches the reference clock in
+/// the SYNC0 cycle (last, least, most) and whether SYNC0 is phase-locked to the grid's tick.
+pub fn sync0_line(p: &Sync0Phase) -> String {
+    let us = |ns: u64| ns as f64 / 1e3;
+    let lock = match (p.target_ns, p.locked) {
+        (Some(target), true) => format!(
+            "locked to the grid's tick (the frame due {:.1} us into the cycle)",
+            us(target)
+        ),
+        (Some(target), false) => format!(
+            "not locked yet (locking the frame to {:.1} us into the cycle)",
+            us(target)
+        ),
+        (None, _) => "not locked (no tick time: a lockstep grid does not follow real time)".into(),
+    };
+    format!(
+        "distributed clocks: the frame reaches the reference clock {:.1} us into the SYNC0 cycle (least {:.1}, most {:.1}); {lock}\n",
+        us(p.last_ns),
+        us(p.least_ns),
+        us(p.most_ns),
+    )
 }
 
 /// What the grid's release of the bus says besides its inputs.

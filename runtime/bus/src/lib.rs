@@ -38,12 +38,13 @@ pub mod reset;
 pub mod robot;
 pub mod robot_state;
 pub mod sim;
+pub mod tick_time;
 pub mod units;
 
 #[cfg(test)]
 mod tests;
 
-pub use backend::{error_text, AxisActual, AxisCommand, Backend, BusFault, DriveFault};
+pub use backend::{error_text, AxisActual, AxisCommand, Backend, BusFault, DriveFault, Sync0Phase};
 pub use cia402::{
     Command, DriveState, DriveStateMachine, FaultReason, IllegalCommand, ModeOfOperation,
     QuickStopOption, Transition, UnsupportedMode,

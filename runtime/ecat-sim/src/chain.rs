@@ -162,6 +162,16 @@ impl Chain {
         }
     }
 
+    /// The crystal of the slave at `position` runs `drift_ppm` off from now on (positive:
+    /// fast); 0 by default. Its time control loop, fed by the master's writes of the system
+    /// time, corrects it as an ESC does.
+    pub fn set_clock_drift_ppm(&mut self, position: usize, drift_ppm: f64) {
+        let now = self.clock.now_ns();
+        if let Some(slave) = self.slaves.get_mut(position) {
+            slave.esc.set_clock_drift_ppm(drift_ppm, now);
+        }
+    }
+
     /// The next `count` frames are lost on their way out: not processed, no reply.
     pub fn lose_next_frames(&mut self, count: u32) {
         self.frames_to_lose = self.frames_to_lose.saturating_add(count);

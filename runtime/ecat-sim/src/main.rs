@@ -65,6 +65,29 @@ struct Cli {
     /// torque_limit.
     #[arg(long = "joint", value_name = "NAME=VALUES", value_parser = parse_joint)]
     joints: Vec<(String, Vec<f64>)>,
+    /// The slaves' clock crystals run this many ppm off (positive: fast), one value for every
+    /// slave or a comma-separated list of one per slave, e.g. `--drift-ppm 100,-100` (0: an
+    /// ideal clock). Their time control loops correct it from the master's writes of the
+    /// system time, as an ESC's does.
+    #[arg(long = "drift-ppm", value_name = "PPM[,PPM...]", value_parser = parse_drift, allow_hyphen_values = true)]
+    drift_ppm: Option<Vec<f64>>,
+}
+
+fn parse_drift(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
+        .map(|v| {
+            let ppm = v
+                .trim()
+                .parse::<f64>()
+                .map_err(|e| format!("'{v}' in --drift-ppm: {e}"))?;
+            if ppm.abs() > 1_000.0 {
+                return Err(format!(
+                    "--drift-ppm {ppm}: beyond ±1000 ppm no ESC's loop follows (crystals are ±100)"
+                ));
+            }
+            Ok(ppm)
+        })
+        .collect()
 }
 
 /// The commands on standard input, for `--help`.
@@ -192,11 +215,25 @@ fn chain(cli: &Cli) -> anyhow::Result<Chain> {
         default_period_s: cli.period_us as f64 * 1e-6,
         ..ChainConfig::default()
     };
-    Ok(Chain::with_config(
-        slaves,
-        MonotonicClock::default(),
-        config,
-    ))
+    let mut chain = Chain::with_config(slaves, MonotonicClock::default(), config);
+    if let Some(drifts) = &cli.drift_ppm {
+        if drifts.len() != 1 && drifts.len() != cli.slaves {
+            anyhow::bail!(
+                "--drift-ppm: {} values for {} slaves (one for every slave, or one each)",
+                drifts.len(),
+                cli.slaves
+            );
+        }
+        for position in 0..cli.slaves {
+            let ppm = drifts
+                .get(position)
+                .or(drifts.first())
+                .copied()
+                .unwrap_or(0.0);
+            chain.set_clock_drift_ppm(position, ppm);
+        }
+    }
+    Ok(chain)
 }
 
 /// Applies one command line to the chain: the answer line.

@@ -105,6 +105,8 @@ pub struct Slave {
     pub(crate) frame_ns: u64,
     /// Chain time of the last output write (for the sync manager watchdog).
     pub(crate) last_outputs_ns: u64,
+    /// Where in its SYNC0 cycle the last frame that exchanged its process data found it, ns.
+    pub(crate) sync0_offset_ns: Option<u64>,
 }
 
 impl std::fmt::Debug for Slave {
@@ -141,6 +143,7 @@ impl Slave {
             steps: 0,
             frame_ns: 0,
             last_outputs_ns: 0,
+            sync0_offset_ns: None,
         };
         slave.power_on(0);
         slave
@@ -156,6 +159,7 @@ impl Slave {
         self.outputs = PdoLayout::default();
         self.inputs = PdoLayout::default();
         self.steps = 0;
+        self.sync0_offset_ns = None;
         for sm in 0..4 {
             self.esc.set_sm_deactivated(sm, true);
         }
@@ -215,6 +219,13 @@ impl Slave {
     /// Application steps since power-on.
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Where in its SYNC0 cycle (on its own system time) the last frame that exchanged its
+    /// process data reached this slave, ns: the offset a phase lock keeps constant. `None`
+    /// without SYNC0 or before its first pulse.
+    pub fn sync0_offset_ns(&self) -> Option<u64> {
+        self.sync0_offset_ns
     }
 
     /// The outputs layout in force (empty before SAFE-OP).
@@ -331,6 +342,9 @@ impl Slave {
             if self.esc.logical_read(logical, datagram.data_mut(), timing) {
                 increment += 1;
             }
+        }
+        if increment > 0 {
+            self.sync0_offset_ns = self.esc.sync0_phase_ns(timing.port0_ns);
         }
         increment
     }

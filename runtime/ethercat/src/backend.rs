@@ -15,12 +15,15 @@
 //! cannot re-enable a drive by repeating a stale controlword.
 
 use ethercrab::subdevice_group::Op;
-use ethercrab::{DefaultLock, MainDevice, SubDeviceGroup, SubDeviceState};
+use ethercrab::{
+    Command, DefaultLock, MainDevice, RegisterAddress, SubDeviceGroup, SubDeviceState,
+};
 use modbot_bus::backend::MISSING_COMMAND;
 use modbot_bus::cia402::DriveState;
-use modbot_bus::{AxisActual, AxisCommand, Backend, BusFault};
+use modbot_bus::{AxisActual, AxisCommand, Backend, BusFault, Sync0Phase};
 
 use crate::config::{DriveConfig, EthercatConfig};
+use crate::dc::GridLock;
 use crate::error::EthercatError;
 use crate::master::{Master, Running, SlaveInfo, MAX_PDI, MAX_SLAVES};
 use crate::pdo;
@@ -38,9 +41,15 @@ pub struct EthercatBackend {
     held: Vec<bool>,
     /// The process data's working counter when every slave does its part.
     expected_wkc: u16,
-    /// With distributed clocks: where in the SYNC0 cycle the last frame was, ns (ethercrab's
-    /// `cycle_start_offset`), and the least and most seen.
-    sync0_offset_ns: Option<(u64, u64, u64)>,
+    /// With distributed clocks: the phase lock of SYNC0 to the grid's tick, and where each
+    /// frame lands in the SYNC0 cycle.
+    lock: GridLock,
+    /// With distributed clocks: the reference clock's station address (the first slave with
+    /// a clock), into whose system time each cycle writes the tick's time.
+    reference: Option<u16>,
+    /// Writes of the tick's time into the reference clock not confirmed by the time the
+    /// cycle's frame came back (lost, or the reference did not answer).
+    pub unconfirmed_time_writes: u64,
 }
 
 fn al_state(state: SubDeviceState) -> u8 {
@@ -90,6 +99,13 @@ impl EthercatBackend {
     ) -> Result<EthercatBackend, EthercatError> {
         let mut master = Master::open(&config.interface, pdu_timeout, config.dc)?;
         let (running, slaves, expected_wkc) = master.bring_up(config)?;
+        let reference = match &running {
+            Running::Dc(g) => g
+                .iter(master.md)
+                .find(|sd| sd.dc_support().any())
+                .map(|sd| sd.configured_address()),
+            Running::Free(_) => None,
+        };
         for s in &slaves {
             tracing::info!(
                 "EtherCAT slave {} '{}': vendor {:#010x} product {:#010x} revision {:#010x} serial {}{}",
@@ -109,7 +125,9 @@ impl EthercatBackend {
             drives: config.drives.clone(),
             slaves,
             expected_wkc,
-            sync0_offset_ns: None,
+            lock: GridLock::new(config.period_ns),
+            reference,
+            unconfirmed_time_writes: 0,
         })
     }
 
@@ -168,6 +186,20 @@ impl Backend for EthercatBackend {
 
     fn cycle(
         &mut self,
+        dt_s: f64,
+        commands: &[AxisCommand],
+        actuals: &mut [AxisActual],
+    ) -> Result<(), BusFault> {
+        self.cycle_at(None, dt_s, commands, actuals)
+    }
+
+    /// With distributed clocks and the tick's time, the tick's time in the DC time base goes
+    /// into the reference clock's system time (an FPWR in a frame of its own, sent beside the
+    /// cycle's: no round trip of its own), before the cycle's FRMW hands the reference's time
+    /// to the others (see [`crate::dc`]).
+    fn cycle_at(
+        &mut self,
+        tick_ns: Option<u64>,
         _dt_s: f64,
         commands: &[AxisCommand],
         actuals: &mut [AxisActual],
@@ -180,14 +212,25 @@ impl Backend for EthercatBackend {
                 .pump
                 .run(g.tx_rx(md))
                 .map(|r| (r.working_counter, r.subdevice_states)),
-            Running::Dc(g) => self.master.pump.run(g.tx_rx_dc(md)).map(|r| {
-                let offset = r.extra.cycle_start_offset.as_nanos() as u64;
-                let (least, most) = self
-                    .sync0_offset_ns
-                    .map_or((offset, offset), |(_, l, m)| (l.min(offset), m.max(offset)));
-                self.sync0_offset_ns = Some((offset, least, most));
-                (r.working_counter, r.subdevice_states)
-            }),
+            Running::Dc(g) => {
+                let app = tick_ns.and_then(|t| self.lock.app_time(t));
+                let reply = match (app, self.reference) {
+                    (Some(time), Some(reference)) => {
+                        let write = Command::fpwr(reference, RegisterAddress::DcSystemTime.into())
+                            .send(md, time);
+                        let (written, reply) = self.master.pump.run_beside(write, g.tx_rx_dc(md));
+                        if !matches!(written, Some(Ok(()))) {
+                            self.unconfirmed_time_writes += 1;
+                        }
+                        reply
+                    }
+                    _ => self.master.pump.run(g.tx_rx_dc(md)),
+                };
+                reply.map(|r| {
+                    self.lock.observe(tick_ns, r.extra.dc_system_time);
+                    (r.working_counter, r.subdevice_states)
+                })
+            }
         };
         let Ok((wkc, states)) = reply else {
             return Err(BusFault::NoReply);
@@ -249,8 +292,8 @@ impl Backend for EthercatBackend {
         }
     }
 
-    fn sync0_offset_ns(&self) -> Option<(u64, u64, u64)> {
-        self.sync0_offset_ns
+    fn sync0_phase(&self) -> Option<Sync0Phase> {
+        self.lock.phase()
     }
 
     fn name(&self) -> &'static str {

@@ -70,6 +70,36 @@ impl Pump {
         }
     }
 
+    /// Runs `main` to its end as [`Pump::run`] does, with `side` beside it: both frames go
+    /// out together, so `side` costs no round trip of its own. `side` is polled first (its
+    /// frame queued first); its output, if it ended by the time `main` did (else it is
+    /// dropped: ethercrab frees its frame, and a late reply counts as stray).
+    pub fn run_beside<S: Future, F: Future>(
+        &mut self,
+        side: S,
+        main: F,
+    ) -> (Option<S::Output>, F::Output) {
+        let mut side = pin!(side);
+        let mut main = pin!(main);
+        let mut side_out = None;
+        let mut cx = Context::from_waker(Waker::noop());
+        loop {
+            if side_out.is_none() {
+                if let Poll::Ready(out) = side.as_mut().poll(&mut cx) {
+                    side_out = Some(out);
+                }
+            }
+            if let Poll::Ready(out) = main.as_mut().poll(&mut cx) {
+                return (side_out, out);
+            }
+            self.send_queued();
+            match self.link.wait(POLL_EVERY) {
+                Ok(_) => self.receive_waiting(),
+                Err(e) => tracing::warn!("EtherCAT link '{}': {e}", self.link.interface()),
+            }
+        }
+    }
+
     fn send_queued(&mut self) {
         while let Some(frame) = self.tx.next_sendable_frame() {
             let link = &self.link;

@@ -110,9 +110,7 @@ impl Esc {
             mem: vec![0; reg::MEMORY_SIZE],
             sii: SiiInterface::new(eeprom),
             identity,
-            clock: DcClock {
-                power_on_ns: now_ns,
-            },
+            clock: DcClock::new(now_ns, 0.0),
             port1_link: false,
             events: Vec::new(),
         };
@@ -124,9 +122,8 @@ impl Esc {
     pub fn power_on(&mut self, now_ns: u64) {
         self.mem.fill(0);
         self.events.clear();
-        self.clock = DcClock {
-            power_on_ns: now_ns,
-        };
+        // The crystal keeps its drift through a power cycle; the loop starts afresh.
+        self.clock = DcClock::new(now_ns, self.clock.drift_ppm());
         let id = self.identity;
         self.mem[usize::from(reg::TYPE)] = id.esc_type;
         self.mem[usize::from(reg::REVISION)] = id.revision;
@@ -193,6 +190,19 @@ impl Esc {
     /// The system time at chain time `global_ns`.
     pub fn system_time(&self, global_ns: u64) -> u64 {
         dc::system_time(&self.mem, self.clock.local(global_ns))
+    }
+
+    /// Lets the local clock's crystal run `drift_ppm` off from chain time `global_ns` on.
+    pub fn set_clock_drift_ppm(&mut self, drift_ppm: f64, global_ns: u64) {
+        self.clock.set_drift_ppm(drift_ppm, global_ns);
+    }
+
+    /// Where the slave is in its SYNC0 cycle at chain time `global_ns` (the time since its last
+    /// SYNC0 pulse, on its own system time), ns; `None` while SYNC0 is not active or before its
+    /// first pulse.
+    pub fn sync0_phase_ns(&self, global_ns: u64) -> Option<u64> {
+        let cycle = self.sync0_cycle_ns()?;
+        dc::sync0_phase(&self.mem, self.system_time(global_ns), cycle)
     }
 
     /// The EEPROM.
@@ -457,7 +467,8 @@ impl Esc {
             let only_low = !system_time_written[4..].iter().any(|&w| w);
             dc::on_system_time_written(
                 &mut self.mem,
-                local,
+                &mut self.clock,
+                timing.port0_ns,
                 u64::from_le_bytes(system_time),
                 only_low,
             );
@@ -465,6 +476,7 @@ impl Esc {
         if overlaps(start, end, reg::DC_CONTROL_LOOP, 6) {
             // Writing the control loop parameters resets the control unit and its filtered
             // difference (ethercrab writes them at init "so the DC control unit is reset").
+            self.clock.reset_loop(timing.port0_ns);
             self.mem[usize::from(reg::DC_SYSTEM_TIME_DIFFERENCE)
                 ..usize::from(reg::DC_SYSTEM_TIME_DIFFERENCE) + 4]
                 .fill(0);

@@ -168,12 +168,96 @@ fn the_system_time_is_local_time_plus_offset() {
 }
 
 #[test]
-fn a_system_time_write_publishes_the_difference_and_slews_the_offset() {
+fn a_system_time_write_publishes_the_difference_and_corrects_the_speed_not_the_offset() {
     let mut sut = sut();
     // Local time 9_000 at t = 10_000; the reference says 9_500 (+ delay 0): we are 500 behind.
     sut.write(0x0910, &9_500u64.to_le_bytes(), &timing(10_000));
     let mut diff = [0u8; 4];
     sut.read(0x092C, &mut diff, &timing(10_000));
     assert_eq!(u32::from_le_bytes(diff), 0x8000_0000 | 500);
-    assert_eq!(sut.system_time(10_000), 9_500);
+    // No step: the offset is the master's, the loop slews the clock.
+    assert_eq!(sut.system_time(10_000), 9_000);
+    let mut offset = [0u8; 8];
+    sut.read(0x0920, &mut offset, &timing(10_000));
+    assert_eq!(u64::from_le_bytes(offset), 0);
+    // A tenth of the difference (50 ns) slewed in at most 500 ppm: 50 ns within 100 us.
+    assert_eq!(sut.system_time(60_000), 59_025);
+    assert_eq!(sut.system_time(210_000), 209_050);
+}
+
+/// The reference time as a master writes it: `period` apart, `lead` ns ahead of the chain's
+/// time, written into `sut` at every step for `steps`; returns the last difference seen.
+fn follow(sut: &mut Esc, t: &mut u64, period: u64, steps: usize, lead: u64) -> i64 {
+    let mut difference = 0;
+    for _ in 0..steps {
+        *t += period;
+        sut.write(0x0910, &(*t + lead).to_le_bytes(), &timing(*t));
+        let mut raw = [0u8; 4];
+        sut.read(0x092C, &mut raw, &timing(*t));
+        let raw = u32::from_le_bytes(raw);
+        let magnitude = i64::from(raw & 0x7FFF_FFFF);
+        difference = if raw & 0x8000_0000 != 0 {
+            -magnitude
+        } else {
+            magnitude
+        };
+    }
+    difference
+}
+
+#[test]
+fn a_drifting_clock_follows_the_written_time_and_learns_its_drift() {
+    let mut sut = sut();
+    sut.write(0x0920, &1_000u64.to_le_bytes(), &timing(1_000));
+    sut.set_clock_drift_ppm(100.0, 1_000);
+    let mut t = 1_000;
+    // Unfollowed, 100 ppm is 100 ns per millisecond.
+    assert_eq!(sut.system_time(1_001_000), 1_001_100);
+    let settled = follow(&mut sut, &mut t, 1_000_000, 500, 0);
+    assert!(
+        settled.abs() <= 5,
+        "difference {settled} ns after 500 writes"
+    );
+    let learnt = sut.clock().speed_correction_ppm();
+    assert!(
+        (learnt + 100.0).abs() < 1.0,
+        "speed correction {learnt} ppm"
+    );
+}
+
+#[test]
+fn the_loop_slews_a_large_difference_at_its_bounded_speed() {
+    let mut sut = sut();
+    // 200 us behind: the clock runs at most 1000 ppm fast, so it needs 200 ms at least.
+    sut.write(0x0920, &1_000u64.to_le_bytes(), &timing(1_000));
+    let mut t = 1_000;
+    let after_100 = follow(&mut sut, &mut t, 1_000_000, 100, 200_000).abs();
+    assert!(after_100 > 90_000, "{after_100} ns left after 100 ms");
+    let after_1000 = follow(&mut sut, &mut t, 1_000_000, 900, 200_000).abs();
+    assert!(after_1000 < 1_000, "{after_1000} ns left after 1 s");
+}
+
+#[test]
+fn writing_the_control_loop_parameters_resets_the_loop() {
+    let mut sut = sut();
+    sut.set_clock_drift_ppm(-50.0, 1_000);
+    let mut t = 1_000;
+    follow(&mut sut, &mut t, 1_000_000, 300, 0);
+    assert!(sut.clock().speed_correction_ppm() > 40.0);
+    sut.write(0x0930, &0x1000u16.to_le_bytes(), &timing(t));
+    assert_eq!(sut.clock().speed_correction_ppm(), 0.0);
+    assert_eq!(sut.clock().drift_ppm(), -50.0);
+}
+
+#[test]
+fn the_sync0_phase_counts_from_the_start_time_in_system_time() {
+    let mut sut = sut();
+    sut.write(0x0990, &5_000u64.to_le_bytes(), &timing(1_000));
+    sut.write(0x09A0, &1_000u32.to_le_bytes(), &timing(1_000));
+    assert_eq!(sut.sync0_phase_ns(4_000), None, "not active yet");
+    sut.write(0x0981, &[0x03], &timing(1_000));
+    // Local time = chain time - 1_000 (powered on at 1_000), offset 0.
+    assert_eq!(sut.sync0_phase_ns(5_500), None, "before the first pulse");
+    assert_eq!(sut.sync0_phase_ns(6_000), Some(0));
+    assert_eq!(sut.sync0_phase_ns(8_250), Some(250));
 }
