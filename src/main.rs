@@ -13,6 +13,7 @@
 mod assembly_cmd;
 mod check_cmd;
 mod data_cmd;
+mod mcap_export;
 mod program_cmd;
 mod record_cmd;
 mod robot_cmd;
@@ -183,7 +184,8 @@ enum Command {
         #[command(subcommand)]
         command: data_cmd::DataCommand,
     },
-    /// Recordings (HDF5 files of the data recorder): `modbot record compare A.h5 B.h5`.
+    /// Recordings (HDF5 files of the data recorder): `modbot record compare A.h5 B.h5`,
+    /// `modbot record export FILE.h5 --mcap OUT.mcap`.
     Record {
         #[command(subcommand)]
         command: record_cmd::RecordCommand,

@@ -1,4 +1,5 @@
-//! `modbot record compare A.h5 B.h5`: two recordings compared tick by tick, to the last bit.
+//! `modbot record compare A.h5 B.h5`: two recordings compared tick by tick, to the last bit;
+//! `modbot record export FILE.h5 --mcap OUT.mcap`: a recording for Foxglove.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -11,6 +12,14 @@ pub enum RecordCommand {
     /// Compare two recordings of the same signals row by row, bit for bit: "identical through
     /// tick N" (exit 0), or the first tick, signal and values that differ (exit 1).
     Compare { a: PathBuf, b: PathBuf },
+    /// Write the recording as an MCAP file (Foxglove opens it): one channel per signal,
+    /// `/modbot/<comp>.<port>`, JSON messages `{"tick": N, "value": ...}` at each tick's time.
+    Export {
+        file: PathBuf,
+        /// The MCAP file to write.
+        #[arg(long)]
+        mcap: PathBuf,
+    },
 }
 
 pub fn run(command: RecordCommand) -> anyhow::Result<ExitCode> {
@@ -25,6 +34,21 @@ pub fn run(command: RecordCommand) -> anyhow::Result<ExitCode> {
             }
             Err(e) => {
                 eprintln!("modbot record compare: {e}");
+                Ok(ExitCode::from(2))
+            }
+        },
+        RecordCommand::Export { file, mcap } => match crate::mcap_export::export(&file, &mcap) {
+            Ok(done) => {
+                println!(
+                    "{}: {} channels, {} messages",
+                    mcap.display(),
+                    done.channels,
+                    done.messages
+                );
+                Ok(ExitCode::SUCCESS)
+            }
+            Err(e) => {
+                eprintln!("modbot record export: {e:#}");
                 Ok(ExitCode::from(2))
             }
         },

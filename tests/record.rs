@@ -224,7 +224,8 @@ fn rows(path: &Path) -> u64 {
 /// The arm in lockstep (holding, then `ptp` from tick 300), recorded three times: two runs
 /// alike are identical to the last bit in every row (`modbot record compare`, exit 0); a run
 /// whose `ptp` dwells 50 ms at its points differs, and the comparison names the first tick and
-/// signal that differ (exit 1).
+/// signal that differ (exit 1). The first, exported for Foxglove (`modbot record export
+/// --mcap`), reads back with the mcap crate: a channel per signal, a message per row.
 #[test]
 fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_first_difference() {
     let _arm = one_arm_at_a_time();
@@ -283,6 +284,44 @@ fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_
         tick > 300,
         "the runs are alike until ptp has reached its first point: {said}"
     );
+    // The same recording for Foxglove: one channel per signal, a message per row and signal
+    // at its tick's time, the values as recorded.
+    let mcap = std::env::temp_dir().join(format!("{}.a.mcap", sut.name()));
+    let exported = sut.modbot(&[
+        "record",
+        "export",
+        a.to_str().unwrap(),
+        "--mcap",
+        mcap.to_str().unwrap(),
+    ]);
+    let said = String::from_utf8_lossy(&exported.stdout).into_owned();
+    assert_eq!(exported.status.code(), Some(0), "{said}");
+    let bytes = std::fs::read(&mcap).unwrap();
+    let mut per_topic = std::collections::BTreeMap::<String, u64>::new();
+    let mut link_at_2000 = None;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert_eq!(m.channel.message_encoding, "json");
+        *per_topic.entry(m.channel.topic.clone()).or_default() += 1;
+        if m.channel.topic == "/modbot/robot.link_position" && m.log_time == 2_000_000_000 {
+            link_at_2000 = Some(String::from_utf8(m.data.to_vec()).unwrap());
+        }
+    }
+    assert!(per_topic.values().all(|&n| n == 2500), "{per_topic:?}");
+    assert!(
+        per_topic.contains_key("/modbot/robot.state"),
+        "{per_topic:?}"
+    );
+    let link = link_at_2000.expect("robot.link_position at 2 s");
+    assert!(link.starts_with(r#"{"tick":2000,"value":["#), "{link}");
+    assert_eq!(link.matches(',').count(), 6, "six values: {link}");
+    let total = format!(
+        "{} channels, {} messages",
+        per_topic.len(),
+        2500 * per_topic.len()
+    );
+    assert!(said.contains(&total), "{said}");
+    let _ = std::fs::remove_file(mcap);
     for f in [a, b, c] {
         let _ = std::fs::remove_file(f);
     }

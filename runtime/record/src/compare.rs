@@ -4,10 +4,7 @@
 
 use std::path::Path;
 
-use super::read::{read_signal, ReadError, Series};
-
-/// The datasets every recording has besides its signals.
-const BOOKKEEPING: [&str; 3] = ["tick", "time", "generation"];
+use super::read::{read_signal, signals, ReadError, Series};
 
 /// How two recordings compare.
 #[derive(Debug, Clone, PartialEq)]
@@ -41,11 +38,6 @@ pub enum Comparison {
 pub enum CompareError {
     #[error(transparent)]
     Read(#[from] ReadError),
-    #[error("{}: does not open as a recording: {source}", .path.display())]
-    Open {
-        path: std::path::PathBuf,
-        source: hdf5::Error,
-    },
     #[error(
         "they record other signals: {only_a:?} only in the first, {only_b:?} only in the second"
     )]
@@ -57,30 +49,9 @@ pub enum CompareError {
     Width { signal: String, a: usize, b: usize },
 }
 
-/// The signals a recording holds, sorted (its datasets but the bookkeeping ones).
-fn signals_of(path: &Path) -> Result<Vec<String>, CompareError> {
-    let file = hdf5::File::open_as(path, hdf5::OpenMode::ReadSWMR).map_err(|source| {
-        CompareError::Open {
-            path: path.to_path_buf(),
-            source,
-        }
-    })?;
-    let mut names: Vec<String> = file
-        .member_names()
-        .map_err(|source| CompareError::Open {
-            path: path.to_path_buf(),
-            source,
-        })?
-        .into_iter()
-        .filter(|n| !BOOKKEEPING.contains(&n.as_str()))
-        .collect();
-    names.sort();
-    Ok(names)
-}
-
 /// Compares the recordings `a` and `b` row by row over the rows both have.
 pub fn compare(a: &Path, b: &Path) -> Result<Comparison, CompareError> {
-    let (names_a, names_b) = (signals_of(a)?, signals_of(b)?);
+    let (names_a, names_b) = (signals(a)?, signals(b)?);
     if names_a != names_b {
         let only =
             |x: &[String], y: &[String]| x.iter().filter(|n| !y.contains(n)).cloned().collect();

@@ -32,6 +32,27 @@ impl Series {
     }
 }
 
+/// The datasets every recording has besides its signals.
+pub const BOOKKEEPING: [&str; 3] = ["tick", "time", "generation"];
+
+/// The signals a recording holds (`comp.port`), sorted: its datasets but the bookkeeping ones.
+pub fn signals(path: &Path) -> Result<Vec<String>, ReadError> {
+    let failed = |why: String| ReadError {
+        path: path.to_path_buf(),
+        why,
+    };
+    let file = hdf5::File::open_as(path, hdf5::OpenMode::ReadSWMR)
+        .map_err(|e| failed(format!("does not open as a recording: {e}")))?;
+    let mut names: Vec<String> = file
+        .member_names()
+        .map_err(|e| failed(format!("its datasets cannot be listed: {e}")))?
+        .into_iter()
+        .filter(|n| !BOOKKEEPING.contains(&n.as_str()))
+        .collect();
+    names.sort();
+    Ok(names)
+}
+
 /// The rows of `signal` (`comp.port`, or `time`, `tick`, `generation`) whose ticks are in
 /// `from..=to`.
 pub fn read_signal(path: &Path, signal: &str, from: i64, to: i64) -> Result<Series, ReadError> {
