@@ -11,6 +11,20 @@ use std::time::Duration;
 use common::segment::Segment;
 use common::TestDomain;
 
+/// The largest difference between two runs of a signal, row by row (over the rows both
+/// have), and the row it is at.
+fn largest_difference<R: AsRef<[f64]>>(want: &[R], got: &[R]) -> (f64, usize) {
+    let mut worst = (0.0f64, 0usize);
+    for (row, (w, g)) in want.iter().zip(got).enumerate() {
+        for (a, b) in w.as_ref().iter().zip(g.as_ref()) {
+            if (a - b).abs() > worst.0 {
+                worst = ((a - b).abs(), row);
+            }
+        }
+    }
+    worst
+}
+
 /// The arm's description.
 fn arm() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/arm.lua")
@@ -155,14 +169,7 @@ print(repr(float(link[-1][0])))
     assert_eq!(want.len(), ticks as usize);
     assert_eq!(got.len(), want.len());
     let count = std::f64::consts::TAU / f64::from(1u32 << 20);
-    let mut worst = (0.0f64, 0usize);
-    for (tick, (w, g)) in want.iter().zip(&got).enumerate() {
-        for (a, b) in w.iter().zip(g) {
-            if (a - b).abs() > worst.0 {
-                worst = ((a - b).abs(), tick);
-            }
-        }
-    }
+    let worst = largest_difference(&want, &got);
     println!(
         "largest difference of a link position: {:.3e} rad ({:.2} counts) at tick {}",
         worst.0,
@@ -715,14 +722,7 @@ fn the_kr16_program_on_ethercat_cuts_the_residual_oscillation_by_the_simulators_
             0 | 1 => count,
             _ => count + pending(&sim, i).max(pending(&sut, i)),
         };
-        let mut worst = (0.0f64, 0usize);
-        for (tick, (w, g)) in want.iter().zip(&got).enumerate() {
-            for (a, b) in w.iter().zip(g) {
-                if (a - b).abs() > worst.0 {
-                    worst = ((a - b).abs(), tick);
-                }
-            }
-        }
+        let worst = largest_difference(&want, &got);
         println!(
             "motion {i}: {} ticks compared, largest difference {:.2} counts at its tick {} \
              (allowed {:.2})",
