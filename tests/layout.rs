@@ -28,7 +28,11 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-grid-processes", "modules/grid", 10),
     ("modbot-fmu-host", "modules/fmu", 11),
     ("modbot", ".", 11),
-    ("modbot-benches", "benches", 11),
+    ("modbot-bench-kit", "benches/kit", 9),
+    ("modbot-bench-ipc", "benches/ipc", 10),
+    ("modbot-bench-soak", "benches/soak", 10),
+    ("modbot-bench-system", "benches/system", 11),
+    ("modbot-benches", "benches", 12),
     ("modbot-fmus", "fmus", 0),
     ("modbot-example-first-module", "examples/first_module", 3),
     (

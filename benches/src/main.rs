@@ -21,64 +21,35 @@
 //! runs the blocking paths (and the grid) under SCHED_FIFO, which needs root or CAP_SYS_NICE.
 //!
 //! # Layout
-//! - [`opts`]: the options of a run.
-//! - [`report`]: rows, baselines and ratios, `report.json` and `report.md`.
-//! - [`targets`]: the targets, checked against the rows (met, missed by how much, or
-//!   not measured and why).
-//! - [`plots`]: the SVG plots.
-//! - [`machine`]: the date and the machine the run was made on.
-//! - [`procs`]: child processes (stopped on drop, dying with their parent), pinning,
-//!   SCHED_FIFO, isolated domains cleaned on drop, the modbot binaries the system benchmarks
-//!   start.
-//! - [`sample`]: warm-up, sample counts, histograms, the cross-process clock.
-//! - [`raw`], [`uds`]: the baselines, raw iceoryx2 and Unix-domain sockets.
-//! - [`work`]: part of benchmark 1, the CPU work of one call (both sides in one thread).
-//! - [`hogs`]: CPU hogs of normal priority, for measurements on a busy machine.
-//! - Benchmarks, one file each, each with `run` and its child roles in `child`: [`calls`] (1,
-//!   method-call round trip), [`snapshots`] (2, blackboard snapshots), [`grid`] (3, tick error
-//!   and coordinator CPU), [`scale`] (4, up to 254 modules), [`faults`] (5, detection and
-//!   restart), [`swaps`] (6, assembly swaps), [`arm`] (7, the arm holding; the grid's
-//!   [`lockstep`] runs belong to 3), [`soak`] (8, a fault a second for minutes: calls exactly
-//!   once, memory, files, the robot reset after each stop, no motion ok across one), [`fmu`] (9, an FMU component against a built-in doing the same),
-//!   [`ethercat`] (10, the EtherCAT bus cycle against a raw AF_PACKET ping-pong, and its jitter
-//!   against a bare timerfd loop, on a veth pair against the slave emulator), [`station`] (11, the
-//!   grid and a busy call with the control station and two browsers attached against none, and
-//!   the station's looks at 253 modules).
+//! The benchmarks are library crates under `benches/`; this binary is their command line.
+//! - `modbot-bench-kit` (`benches/kit/`): what every benchmark uses — the options of a run,
+//!   rows and baselines, `report.md`/`report.json`, the plots, the targets, child
+//!   processes, samples and histograms, CPU hogs, systems under `modbot up`, the arm system.
+//! - `modbot-bench-ipc` (`benches/ipc/`): 1, calls (with the CPU work of a call), and 2,
+//!   snapshots; their paths, the echo module and the baselines, raw iceoryx2 and Unix sockets.
+//! - `modbot-bench-system` (`benches/system/`): 3, grid (with its lockstep runs), 4, scale, 5,
+//!   faults, 6, swaps, 7, arm, 9, fmu, 10, ethercat, 11, station.
+//! - `modbot-bench-soak` (`benches/soak/`): 8, the soak (a fault a second for minutes: calls
+//!   exactly once, memory, files, the robot reset after each stop, no motion ok across one).
+//!
+//! Here:
+//! - this file: the commands and their options;
+//! - [`registry`]: every benchmark in the order `all` runs them, every child role, the targets
+//!   the benchmarks keep themselves;
+//! - [`runner`]: one run of benchmarks into one report, written with its plots and printed.
 
-mod arm;
-mod calls;
-mod ethercat;
-mod faults;
-mod fmu;
-mod grid;
-mod hogs;
-mod interleave;
-mod lockstep;
-mod machine;
-mod opts;
-mod plots;
-mod procs;
-mod raw;
-mod report;
-mod sample;
-mod scale;
-mod snapshots;
-mod soak;
-mod station;
-mod supervised;
-mod swaps;
-mod targets;
-mod uds;
-mod work;
+mod registry;
+mod runner;
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::{Args, Parser, Subcommand};
+use modbot_bench_kit::opts::{Opts, SoakPlan};
+use modbot_bench_kit::procs;
+use modbot_bench_system::ethercat;
 
-use opts::Opts;
-use report::Report;
+use registry::{bench, Bench, BENCHES, CHILDREN, SOAK};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -157,235 +128,33 @@ enum Cmd {
     },
 }
 
-type RunFn = fn(&Opts, &mut Report) -> anyhow::Result<()>;
-
-/// A benchmark: its name, its entry point, and whether it starts the modbot binaries.
-struct Bench {
-    name: &'static str,
-    run: RunFn,
-    needs_binaries: bool,
-}
-
-/// Every benchmark, in the order `all` runs them.
-const BENCHES: [Bench; 10] = [
-    Bench {
-        name: "calls",
-        run: calls::run,
-        needs_binaries: false,
-    },
-    Bench {
-        name: "snapshots",
-        run: snapshots::run,
-        needs_binaries: false,
-    },
-    Bench {
-        name: "grid",
-        run: grid::run,
-        needs_binaries: true,
-    },
-    Bench {
-        name: "scale",
-        run: scale::run,
-        needs_binaries: true,
-    },
-    Bench {
-        name: "faults",
-        run: faults::run,
-        needs_binaries: true,
-    },
-    Bench {
-        name: "swaps",
-        run: swaps::run,
-        needs_binaries: true,
-    },
-    Bench {
-        name: "arm",
-        run: arm::run,
-        needs_binaries: true,
-    },
-    Bench {
-        name: "fmu",
-        run: fmu::run,
-        needs_binaries: true,
-    },
-    // Needs only modbot-ecat-sim (and root: without it, a note in `all`).
-    Bench {
-        name: "ethercat",
-        run: ethercat::run,
-        needs_binaries: false,
-    },
-    Bench {
-        name: "station",
-        run: station::run,
-        needs_binaries: true,
-    },
-];
-
-/// The soak: not in `all` (it runs for minutes).
-const SOAK: Bench = Bench {
-    name: "soak",
-    run: soak::run,
-    needs_binaries: true,
-};
-
-/// Runs `role` with `args` if it is one of a benchmark's child roles.
-type ChildFn = fn(&str, &[String]) -> Option<anyhow::Result<()>>;
-
-/// The child roles of every benchmark; `None` from one means "not mine".
-const CHILDREN: [ChildFn; 12] = [
-    arm::child,
-    hogs::child,
-    calls::child,
-    snapshots::child,
-    raw::child,
-    uds::child,
-    grid::child,
-    scale::child,
-    faults::child,
-    swaps::child,
-    soak::child,
-    ethercat::child,
-];
-
-fn opts_from(args: &RunArgs, soak: soak::Plan) -> anyhow::Result<Opts> {
-    let exe = std::env::current_exe().context("cannot find this executable")?;
-    let out = match &args.out {
-        Some(dir) => dir.clone(),
-        // <target>/release/modbot-benches → <target>/bench-report
-        None => exe
-            .parent()
-            .and_then(|d| d.parent())
-            .map(|t| t.join("bench-report"))
-            .context("cannot place the report next to this executable: give --out DIR")?,
-    };
-    Ok(Opts {
-        quick: args.quick,
-        pin: args.pin,
-        fifo: args.fifo,
-        out,
-        exe,
-        soak,
-    })
+impl RunArgs {
+    /// The options of a run with these arguments (and the soak's `soak`).
+    fn opts(&self, soak: SoakPlan) -> anyhow::Result<Opts> {
+        let exe = std::env::current_exe().context("cannot find this executable")?;
+        let out = match &self.out {
+            Some(dir) => dir.clone(),
+            // <target>/release/modbot-benches → <target>/bench-report
+            None => exe
+                .parent()
+                .and_then(|d| d.parent())
+                .map(|t| t.join("bench-report"))
+                .context("cannot place the report next to this executable: give --out DIR")?,
+        };
+        Ok(Opts {
+            quick: self.quick,
+            pin: self.pin,
+            fifo: self.fifo,
+            out,
+            exe,
+            soak,
+        })
+    }
 }
 
 /// Runs `benches` into one report, writes it with its plots, and prints report.md.
 fn run_benches(args: &RunArgs, benches: &[&Bench]) -> anyhow::Result<()> {
-    run_with(opts_from(args, soak::Plan::default())?, benches)
-}
-
-/// [`run_benches`] with the options made already (the soak's carry its plan).
-fn run_with(opts: Opts, benches: &[&Bench]) -> anyhow::Result<()> {
-    if let Err(e) = modbot_core::signals::install_termination_handler() {
-        eprintln!("warning: Ctrl-C will not stop the run cleanly: {e}");
-    }
-    let mut report = Report {
-        date: machine::today_utc(),
-        machine: machine::describe(),
-        ..Report::default()
-    };
-    for (k, v) in [
-        ("quick", opts.quick),
-        ("pin", opts.pin),
-        ("fifo", opts.fifo),
-    ] {
-        report.options.insert(k.to_owned(), v.into());
-    }
-    let binaries = if benches.iter().any(|b| b.needs_binaries) {
-        procs::ensure_binaries(&opts).map_err(|e| format!("{e:#}"))
-    } else {
-        Ok(())
-    };
-    let mut timings = Vec::new();
-    let started = Instant::now();
-    for bench in benches {
-        if procs::interrupted() {
-            report.note(format!("{}: not run, the run was interrupted", bench.name));
-            continue;
-        }
-        if let (true, Err(e)) = (bench.needs_binaries, &binaries) {
-            report.note(format!("{}: not run: {e}", bench.name));
-            continue;
-        }
-        eprintln!("running {} ...", bench.name);
-        let t = Instant::now();
-        if let Err(e) = (bench.run)(&opts, &mut report) {
-            report.note(format!("{}: failed: {e:#}", bench.name));
-        }
-        timings.push(format!("{} {:.1} s", bench.name, t.elapsed().as_secs_f64()));
-    }
-    timings.push(format!("total {:.1} s", started.elapsed().as_secs_f64()));
-    report.note(format!("run time: {}", timings.join(", ")));
-    let left = leftovers();
-    if !left.is_empty() {
-        report.note(format!(
-            "files of this run were left in /dev/shm or /tmp/iceoryx2 and are removed now: {}",
-            left.iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-        remove(&left);
-    }
-    report.drop_rows_without_baseline();
-    report.resolve()?;
-    targets::evaluate(&mut report);
-    std::fs::create_dir_all(&opts.out)
-        .with_context(|| format!("cannot create {}", opts.out.display()))?;
-    let plots = plots::write_all(&mut report, &opts.out);
-    report
-        .write(&opts.out)
-        .with_context(|| format!("cannot write the report into {}", opts.out.display()))?;
-    println!("{}", report.markdown());
-    eprintln!(
-        "report: {} ({} plots)",
-        opts.out.join("report.md").display(),
-        plots.len()
-    );
-    if procs::interrupted() {
-        bail!("interrupted: the report holds what was measured before");
-    }
-    Ok(())
-}
-
-/// Files of any domain of this run (`modbot_bench_{pid}_…`) still in /dev/shm or
-/// /tmp/iceoryx2.
-fn leftovers() -> Vec<PathBuf> {
-    let prefix = format!("modbot_{}", procs::domain_name(""));
-    let mut found = Vec::new();
-    for dir in ["/dev/shm", "/tmp/iceoryx2"] {
-        collect(std::path::Path::new(dir), &prefix, &mut found);
-    }
-    found
-}
-
-fn collect(dir: &std::path::Path, prefix: &str, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for e in entries.flatten() {
-        if e.file_name().to_string_lossy().starts_with(prefix) {
-            out.push(e.path());
-        } else if e.file_type().is_ok_and(|t| t.is_dir()) {
-            collect(&e.path(), prefix, out);
-        }
-    }
-}
-
-fn remove(paths: &[PathBuf]) {
-    for p in paths {
-        let _ = if p.is_dir() {
-            std::fs::remove_dir_all(p)
-        } else {
-            std::fs::remove_file(p)
-        };
-    }
-}
-
-fn bench(name: &str) -> &'static Bench {
-    BENCHES
-        .iter()
-        .find(|b| b.name == name)
-        .expect("every subcommand names a benchmark")
+    runner::run_with(args.opts(SoakPlan::default())?, benches)
 }
 
 /// An error is one line on stderr with its causes and exit status 1, never a backtrace,
@@ -417,11 +186,11 @@ fn run() -> anyhow::Result<()> {
             run_benches(&args, &[bench("ethercat")])
         }
         Cmd::Soak(args) => {
-            let plan = soak::Plan {
+            let plan = SoakPlan {
                 minutes: args.minutes,
                 seed: args.seed,
             };
-            run_with(opts_from(&args.run, plan)?, &[&SOAK])
+            runner::run_with(args.run.opts(plan)?, &[&SOAK])
         }
         Cmd::Child { role, args } => {
             procs::child_setup();

@@ -29,6 +29,8 @@ use thiserror::Error;
 use zerocopy::byteorder::little_endian::{F64, U16, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
+use crate::preamble::{Format, Headed, Preamble};
+
 /// The first four bytes.
 pub const MAGIC: [u8; 4] = *b"MBSW";
 /// The format version this crate writes and reads.
@@ -44,12 +46,15 @@ pub const MAX_SWITCHES: usize = u16::MAX as usize;
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
 struct Header {
-    magic: [u8; 4],
-    version: u8,
-    reserved: u8,
-    count: U16,
+    preamble: Preamble,
     max_step: F64,
     max_velocity_step: F64,
+}
+
+impl Headed for Header {
+    fn preamble(&self) -> &Preamble {
+        &self.preamble
+    }
 }
 
 /// One switch, as laid out on the wire.
@@ -113,6 +118,12 @@ pub enum SwitchesError {
     TooMany(usize),
 }
 
+impl SwitchesError {
+    /// The record's magic and version, and how a header that is not the record's is refused.
+    const FORMAT: Format<Self> =
+        Format::new(MAGIC, VERSION, Self::Size, Self::Magic, Self::Version);
+}
+
 fn magnitude(what: &'static str, value: f64) -> Result<f64, SwitchesError> {
     if value.is_finite() && value >= 0.0 {
         Ok(value)
@@ -142,10 +153,7 @@ pub fn encode(
     }
     out.reserve(HEADER_LEN + RECORD_LEN * switches.len());
     let header = Header {
-        magic: MAGIC,
-        version: VERSION,
-        reserved: 0,
-        count: U16::new(switches.len() as u16),
+        preamble: SwitchesError::FORMAT.preamble(switches.len() as u16),
         max_step: F64::new(max_step),
         max_velocity_step: F64::new(max_velocity_step),
     };
@@ -166,15 +174,7 @@ pub fn encode(
 
 /// Reads a record written by [`encode`].
 pub fn decode(bytes: &[u8]) -> Result<Switches, SwitchesError> {
-    let (header, rest) =
-        Header::ref_from_prefix(bytes).map_err(|_| SwitchesError::Size(bytes.len()))?;
-    if header.magic != MAGIC {
-        return Err(SwitchesError::Magic(header.magic));
-    }
-    if header.version != VERSION {
-        return Err(SwitchesError::Version(header.version));
-    }
-    let count = usize::from(header.count.get());
+    let (header, rest, count) = SwitchesError::FORMAT.read::<Header>(bytes)?;
     let records =
         <[Record]>::ref_from_bytes_with_elems(rest, count).map_err(|_| SwitchesError::Count {
             count,

@@ -25,12 +25,13 @@
 //! entry are written zero and not read. A module that is not in the image is not running.
 
 use thiserror::Error;
-use zerocopy::byteorder::little_endian::{U16, U32, U64};
+use zerocopy::byteorder::little_endian::{U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use crate::addr::Addr;
 use crate::heartbeat::ModuleState;
 use crate::names::is_module_name;
+use crate::preamble::{Format, Headed, Preamble};
 
 /// The image's first four bytes.
 pub const MAGIC: [u8; 4] = *b"MBDR";
@@ -54,11 +55,14 @@ pub type Image = [u8; IMAGE_LEN];
 #[derive(Debug, Clone, Copy, FromBytes, IntoBytes, KnownLayout, Immutable, Unaligned)]
 #[repr(C)]
 struct Header {
-    magic: [u8; 4],
-    version: u8,
-    reserved: u8,
-    count: U16,
+    preamble: Preamble,
     generation: U64,
+}
+
+impl Headed for Header {
+    fn preamble(&self) -> &Preamble {
+        &self.preamble
+    }
 }
 
 /// One module's entry, as laid out on the wire.
@@ -102,6 +106,12 @@ pub enum DirectoryError {
     Entry { index: usize, problem: EntryError },
     #[error("directory has no room for another module (254 entries)")]
     Full,
+}
+
+impl DirectoryError {
+    /// The image's magic and version, and how a header that is not an image's is refused.
+    const FORMAT: Format<Self> =
+        Format::new(MAGIC, VERSION, Self::Size, Self::Magic, Self::Version);
 }
 
 /// What is wrong with one entry of an image.
@@ -197,15 +207,7 @@ impl<'a> View<'a> {
     /// Reads and checks an image: its header, and every entry (in strictly increasing address
     /// order, so no address appears twice).
     pub fn parse(bytes: &'a [u8]) -> Result<View<'a>, DirectoryError> {
-        let (header, rest) =
-            Header::ref_from_prefix(bytes).map_err(|_| DirectoryError::Size(bytes.len()))?;
-        if header.magic != MAGIC {
-            return Err(DirectoryError::Magic(header.magic));
-        }
-        if header.version != VERSION {
-            return Err(DirectoryError::Version(header.version));
-        }
-        let count = usize::from(header.count.get());
+        let (header, rest, count) = DirectoryError::FORMAT.read::<Header>(bytes)?;
         let too_many = DirectoryError::Count {
             count,
             len: bytes.len(),
@@ -271,10 +273,7 @@ pub fn write(
     }
     image.fill(0);
     let header = Header {
-        magic: MAGIC,
-        version: VERSION,
-        reserved: 0,
-        count: U16::new(listings.len() as u16),
+        preamble: DirectoryError::FORMAT.preamble(listings.len() as u16),
         generation: U64::new(generation),
     };
     image[..HEADER_LEN].copy_from_slice(header.as_bytes());

@@ -29,6 +29,7 @@
 //! - [`latency`]: the call latency histogram of the `stats` answer: its buckets and layout.
 //! - [`fields`]: answers laid out as a run of values, read field by field with named errors.
 //! - [`names`]: the rules for the module and assembly names the formats carry.
+//! - `preamble`: the magic, version and record count that `bus` and `directory` begin with.
 //! - [`hex`]: hex helpers for the command line and the golden vectors.
 //!
 //! The byte layouts are written down in `ipc_schema/README.md`, with golden vectors that the
@@ -50,6 +51,7 @@ pub mod hex;
 pub mod latency;
 pub mod ledger;
 pub mod names;
+mod preamble;
 pub mod relay;
 pub mod rvmf;
 pub mod snapshot;

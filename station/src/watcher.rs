@@ -12,8 +12,9 @@ use modbot_core::calls::CallOptions;
 use modbot_core::error::CallError;
 use modbot_core::stats::Stats;
 use modbot_core::tool::{Calls, Tool};
+use modbot_ipc_schema::ledger::{self, LedgerError};
 use modbot_ipc_schema::status::{self, Row};
-use modbot_ipc_schema::{ledger, sysmethod, Args, SnapshotView, Value};
+use modbot_ipc_schema::{sysmethod, ArgError, Args, SnapshotError, SnapshotView, Value};
 use tokio::sync::{oneshot, watch};
 
 use crate::commands::{Answer, Call};
@@ -313,10 +314,9 @@ impl Watcher {
             "ledger",
             &[],
             CallOptions::timeout(LOOK_TIMEOUT),
-            |r| -> Result<Grid, String> {
-                let a = r.map_err(|e| e.to_string())?;
-                let bytes = a.bytes(0).map_err(|e| e.to_string())?;
-                let (grid, components) = ledger::decode(bytes).map_err(|e| e.to_string())?;
+            |r| -> Result<Grid, LookError> {
+                let bytes = r.map_err(CallError::clone)?.bytes(0)?;
+                let (grid, components) = ledger::decode(bytes)?;
                 Ok(Grid {
                     grid,
                     components,
@@ -359,10 +359,9 @@ impl Watcher {
             snapshot,
             &[],
             CallOptions::timeout(LOOK_TIMEOUT),
-            |r| -> Result<BTreeMap<String, Json>, String> {
-                let a = r.map_err(|e| e.to_string())?;
-                let bytes = a.bytes(0).map_err(|e| e.to_string())?;
-                let view = SnapshotView::parse(bytes).map_err(|e| e.to_string())?;
+            |r| -> Result<BTreeMap<String, Json>, LookError> {
+                let bytes = r.map_err(CallError::clone)?.bytes(0)?;
+                let view = SnapshotView::parse(bytes)?;
                 Ok(view
                     .iter()
                     .map(|it| (it.name.to_owned(), Json::of(&it.value)))
@@ -372,6 +371,23 @@ impl Watcher {
         bb.map_err(|e| problems.push(format!("{module}'s blackboard: {e}")))
             .ok()
     }
+}
+
+/// Why a look at the coordinator's ledger or at a module's blackboard found nothing to show.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum LookError {
+    /// The call failed.
+    #[error(transparent)]
+    Call(#[from] CallError),
+    /// The answer is not one bytes value.
+    #[error(transparent)]
+    Answer(#[from] ArgError),
+    /// The coordinator's bytes are not a ledger.
+    #[error(transparent)]
+    Ledger(#[from] LedgerError),
+    /// The module's bytes are not a blackboard snapshot.
+    #[error(transparent)]
+    Snapshot(#[from] SnapshotError),
 }
 
 /// An answer's values as one line: `ok` for none.

@@ -36,6 +36,25 @@ fn value_len(v: &Value<'_>) -> usize {
     }
 }
 
+/// Whose snapshot it is and which: what a header says besides the layout's own fields.
+#[derive(Debug, Clone, Copy)]
+struct Stamp {
+    addr: Addr,
+    seq: u64,
+    stamp_ns: u64,
+}
+
+impl Stamp {
+    /// Snapshot `seq` of `addr`, taken at `stamp_ns`.
+    fn new(addr: Addr, seq: u64, stamp_ns: u64) -> Stamp {
+        Stamp {
+            addr,
+            seq,
+            stamp_ns,
+        }
+    }
+}
+
 /// One item of a layout.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ItemSpec {
@@ -179,18 +198,18 @@ impl SnapshotLayout {
         Ok(needed)
     }
 
-    fn header(&self, addr: Addr, seq: u64, stamp_ns: u64, len: usize) -> SnapshotHeader {
+    fn header(&self, stamp: Stamp, len: usize) -> SnapshotHeader {
         SnapshotHeader {
             magic: MAGIC,
             version: U16::new(VERSION),
-            addr: addr.0,
+            addr: stamp.addr.0,
             flags: 0,
             item_count: U16::new(self.items.len() as u16),
             reserved: U16::new(0),
             total_len: U32::new(len as u32),
             layout: U64::new(self.hash),
-            seq: U64::new(seq),
-            stamp_ns: U64::new(stamp_ns),
+            seq: U64::new(stamp.seq),
+            stamp_ns: U64::new(stamp.stamp_ns),
         }
     }
 
@@ -204,21 +223,14 @@ impl SnapshotLayout {
         values: &[V],
     ) -> Result<usize, SnapshotError> {
         let needed = self.check(out, values)?;
-        self.write_checked(out, addr, seq, stamp_ns, values, needed);
+        let stamp = Stamp::new(addr, seq, stamp_ns);
+        self.write_checked(out, stamp, values, needed);
         Ok(needed)
     }
 
     /// [`SnapshotLayout::write`] once `out` and `values` were checked: `needed` bytes.
-    fn write_checked<V: AsValue>(
-        &self,
-        out: &mut [u8],
-        addr: Addr,
-        seq: u64,
-        stamp_ns: u64,
-        values: &[V],
-        needed: usize,
-    ) {
-        out[..HEADER_LEN].copy_from_slice(self.header(addr, seq, stamp_ns, needed).as_bytes());
+    fn write_checked<V: AsValue>(&self, out: &mut [u8], stamp: Stamp, values: &[V], needed: usize) {
+        out[..HEADER_LEN].copy_from_slice(self.header(stamp, needed).as_bytes());
         let mut name_at = HEADER_LEN + ENTRY_LEN * self.items.len();
         let mut val_at = self.values_at();
         for (i, (item, v)) in self.items.iter().zip(values).enumerate() {
@@ -267,14 +279,15 @@ impl SnapshotLayout {
     ) -> Result<Written, SnapshotError> {
         let needed = self.check(out, values)?;
         let reusable = earlier.is_some_and(|(earlier_seq, earlier_stamp)| {
-            written_at.len() == self.items.len()
-                && self.holds(out, addr, earlier_seq, earlier_stamp, needed, values)
+            let earlier = Stamp::new(addr, earlier_seq, earlier_stamp);
+            written_at.len() == self.items.len() && self.holds(out, earlier, needed, values)
         });
+        let stamp = Stamp::new(addr, seq, stamp_ns);
         let Some((earlier_seq, _)) = earlier.filter(|_| reusable) else {
-            self.write_checked(out, addr, seq, stamp_ns, values, needed);
+            self.write_checked(out, stamp, values, needed);
             return Ok(Written::Whole { len: needed });
         };
-        out[..HEADER_LEN].copy_from_slice(self.header(addr, seq, stamp_ns, needed).as_bytes());
+        out[..HEADER_LEN].copy_from_slice(self.header(stamp, needed).as_bytes());
         let mut val_at = self.values_at();
         let mut items = 0;
         for ((item, v), &at) in self.items.iter().zip(values).zip(written_at) {
@@ -290,21 +303,13 @@ impl SnapshotLayout {
         Ok(Written::Changed { items })
     }
 
-    /// Whether `out` holds this layout's snapshot `seq`/`stamp_ns` from `addr`, `len` bytes,
-    /// with each value as long as in `values`.
-    fn holds<V: AsValue>(
-        &self,
-        out: &[u8],
-        addr: Addr,
-        seq: u64,
-        stamp_ns: u64,
-        len: usize,
-        values: &[V],
-    ) -> bool {
+    /// Whether `out` holds this layout's snapshot `stamp`, `len` bytes, with each value as long
+    /// as in `values`.
+    fn holds<V: AsValue>(&self, out: &[u8], stamp: Stamp, len: usize, values: &[V]) -> bool {
         let Ok((header, rest)) = SnapshotHeader::ref_from_prefix(out) else {
             return false;
         };
-        if *header.as_bytes() != *self.header(addr, seq, stamp_ns, len).as_bytes() {
+        if *header.as_bytes() != *self.header(stamp, len).as_bytes() {
             return false;
         }
         let Ok((entries, _)) = <[ItemEntry]>::ref_from_prefix_with_elems(rest, self.items.len())

@@ -9,6 +9,8 @@
 //! - `modbot-recorder`: the data recorder's host: steps `record` components (`modbot-record`),
 //!   which write a run's signals to HDF5.
 //!
+//! [`coordinator`]: all of the coordinator, its grid (the tick thread) and its process (the
+//! service thread), which the program `modbot-coordinator` runs;
 //! [`grid_args`]: the options they share (the description, its variables, an assembly);
 //! [`host_process`]: what a host process does around its clocked work (shared by the two hosts);
 //! [`service_thread`]: a module served on a thread of normal priority beside the real-time one;
@@ -18,6 +20,7 @@
 //! Lua.
 
 pub mod board;
+pub mod coordinator;
 pub mod grid_args;
 pub mod host_process;
 pub mod service_thread;

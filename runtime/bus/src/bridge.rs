@@ -22,6 +22,7 @@ use super::backend::{
     AxisActual, AxisCommand, Backend, BlockError, BusFault, DriveFault, Sync0Phase,
 };
 use super::cia402::DriveState;
+pub use super::reset::ResetRefused;
 use super::reset::{self, Recovery, ResetAsk};
 use super::robot_state::{self, RobotState};
 use super::tick_time::TickClock;
@@ -353,9 +354,14 @@ impl Bridge {
                 .position(|a| a.state != DriveState::OperationEnabled)
                 .unwrap_or(0);
             let state = self.actuals.get(stuck).map(|a| a.state).unwrap_or_default();
-            self.stop(format!(
-                "the reset failed: drive {stuck} is still {state} after {cycles} cycles"
-            ));
+            let why = ResetRefused::DriveStuck {
+                axis: stuck,
+                state,
+                cycles,
+            };
+            self.stop(why.to_string());
+            // The stop's reason is the failure itself: it is answered as it is.
+            self.reset = Some(ResetAsk::Refused(why));
         }
     }
 
@@ -363,14 +369,14 @@ impl Bridge {
     /// else begun (see [`super::reset`]).
     fn begin_reset(&mut self) {
         let refused = if self.assembly_faulted {
-            Some("the running assembly faulted: switch to another assembly first (`modbot assembly switch hold`)".to_owned())
+            Some(ResetRefused::AssemblyFaulted)
         } else if let Some(why) = &self.bus_failure {
-            Some(format!("the bus still fails: {why}"))
+            Some(ResetRefused::BusFails(why.clone()))
         } else {
             (0..self.axes()).find_map(|axis| {
                 self.backend
                     .fault_cause(axis)
-                    .map(|why| format!("drive {axis} cannot leave its fault: {why}"))
+                    .map(|cause| ResetRefused::DriveFault { axis, cause })
             })
         };
         if let Some(why) = refused {
@@ -415,10 +421,9 @@ impl Bridge {
     pub fn ask_reset(&mut self, now_ns: u64) {
         let silent = now_ns.saturating_sub(self.last_release_ns);
         if !self.lockstep && self.last_release_ns != 0 && silent >= self.lost_after_ns {
-            let why = format!(
-                "the grid is not ticking: no tick for {} base periods (the coordinator is stopped or lost); reset once it runs again",
-                silent / self.period_ns
-            );
+            let why = ResetRefused::GridSilent {
+                periods: silent / self.period_ns,
+            };
             tracing::warn!("reset refused: {why}");
             self.reset = Some(ResetAsk::Refused(why));
         } else {
@@ -426,19 +431,18 @@ impl Bridge {
         }
     }
 
-    /// The answer to the reset asked for, once there is one: `Ok` with what happened, or
-    /// `Err` with why it was refused or failed. A reset the grid has not taken within
+    /// The answer to the reset asked for, once there is one: `Ok` with what happened, in
+    /// words, or why it was refused or failed. A reset the grid has not taken within
     /// [`reset::RESET_WAIT_NS`] (by `now_ns`) is refused.
-    pub fn take_reset_answer(&mut self, now_ns: u64) -> Option<Result<String, String>> {
+    pub fn take_reset_answer(&mut self, now_ns: u64) -> Option<Result<String, ResetRefused>> {
         match &self.reset {
             Some(ResetAsk::Asked { at_ns })
                 if now_ns.saturating_sub(*at_ns) >= reset::RESET_WAIT_NS =>
             {
-                let why = format!(
-                    "the grid has not ticked for {} ms since the reset was asked (last tick {}): the coordinator is stopped or lost",
-                    now_ns.saturating_sub(self.last_release_ns.max(*at_ns)) / 1_000_000,
-                    self.last_tick
-                );
+                let why = ResetRefused::NotTaken {
+                    silent_ms: now_ns.saturating_sub(self.last_release_ns.max(*at_ns)) / 1_000_000,
+                    last_tick: self.last_tick,
+                };
                 self.reset = None;
                 Some(Err(why))
             }
@@ -673,7 +677,7 @@ impl Bridge {
     fn hold_stopped(&mut self, reason: String) {
         self.backend.quick_stop_all();
         if self.recovery.take().is_some() {
-            self.reset = Some(ResetAsk::Refused(format!("the reset failed: {reason}")));
+            self.reset = Some(ResetAsk::Refused(ResetRefused::Stopped(reason.clone())));
         }
         self.safe_stop = Some(SafeStop {
             reason,
@@ -1086,12 +1090,14 @@ mod tests {
         sut.ask_reset(t);
         serve_at(&mut sut, &mut t, release(11, 0, true), 0.0);
         let why = sut.take_reset_answer(t).unwrap().unwrap_err();
-        assert!(why.starts_with("the running assembly faulted"), "{why}");
+        assert_eq!(why, ResetRefused::AssemblyFaulted);
         // Ten periods of silence on a real-time grid: refused at once.
         sut.ask_reset(t + 10 * MS);
         let why = sut.take_reset_answer(t + 10 * MS).unwrap().unwrap_err();
+        assert_eq!(why, ResetRefused::GridSilent { periods: 10 });
         assert!(
-            why.starts_with("the grid is not ticking: no tick for 10 base periods"),
+            why.to_string()
+                .starts_with("the grid is not ticking: no tick for 10 base periods"),
             "{why}"
         );
         assert_eq!(sut.robot_state().kind(), "safe_stop");

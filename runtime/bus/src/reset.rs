@@ -45,7 +45,7 @@ pub enum ResetAsk {
     /// Done: the robot is operational again (what happened, in words).
     Done(String),
     /// Refused or failed: why.
-    Refused(String),
+    Refused(ResetRefused),
 }
 
 /// The command that takes a drive in `state` one step towards operation enabled, holding
@@ -71,6 +71,48 @@ pub fn command(first: bool, state: DriveState, last_controlword: u16, hold: f64)
         target_velocity: 0.0,
         target_torque: 0.0,
     }
+}
+
+/// Why an operator's reset was refused, or failed (see `Bridge::take_reset_answer`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ResetRefused {
+    /// The running assembly faulted: only a switch to another assembly ends that.
+    #[error(
+        "the running assembly faulted: switch to another assembly first (`modbot assembly \
+         switch hold`)"
+    )]
+    AssemblyFaulted,
+    /// The bus itself still fails (as the backend describes it).
+    #[error("the bus still fails: {0}")]
+    BusFails(String),
+    /// The cause of a drive's fault persists (an encoder still lost).
+    #[error("drive {axis} cannot leave its fault: {cause}")]
+    DriveFault { axis: usize, cause: &'static str },
+    /// A real-time grid has not ticked for `periods` base periods: nothing would take the
+    /// reset.
+    #[error(
+        "the grid is not ticking: no tick for {periods} base periods (the coordinator is \
+         stopped or lost); reset once it runs again"
+    )]
+    GridSilent { periods: u64 },
+    /// The grid did not take the reset within [`RESET_WAIT_NS`]: it has not ticked for
+    /// `silent_ms` since the reset was asked, and ticked last at `last_tick`.
+    #[error(
+        "the grid has not ticked for {silent_ms} ms since the reset was asked (last tick \
+         {last_tick}): the coordinator is stopped or lost"
+    )]
+    NotTaken { silent_ms: u64, last_tick: u64 },
+    /// Drive `axis` was not in operation enabled after `cycles` cycles of the reset
+    /// ([`RESET_CYCLES`]): it is `state`.
+    #[error("the reset failed: drive {axis} is still {state} after {cycles} cycles")]
+    DriveStuck {
+        axis: usize,
+        state: DriveState,
+        cycles: u64,
+    },
+    /// A safe stop, for this reason, ended the reset under way.
+    #[error("the reset failed: {0}")]
+    Stopped(String),
 }
 
 #[cfg(test)]

@@ -21,7 +21,7 @@
 
 use core::time::Duration;
 
-use modbot_ipc_schema::{Addr, Seq};
+use modbot_ipc_schema::{Addr, Args, OwnedValue, Seq, Value};
 
 use crate::error::CallError;
 
@@ -573,6 +573,14 @@ impl MethodQueue {
         self.index(handle)
             .and_then(|i| self.slots[i])
             .is_some_and(|s| s.state == SlotState::Waiting)
+    }
+}
+
+/// An answer as owned values (or its error), for the `call_owned` of modules and tools.
+pub fn owned_answer(answer: Result<&Args<'_>, &CallError>) -> Result<Vec<OwnedValue>, CallError> {
+    match answer {
+        Ok(a) => Ok(a.as_slice().iter().map(Value::to_owned_value).collect()),
+        Err(e) => Err(e.clone()),
     }
 }
 

@@ -216,48 +216,22 @@ impl Ctx {
         args: &[Value<'_>],
         opts: CallOptions,
     ) -> Result<CallHandle, CallError> {
-        let started = self.start_call(module, method, args, opts);
-        if started.is_ok() {
-            self.stats.calls += 1;
-        }
-        started
-    }
-
-    fn start_call(
-        &mut self,
-        module: &str,
-        method: &str,
-        args: &[Value<'_>],
-        opts: CallOptions,
-    ) -> Result<CallHandle, CallError> {
-        if let Some((addr, id)) = self.book.resolved(module, method) {
-            // The same method as last time, and the book has not changed since.
-            let (handle, seq) = self.out.calls.begin(addr, opts, Purpose::User)?;
-            return self.send_call(handle, (addr, seq, id), method, args, opts);
-        }
-        let addr = match self.book.lookup(module) {
-            Ok(e) => e.addr,
-            Err(_) => {
-                self.refresh_book();
-                match self.book.lookup(module) {
-                    Ok(e) => e.addr,
-                    // Down, but known: a caller that waits for it sends to its address, where
-                    // it comes back.
-                    Err(CallError::NotAvailable { .. }) if opts.wait_for_peer => {
-                        match self.book.entries().find(|e| e.name == module) {
-                            Some(e) => e.addr,
-                            None => return Err(CallError::UnknownModule(module.to_owned())),
-                        }
-                    }
-                    Err(e) => return Err(e),
-                }
-            }
+        // The same method as last time, and the book has not changed since: nothing to look up.
+        let resolved = self.book.resolved(module, method);
+        let addr = match resolved {
+            Some((addr, _)) => addr,
+            None => self.address_of(module, opts)?,
         };
         let (handle, seq) = self.out.calls.begin(addr, opts, Purpose::User)?;
-        match self.book.method_id(addr, method) {
+        let id = match resolved {
+            Some((_, id)) => Some(Ok(id)),
+            None => self.book.method_id(addr, method),
+        };
+        let started = match id {
             Some(Ok(id)) => {
                 let sent = self.send_call(handle, (addr, seq, id), method, args, opts);
-                if sent.is_ok() && self.book.get(addr).is_some_and(|e| e.alive) {
+                let learnt = resolved.is_none() && sent.is_ok();
+                if learnt && self.book.get(addr).is_some_and(|e| e.alive) {
                     self.book.remember(module, method, addr, id);
                 }
                 sent
@@ -271,6 +245,31 @@ impl Ctx {
                 self.describe(addr);
                 Ok(handle)
             }
+        };
+        if started.is_ok() {
+            self.stats.calls += 1;
+        }
+        started
+    }
+
+    /// The address of `module`, from the book (read again if it does not know the module);
+    /// with `opts.wait_for_peer`, that of a module that is down but known.
+    fn address_of(&mut self, module: &str, opts: CallOptions) -> Result<Addr, CallError> {
+        if let Ok(e) = self.book.lookup(module) {
+            return Ok(e.addr);
+        }
+        self.refresh_book();
+        match self.book.lookup(module) {
+            Ok(e) => Ok(e.addr),
+            // Down, but known: a caller that waits for it sends to its address, where it comes
+            // back.
+            Err(CallError::NotAvailable { .. }) if opts.wait_for_peer => {
+                match self.book.entries().find(|e| e.name == module) {
+                    Some(e) => Ok(e.addr),
+                    None => Err(CallError::UnknownModule(module.to_owned())),
+                }
+            }
+            Err(e) => Err(e),
         }
     }
 

@@ -19,7 +19,7 @@ use core::time::Duration;
 use modbot_ipc_schema::heartbeat::ModuleState;
 use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
 
-use crate::calls::{CallOptions, Purpose};
+use crate::calls::{owned_answer, CallOptions, Purpose};
 use crate::ctx::Ctx;
 use crate::error::{CallError, ModuleError};
 pub use crate::hooks::{ActivationFn, DoneFn, MethodFn, Reply, Report, ReportFn, TaskFn};
@@ -395,10 +395,7 @@ impl<S> Module<S> {
         args: &[Value<'_>],
         opts: CallOptions,
     ) -> Result<Vec<OwnedValue>, CallError> {
-        self.call_blocking(module, method, args, opts, |r| match r {
-            Ok(a) => Ok(a.as_slice().iter().map(Value::to_owned_value).collect()),
-            Err(e) => Err(e.clone()),
-        })
+        self.call_blocking(module, method, args, opts, owned_answer)
     }
 
     /// Runs the default application controller until SIGTERM/SIGINT or [`Ctx::stop`].

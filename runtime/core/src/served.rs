@@ -95,17 +95,19 @@ mod tests {
         Seq::new(n).unwrap()
     }
 
+    /// What a retry is answered with when a REPLY carrying `payload` was kept.
+    fn replied(payload: &[u8]) -> Option<Replay<'_>> {
+        Some(Replay::Answer {
+            kind: FrameKind::Reply,
+            payload,
+        })
+    }
+
     #[test]
     fn a_retry_of_a_served_request_gets_the_same_answer() {
         let mut sut = ServedLog::default();
         sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"\x2a");
-        assert_eq!(
-            sut.replay(Addr(3), seq(5), 2),
-            Some(Replay::Answer {
-                kind: FrameKind::Reply,
-                payload: b"\x2a"
-            })
-        );
+        assert_eq!(sut.replay(Addr(3), seq(5), 2), replied(b"\x2a"));
     }
 
     #[test]
@@ -124,13 +126,7 @@ mod tests {
         let mut sut = ServedLog::default();
         sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"old");
         sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"new");
-        assert_eq!(
-            sut.replay(Addr(3), seq(5), 2),
-            Some(Replay::Answer {
-                kind: FrameKind::Reply,
-                payload: b"new"
-            })
-        );
+        assert_eq!(sut.replay(Addr(3), seq(5), 2), replied(b"new"));
     }
 
     #[test]

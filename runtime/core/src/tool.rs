@@ -8,7 +8,7 @@ use modbot_ipc_schema::relay::{self, Response};
 use modbot_ipc_schema::value::Values;
 use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
 
-use crate::calls::CallOptions;
+use crate::calls::{owned_answer, CallOptions};
 use crate::domain::Domain;
 use crate::error::{CallError, ModuleError};
 use crate::module::{Module, ModuleBuilder};
@@ -35,10 +35,7 @@ pub trait Calls {
         args: &[Value<'_>],
         opts: CallOptions,
     ) -> Result<Vec<OwnedValue>, CallError> {
-        self.call_blocking(module, method, args, opts, |r| match r {
-            Ok(a) => Ok(a.as_slice().iter().map(Value::to_owned_value).collect()),
-            Err(e) => Err(e.clone()),
-        })
+        self.call_blocking(module, method, args, opts, owned_answer)
     }
 }
 
@@ -111,12 +108,7 @@ impl Tool {
                         supervisor = Some(p.addr);
                     }
                 })?;
-                let no_relay = || {
-                    ModuleError::Transport(TransportError::Ipc {
-                        op: "join the domain",
-                        detail: "every address is taken and no supervisor relays calls".into(),
-                    })
-                };
+                let no_relay = || ModuleError::Transport(TransportError::DomainFull);
                 let supervisor = supervisor.ok_or_else(no_relay)?;
                 let relay = RelayClient::open(&transport, supervisor)?.ok_or_else(no_relay)?;
                 Ok(Tool::Relay {

@@ -47,25 +47,30 @@ fn coe_header(service: u8) -> [u8; 2] {
     (u16::from(service) << 12).to_le_bytes()
 }
 
-/// An abort response for index:subindex.
-pub fn abort_response(index: u16, sub_index: u8, code: u32) -> Vec<u8> {
+/// An SDO frame of `service`: the command byte, index:subindex and 4 bytes of data or size.
+fn sdo_frame(service: u8, command: u8, index: u16, sub_index: u8, data: [u8; 4]) -> Vec<u8> {
     let mut out = Vec::with_capacity(SDO_LEN);
-    out.extend_from_slice(&coe_header(service::SDO_REQUEST));
-    out.push(CCS_ABORT << 5);
-    out.extend_from_slice(&index.to_le_bytes());
-    out.push(sub_index);
-    out.extend_from_slice(&code.to_le_bytes());
-    out
-}
-
-fn sdo_response(command: u8, index: u16, sub_index: u8, data: [u8; 4]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(SDO_LEN);
-    out.extend_from_slice(&coe_header(service::SDO_RESPONSE));
+    out.extend_from_slice(&coe_header(service));
     out.push(command);
     out.extend_from_slice(&index.to_le_bytes());
     out.push(sub_index);
     out.extend_from_slice(&data);
     out
+}
+
+/// An abort response for index:subindex.
+pub fn abort_response(index: u16, sub_index: u8, code: u32) -> Vec<u8> {
+    sdo_frame(
+        service::SDO_REQUEST,
+        CCS_ABORT << 5,
+        index,
+        sub_index,
+        code.to_le_bytes(),
+    )
+}
+
+fn sdo_response(command: u8, index: u16, sub_index: u8, data: [u8; 4]) -> Vec<u8> {
+    sdo_frame(service::SDO_RESPONSE, command, index, sub_index, data)
 }
 
 impl SdoServer {
@@ -79,24 +84,17 @@ impl SdoServer {
         state: AlState,
         max_payload: usize,
     ) -> Option<Vec<u8>> {
-        let Some(header) = request.get(0..2) else {
-            return Some(abort_response(0, 0, abort::INVALID_COMMAND));
-        };
-        let kind = (u16::from_le_bytes([header[0], header[1]]) >> 12) as u8;
+        let kind = request
+            .get(0..2)
+            .map(|header| (u16::from_le_bytes([header[0], header[1]]) >> 12) as u8);
         match kind {
-            service::SDO_REQUEST => self.sdo(request, od, state, max_payload),
-            service::SDO_INFORMATION => Some(crate::coe_info::handle(request, od, max_payload)),
-            _ => Some(abort_response(0, 0, abort::INVALID_COMMAND)),
+            Some(service::SDO_REQUEST) => {}
+            Some(service::SDO_INFORMATION) => {
+                return Some(crate::coe_info::handle(request, od, max_payload))
+            }
+            _ => return Some(abort_response(0, 0, abort::INVALID_COMMAND)),
         }
-    }
-
-    fn sdo(
-        &mut self,
-        request: &[u8],
-        od: &mut ObjectDictionary,
-        state: AlState,
-        max_payload: usize,
-    ) -> Option<Vec<u8>> {
+        // An SDO request.
         let Some(&command) = request.get(2) else {
             return Some(abort_response(0, 0, abort::INVALID_COMMAND));
         };

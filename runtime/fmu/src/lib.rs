@@ -17,8 +17,9 @@
 //!   against the FMU's; [`declare`] (what every process registers).
 //! - [`interface`]: an FMU's inputs, outputs and parameters as ports and parameters, its
 //!   arrays sized by its structural parameters; read by `model2` and `model3` (what each
-//!   version's modelDescription.xml says), `gather` (variables into ports and parameters) and
-//!   [`ranges`] (the declared `min` and `max`); its parts' types are in [`variables`].
+//!   version's modelDescription.xml says; `model`, what they share), `gather` (variables
+//!   into ports and parameters) and [`ranges`] (the declared `min` and `max`); its parts'
+//!   types are in [`variables`].
 //! - `params`: a description's parameters checked against the FMU's (known, typed, shaped,
 //!   within range).
 //! - [`archive`]: the .fmu archive — its modelDescription.xml, its binary for this platform.
@@ -43,6 +44,7 @@ mod exchange;
 mod fmu_log;
 mod gather;
 pub mod interface;
+mod model;
 mod model2;
 mod model3;
 mod params;

@@ -5,17 +5,15 @@ use fmi_schema::fmi2::{Causality, Fmi2ModelDescription, ScalarVariableElement as
 use modbot_grid::component::ParamValue;
 
 use super::error::FmuErrorKind;
-use super::gather::{gather, Role, Var};
+use super::gather::{Role, Var};
+use super::model::{self, Model};
 use super::variables::{Interface, Kind, Version};
 
 /// The interface `xml` describes (arrays need no sizing in FMI 2).
 pub fn read(xml: &str) -> Result<Interface, FmuErrorKind> {
-    let md: Fmi2ModelDescription =
-        fmi_schema::deserialize(xml).map_err(|e| FmuErrorKind::Xml(e.to_string()))?;
-    let cs = md
-        .co_simulation
-        .as_ref()
-        .ok_or(FmuErrorKind::NoCoSimulation)?;
+    let md: Fmi2ModelDescription = model::parse(xml)?;
+    let cs = md.co_simulation.as_ref();
+    let model = Model::new(Version::Fmi2, &md, cs, &md.guid, md.description.as_deref())?;
     let ranges = super::ranges::scan(xml);
     let vars = md.model_variables.variables.iter().filter_map(|v| {
         let role = match v.causality {
@@ -44,16 +42,5 @@ pub fn read(xml: &str) -> Result<Interface, FmuErrorKind> {
             structural: false,
         })
     });
-    let (inputs, outputs, params) = gather(vars.collect())?;
-    Ok(Interface {
-        version: Version::Fmi2,
-        model_name: md.model_name.clone(),
-        model_identifier: cs.model_identifier.clone(),
-        token: md.guid.clone(),
-        description: md.description.clone().unwrap_or_default(),
-        inputs,
-        outputs,
-        params,
-        constants: Vec::new(),
-    })
+    model.interface(vars.collect(), Vec::new())
 }

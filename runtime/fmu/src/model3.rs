@@ -10,17 +10,16 @@ use fmi_schema::fmi3::{
 use modbot_grid::component::ParamValue;
 
 use super::error::FmuErrorKind;
-use super::gather::{gather, Role, Var};
+use super::gather::{Role, Var};
+use super::model::{self, Model};
 use super::variables::{Extent, Interface, Kind, Version};
 
 /// The interface `xml` describes, its arrays not yet sized ([`Interface::sized`]).
 pub fn read(xml: &str) -> Result<Interface, FmuErrorKind> {
-    let md: Fmi3ModelDescription =
-        fmi_schema::deserialize(xml).map_err(|e| FmuErrorKind::Xml(e.to_string()))?;
-    let cs = md
-        .co_simulation
-        .as_ref()
-        .ok_or(FmuErrorKind::NoCoSimulation)?;
+    let md: Fmi3ModelDescription = model::parse(xml)?;
+    let cs = md.co_simulation.as_ref();
+    let token = &md.instantiation_token;
+    let model = Model::new(Version::Fmi3, &md, cs, token, md.description.as_deref())?;
     let ranges = super::ranges::scan(xml);
     let mut vars = Vec::new();
     let mut constants = Vec::new();
@@ -61,18 +60,7 @@ pub fn read(xml: &str) -> Result<Interface, FmuErrorKind> {
             structural,
         });
     }
-    let (inputs, outputs, params) = gather(vars)?;
-    Ok(Interface {
-        version: Version::Fmi3,
-        model_name: md.model_name.clone(),
-        model_identifier: cs.model_identifier.clone(),
-        token: md.instantiation_token.clone(),
-        description: md.description.clone().unwrap_or_default(),
-        inputs,
-        outputs,
-        params,
-        constants,
-    })
+    model.interface(vars, constants)
 }
 
 /// How `v`'s values travel (`None`: no port or parameter has its type), its dimensions and its

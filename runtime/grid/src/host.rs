@@ -122,9 +122,9 @@ fn reaper() -> Result<std::sync::mpsc::Sender<Binding>, TransportError> {
     std::thread::Builder::new()
         .name("reaper".into())
         .spawn(move || rx.into_iter().for_each(drop))
-        .map_err(|e| TransportError::Ipc {
-            op: "reaper thread",
-            detail: e.to_string(),
+        .map_err(|e| TransportError::Spawn {
+            thread: "reaper",
+            failure: e.into(),
         })?;
     Ok(tx)
 }

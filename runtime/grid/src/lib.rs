@@ -1,8 +1,11 @@
 //! modbot-grid: the time grid — its component model, the checked description, the reference
-//! run of its logical execution time (LET) semantics, the coordinator and the hosts. Uses
+//! run of its logical execution time (LET) semantics, and the hosts. Uses
 //! `modbot-core` and `modbot-transport`; reads no Lua (the descriptions are `modbot-system`'s).
 //! The robot controllers are components of `modbot-control`, the bus bridge and its drives of
-//! `modbot-bus`; `modbot-components` assembles every built-in type in one registry.
+//! `modbot-bus`; `modbot-components` assembles every built-in type in one registry. The
+//! coordinator, which releases the components every tick, is `modbot-grid-processes`'s
+//! (its grid and its process in one place); it uses [`wire`], [`tick`], [`ledger`] and
+//! [`recorder`] from here.
 //!
 //! A grid is a set of *components* (FMI-style: named, typed inputs, outputs and parameters)
 //! on *host* processes, each released every k base ticks, and the *connections* from outputs
@@ -35,7 +38,6 @@
 //!   notices, wake-ups): iceoryx2 in real runs, in-process in tests.
 //! - [`versions`]: the versions of a component's outputs a reader keeps (hosts, recorder).
 //! - [`tick`]: where the base tick comes from (an absolute timerfd; a free-running source).
-//! - [`coordinator`]: releases, done notices, overruns and their policies, the ledger.
 //! - [`host`]: a component host: steps its components on release, publishes their outputs.
 //! - [`outputs_view`]: the latest outputs of a host's components, copied for its module
 //!   (shown on its blackboard, read by robot programs).
@@ -49,7 +51,6 @@
 
 pub mod builtin;
 pub mod component;
-pub mod coordinator;
 pub mod host;
 pub mod ledger;
 pub mod offload;

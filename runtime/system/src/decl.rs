@@ -8,6 +8,7 @@
 //! Tables are read with raw access (no metamethods run) and every key must be a known field,
 //! so a typo is an error rather than a silently ignored setting.
 
+use std::ops::Deref;
 use std::path::PathBuf;
 
 use mlua::{Lua, Value};
@@ -43,40 +44,33 @@ pub(super) struct Declarations {
     pub records: Vec<RecordDecl>,
 }
 
-/// A `module` declaration: a [`ModuleSpec`] whose program is not looked up yet and whose
-/// groups are not known yet (the fields mean what they mean there).
+/// A `module` declaration: its program as the description wrote it, not looked up yet, and
+/// the module as a [`ModuleSpec`] that lacks what is not known yet — its `program` and
+/// `program_name` are empty and its `groups` too, until [`ModuleDecl::into_spec`]. Its other
+/// fields are read through it (`m.name`, `m.addr`, `m.line`).
 #[derive(Debug)]
 pub(super) struct ModuleDecl {
-    pub name: String,
-    pub addr: u8,
+    /// The program as the description wrote it.
     pub program: String,
-    pub args: Vec<String>,
-    pub restart: RestartPolicy,
-    pub cpus: Vec<usize>,
-    pub priority: Option<u8>,
-    pub mlock: bool,
-    pub env: Vec<(String, String)>,
-    pub mode: ReceiveMode,
-    pub line: u32,
+    module: ModuleSpec,
+}
+
+impl Deref for ModuleDecl {
+    type Target = ModuleSpec;
+
+    fn deref(&self) -> &ModuleSpec {
+        &self.module
+    }
 }
 
 impl ModuleDecl {
     /// The module, with its program found at `program` and its groups.
     pub fn into_spec(self, program: PathBuf, groups: Vec<String>) -> ModuleSpec {
         ModuleSpec {
-            name: self.name,
-            addr: self.addr,
             program,
             program_name: self.program,
-            args: self.args,
-            restart: self.restart,
-            cpus: self.cpus,
-            priority: self.priority,
-            mlock: self.mlock,
-            env: self.env,
-            mode: self.mode,
             groups,
-            line: self.line,
+            ..self.module
         }
     }
 }
@@ -225,11 +219,12 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
         env.push((var.to_owned(), us.to_string()));
         env.sort();
     }
-    Ok(ModuleDecl {
+    let module = ModuleSpec {
         name: name.to_owned(),
         // The range was checked above.
         addr: u8::try_from(addr).unwrap_or(u8::MAX),
-        program,
+        program: PathBuf::new(),
+        program_name: String::new(),
         args,
         restart,
         cpus,
@@ -237,8 +232,10 @@ pub(super) fn module(lua: &Lua, name: &str, line: u32, v: &Value) -> Result<Modu
         mlock,
         env,
         mode,
+        groups: Vec::new(),
         line,
-    })
+    };
+    Ok(ModuleDecl { program, module })
 }
 
 /// The list of `group "name" { "member", ... }`.

@@ -7,10 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use modbot_grid::coordinator::Coordinator;
 use modbot_grid::host::Host;
 use modbot_grid::reference::reference_trace;
 use modbot_grid::spec::{GridClock, GridSpec};
+use modbot_grid_processes::coordinator::Coordinator;
 use modbot_testkit::TestDomain;
 use modbot_transport::channels::Channels;
 use modbot_transport::local::LocalTransport;

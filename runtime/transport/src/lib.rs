@@ -38,8 +38,10 @@
 //! Liveness comes from the supervisor's directory, or without a supervisor from iceoryx2 nodes:
 //! one per module, named `mNNN.MODE.NAME`.
 
+mod channel_spec;
 pub mod channels;
 pub mod domain;
+mod failure;
 pub mod ipc;
 pub mod launch;
 pub mod local;
@@ -47,8 +49,12 @@ pub mod spec_image;
 
 use core::time::Duration;
 
+use modbot_ipc_schema::directory::DirectoryError;
 use modbot_ipc_schema::Addr;
 use thiserror::Error;
+
+use crate::channel_spec::ChannelSpec;
+pub use crate::failure::{IoFailure, IpcFailure};
 
 /// How a module receives: spinning on its inbox, or sleeping until woken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -140,10 +146,98 @@ pub enum TransportError {
     /// its system runs, or is starting beside this one. `pid` when it is known.
     #[error("another supervisor runs in the domain{}", pid.map(|p| format!(" (pid {p})")).unwrap_or_default())]
     AnotherSupervisor { pid: Option<u32> },
-    #[error("iceoryx2 {op} failed: {detail}")]
-    Ipc { op: &'static str, detail: String },
+    /// Every address of the domain is taken, and no supervisor relays the calls of a tool
+    /// that holds none.
+    #[error("every address of the domain is taken and no supervisor relays calls")]
+    DomainFull,
+    /// iceoryx2 failed in operation `op`. The failure is part of the message, not an error
+    /// [`source`](std::error::Error::source), so that a chain of causes names it once.
+    #[error("iceoryx2 {op} failed: {failure}")]
+    Ipc {
+        op: &'static str,
+        failure: IpcFailure,
+    },
+    /// The claim of an address or a name (`service`, created exclusively) was refused though
+    /// no live module holds it, after the dead were cleaned up.
+    #[error(
+        "iceoryx2 claim failed: {service}: {failure} (another process may be starting with \
+         the same address or name)"
+    )]
+    Claim {
+        service: String,
+        failure: IpcFailure,
+    },
+    /// A service that others create and remove was created and removed by them meanwhile, each
+    /// time this process tried to `op`.
+    #[error("{op} failed: other processes created and removed it meanwhile, again and again")]
+    Contended { op: &'static str },
+    /// Every slot of the published directory is held by processes that still hold what
+    /// supervisors that died published there.
+    #[error(
+        "cannot create the directory: processes of the domain still hold the directories of \
+         {slots} supervisors that died: stop the domain's tools"
+    )]
+    DirectorySlotsHeld { slots: usize },
+    /// The directory's image could not be read or written (operation `op`).
+    #[error("{op} failed: {error}")]
+    DirectoryImage {
+        op: &'static str,
+        error: DirectoryError,
+    },
+    /// The domain's wake-up table (a file in `/dev/shm`) could not be opened or mapped.
+    #[error("wake-up table {}: {failure}", path.display())]
+    WakeTable {
+        path: std::path::PathBuf,
+        failure: IoFailure,
+    },
+    /// The domain's wake-up table has the size of another modbot version's.
+    #[error(
+        "wake-up table {} has {len} bytes, not {expected}: it was left by another modbot \
+         version (stop the domain with `modbot down`, or remove the file)",
+        path.display()
+    )]
+    WakeTableSize {
+        path: std::path::PathBuf,
+        len: u64,
+        expected: usize,
+    },
+    /// Sleeping on the wake-up table failed (`futex_waitv` needs Linux 5.16 or later).
+    #[error("wait for a wake-up failed: futex_waitv: {0} (needs Linux 5.16 or later)")]
+    WakeWait(IoFailure),
+    /// The supervisor did not answer a call relayed through it within `timeout`.
+    #[error("the supervisor did not answer a relayed call within {} ms", timeout.as_millis())]
+    RelayTimeout { timeout: Duration },
+    /// The in-process backend's channel `name` exists with another spec.
+    #[error("channel {name} is {have:?}, opened as {asked:?}")]
+    ChannelSpecDiffers {
+        name: String,
+        have: ChannelSpec,
+        asked: ChannelSpec,
+    },
+    /// The in-process backend's channel `name` has all the `max` publishers it admits.
+    #[error("channel {name} has its {max} publishers")]
+    ChannelPublishersTaken { name: String, max: usize },
+    /// The in-process backend's channel `name` has all the `max` subscribers it admits.
+    #[error("channel {name} has its {max} subscribers")]
+    ChannelSubscribersTaken { name: String, max: usize },
+    /// A thread could not be started.
+    #[error("cannot start the {thread} thread: {failure}")]
+    Spawn {
+        thread: &'static str,
+        failure: IoFailure,
+    },
     #[error(transparent)]
     Access(#[from] domain::DomainAccessError),
+}
+
+impl TransportError {
+    /// iceoryx2's `failure` in operation `op`.
+    pub fn ipc(op: &'static str, failure: impl Into<IpcFailure>) -> TransportError {
+        TransportError::Ipc {
+            op,
+            failure: failure.into(),
+        }
+    }
 }
 
 /// What a module receives besides its inbox.
@@ -276,6 +370,19 @@ pub struct Endpoint {
     pub directory: Box<dyn Directory>,
 }
 
+/// A module about to open its endpoint: what [`Transport::open`] hands a backend once it
+/// checked the address and the name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Opening<'a> {
+    /// A module address (1..=254).
+    pub addr: Addr,
+    /// A valid module name (see [`check_name`]).
+    pub name: &'a str,
+    pub mode: ReceiveMode,
+    /// What it receives besides its inbox.
+    pub joins: Joins<'a>,
+}
+
 /// A backend: opens endpoints in one domain.
 pub trait Transport {
     /// Claims `addr` and `name` and opens the module's endpoint, subscribed to what `joins`
@@ -286,7 +393,22 @@ pub trait Transport {
         name: &str,
         mode: ReceiveMode,
         joins: &Joins<'_>,
-    ) -> Result<Endpoint, TransportError>;
+    ) -> Result<Endpoint, TransportError> {
+        if !addr.is_module() {
+            return Err(TransportError::BadAddress(addr));
+        }
+        check_name(name)?;
+        self.open_checked(Opening {
+            addr,
+            name,
+            mode,
+            joins: *joins,
+        })
+    }
+
+    /// What a backend implements of [`Transport::open`]: claims the checked `module`'s address
+    /// and name and opens its endpoint. Callers call [`Transport::open`].
+    fn open_checked(&self, module: Opening<'_>) -> Result<Endpoint, TransportError>;
 
     /// Opens an endpoint at a free address, for a tool (the CLI, a benchmark driver): the
     /// highest free one at or below [`TOOL_FIRST`], else above it.
@@ -344,4 +466,18 @@ pub trait Transport {
     /// Marks this transport as a tool's: a tool is short-lived and may run while a system
     /// starts in the domain, so when it leaves it tidies only what is certainly dead.
     fn opened_as_tool(&self) {}
+}
+
+/// Names the operation an iceoryx2 failure happened in: `ServiceName::new(n).ipc("service
+/// name")?`.
+pub trait IpcResult<T> {
+    /// The error as [`TransportError::Ipc`] of operation `op`.
+    fn ipc(self, op: &'static str) -> Result<T, TransportError>;
+}
+
+impl<T, E: Into<IpcFailure>> IpcResult<T> for Result<T, E> {
+    #[inline]
+    fn ipc(self, op: &'static str) -> Result<T, TransportError> {
+        self.map_err(|e| TransportError::ipc(op, e))
+    }
 }

@@ -1,7 +1,7 @@
 //! `modbot-bus`: the bus bridge — the component host of the grid's `bus` host, which owns the
 //! drives, serves them every tick, and quick-stops them when the coordinator is lost.
 
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 
 use clap::Parser;
@@ -65,12 +65,17 @@ enum Ask {
 struct Resets {
     asked: u64,
     taken: u64,
-    answer: Option<(u64, Result<String, String>)>,
+    answer: Option<(u64, Result<String, bridge::ResetRefused>)>,
+}
+
+/// Locks `m`, whether or not a thread panicked holding it (what it guards stays readable).
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 impl Ledger {
-    fn view(&self) -> std::sync::MutexGuard<'_, BusView> {
-        self.view.lock().unwrap_or_else(|p| p.into_inner())
+    fn view(&self) -> MutexGuard<'_, BusView> {
+        lock(&self.view)
     }
 }
 
@@ -169,8 +174,8 @@ fn robot_method(
     Ok(())
 }
 
-fn lock_resets(l: &Ledger) -> std::sync::MutexGuard<'_, Resets> {
-    l.resets.lock().unwrap_or_else(|p| p.into_inner())
+fn lock_resets(l: &Ledger) -> MutexGuard<'_, Resets> {
+    lock(&l.resets)
 }
 
 fn reset_method(
@@ -195,12 +200,12 @@ fn reset_answer_method(
     let r = lock_resets(l);
     match &r.answer {
         Some((m, answer)) if *m == n => {
-            let (ok, text) = match answer {
-                Ok(what) => (true, what.as_str()),
-                Err(why) => (false, why.as_str()),
+            let (ok, text): (bool, std::borrow::Cow<'_, str>) = match answer {
+                Ok(what) => (true, what.as_str().into()),
+                Err(why) => (false, why.to_string().into()),
             };
             reply.push(Value::Bool(ok));
-            reply.push(Value::Text(text));
+            reply.push(Value::Text(&text));
             Ok(())
         }
         _ if n >= 1 && n <= r.asked => {

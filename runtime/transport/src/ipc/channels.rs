@@ -19,12 +19,11 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
-use super::ipc_err;
 use super::wake::{WakeTable, Word};
 use crate::channels::{
     BytePublisher, ByteSubscriber, ChannelSpec, Channels, WakeListener, WakeNotifier,
 };
-use crate::TransportError;
+use crate::{IpcResult, TransportError};
 
 /// The service type of the channels: ports that may move between threads.
 type Service = ipc_threadsafe::Service;
@@ -46,7 +45,7 @@ impl IpcChannels {
     }
 
     fn service(&self, name: &str, spec: &ChannelSpec) -> Result<Factory, TransportError> {
-        let name = ServiceName::new(name).map_err(|e| ipc_err("channel name")(&e))?;
+        let name = ServiceName::new(name).ipc("channel name")?;
         self.node
             .service_builder(&name)
             .publish_subscribe::<[u8]>()
@@ -58,7 +57,7 @@ impl IpcChannels {
             .subscriber_max_borrowed_samples(2)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|e| ipc_err("open channel")(&e))
+            .ipc("open channel")
     }
 }
 
@@ -76,7 +75,7 @@ impl Channels for IpcChannels {
             .allocation_strategy(AllocationStrategy::Static)
             .max_loaned_samples(2)
             .create()
-            .map_err(|e| ipc_err("channel publisher")(&e))?;
+            .ipc("channel publisher")?;
         Ok(Box::new(IpcPublisher(port)))
     }
 
@@ -90,7 +89,7 @@ impl Channels for IpcChannels {
             .subscriber_builder()
             .buffer_size(spec.depth)
             .create()
-            .map_err(|e| ipc_err("channel subscriber")(&e))?;
+            .ipc("channel subscriber")?;
         Ok(Box::new(IpcSubscriber(port)))
     }
 
@@ -132,10 +131,7 @@ struct IpcPublisher(Publisher<Service, [u8], ()>);
 
 impl BytePublisher for IpcPublisher {
     fn send(&self, len: usize, fill: &mut dyn FnMut(&mut [u8])) -> Result<(), TransportError> {
-        let mut sample = self
-            .0
-            .loan_slice_uninit(len)
-            .map_err(|e| ipc_err("channel loan")(&e))?;
+        let mut sample = self.0.loan_slice_uninit(len).ipc("channel loan")?;
         let payload = sample.payload_mut();
         // SAFETY: the payload is `len` bytes of shared memory that iceoryx2 mapped zero-filled
         // and that only ever held bytes of earlier samples, so every byte is initialised; `u8`
@@ -147,7 +143,7 @@ impl BytePublisher for IpcPublisher {
         fill(bytes);
         // SAFETY: see above; every byte is initialised.
         let sample = unsafe { sample.assume_init() };
-        sample.send().map_err(|e| ipc_err("channel send")(&e))?;
+        sample.send().ipc("channel send")?;
         Ok(())
     }
 }
@@ -156,11 +152,7 @@ struct IpcSubscriber(Subscriber<Service, [u8], ()>);
 
 impl ByteSubscriber for IpcSubscriber {
     fn receive(&self, read: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
-        match self
-            .0
-            .receive()
-            .map_err(|e| ipc_err("channel receive")(&e))?
-        {
+        match self.0.receive().ipc("channel receive")? {
             Some(sample) => {
                 read(sample.payload());
                 Ok(true)

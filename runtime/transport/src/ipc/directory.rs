@@ -24,8 +24,8 @@ use modbot_ipc_schema::directory::{self, Image, Listing, View, IMAGE_LEN};
 use modbot_ipc_schema::heartbeat::ModuleState;
 
 use super::directory_slots as slots;
-use super::{ipc_err, parse_node_name, MAX_NODES};
-use crate::{Directory, PeerInfo, ReceiveMode, TransportError};
+use super::{parse_node_name, MAX_NODES};
+use crate::{Directory, IpcResult, PeerInfo, ReceiveMode, TransportError};
 
 /// The directory's one key.
 const KEY: u8 = 0;
@@ -122,9 +122,9 @@ impl Directory for PublishedDirectory {
         self.refresh();
         let last = self.last.borrow();
         let value = last.as_ref().expect("read by refresh");
-        let view = View::parse(&value[..]).map_err(|e| TransportError::Ipc {
+        let view = View::parse(&value[..]).map_err(|error| TransportError::DirectoryImage {
             op: "read the directory",
-            detail: e.to_string(),
+            error,
         })?;
         for e in view.entries() {
             let Some(mode) = ReceiveMode::from_code(char::from(e.mode())) else {
@@ -180,7 +180,7 @@ impl DirectoryWriter {
             .into_boxed_slice()
             .try_into()
             .expect("IMAGE_LEN bytes");
-        directory::write(&mut image[..], 0, &[]).map_err(|e| ipc_err("directory image")(&e))?;
+        write_image(&mut image, 0, &[])?;
         let mut generation = 0;
         let mut slot = 0;
         // The last process holding an earlier directory may leave between a refused create
@@ -197,14 +197,14 @@ impl DirectoryWriter {
             match created {
                 Ok(service) => return DirectoryWriter::write_in(service, image, generation),
                 Err(BlackboardCreateError::AlreadyExists) => {}
-                Err(e) => return Err(ipc_err("create the directory")(&e)),
+                Err(e) => return Err(TransportError::ipc("create the directory", e)),
             }
             let Some(service) = slots::open_slot(node, slot)? else {
                 vanished += 1;
                 if vanished > 3 {
-                    return Err(ipc_err("create the directory")(
-                        &"created and removed by other processes meanwhile, again and again",
-                    ));
+                    return Err(TransportError::Contended {
+                        op: "create the directory",
+                    });
                 }
                 continue;
             };
@@ -225,11 +225,9 @@ impl DirectoryWriter {
             }
             slot += 1;
         }
-        Err(ipc_err("create the directory")(&format!(
-            "processes of the domain still hold the directories of {} supervisors that died: \
-             stop the domain's tools",
-            slots::SLOTS
-        )))
+        Err(TransportError::DirectorySlotsHeld {
+            slots: slots::SLOTS,
+        })
     }
 
     /// The writer of the directory `service`, starting at `generation`.
@@ -238,13 +236,8 @@ impl DirectoryWriter {
         image: Box<Image>,
         generation: u64,
     ) -> Result<DirectoryWriter, TransportError> {
-        let writer = service
-            .writer_builder()
-            .create()
-            .map_err(|e| ipc_err("directory writer")(&e))?;
-        let entry = writer
-            .entry::<Image>(&KEY)
-            .map_err(|e| ipc_err("directory entry")(&e))?;
+        let writer = service.writer_builder().create().ipc("directory writer")?;
+        let entry = writer.entry::<Image>(&KEY).ipc("directory entry")?;
         Ok(DirectoryWriter {
             entry,
             _writer: writer,
@@ -257,12 +250,7 @@ impl DirectoryWriter {
     /// Publishes `listings` as the next generation.
     pub fn publish(&mut self, listings: &[Listing]) -> Result<u64, TransportError> {
         let generation = self.generation + 1;
-        directory::write(&mut self.image[..], generation, listings).map_err(|e| {
-            TransportError::Ipc {
-                op: "write the directory",
-                detail: e.to_string(),
-            }
-        })?;
+        write_image(&mut self.image, generation, listings)?;
         self.entry.update_with_copy(*self.image);
         self.generation = generation;
         Ok(generation)
@@ -273,6 +261,20 @@ impl DirectoryWriter {
     }
 }
 
+/// Writes `listings` into `image` as generation `generation`.
+fn write_image(
+    image: &mut Image,
+    generation: u64,
+    listings: &[Listing],
+) -> Result<(), TransportError> {
+    directory::write(&mut image[..], generation, listings)
+        .map(|_| ())
+        .map_err(|error| TransportError::DirectoryImage {
+            op: "write the directory",
+            error,
+        })
+}
+
 /// A directory's reader port and its entry.
 type ReadHandles = (
     Reader<ipc::Service, u8>,
@@ -281,13 +283,8 @@ type ReadHandles = (
 
 /// A reader of the directory `service` and its entry.
 fn read(service: &PortFactory<ipc::Service, u8>) -> Result<ReadHandles, TransportError> {
-    let reader = service
-        .reader_builder()
-        .create()
-        .map_err(|e| ipc_err("directory reader")(&e))?;
-    let entry = reader
-        .entry::<Image>(&KEY)
-        .map_err(|e| ipc_err("directory entry")(&e))?;
+    let reader = service.reader_builder().create().ipc("directory reader")?;
+    let entry = reader.entry::<Image>(&KEY).ipc("directory entry")?;
     Ok((reader, entry))
 }
 
@@ -341,7 +338,7 @@ impl ScannedDirectory {
             }
             CallbackProgression::Continue
         })
-        .map_err(|e| ipc_err("node list")(&e))
+        .ipc("node list")
     }
 }
 

@@ -17,7 +17,7 @@ use iceoryx2::service::port_factory::PortFactory as _;
 use nix::sys::signal::kill;
 use nix::unistd::Pid;
 
-use super::{ipc_err, service_name, MAX_NODES};
+use super::{service_name, MAX_NODES};
 use crate::TransportError;
 
 /// The first slot's name; the others append `.1` to `.7`.
@@ -58,7 +58,7 @@ pub(super) fn open_slot(
     {
         Ok(s) => Ok(Some(s)),
         Err(BlackboardOpenError::DoesNotExist) => Ok(None),
-        Err(e) => Err(ipc_err("open the directory")(&e)),
+        Err(e) => Err(TransportError::ipc("open the directory", e)),
     }
 }
 

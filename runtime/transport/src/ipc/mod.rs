@@ -31,13 +31,18 @@ use iceoryx2::sample::Sample;
 use modbot_ipc_schema::Addr;
 
 use super::{
-    check_name, Dest, Directory, Endpoint, Joins, ReceiveMode, Rx, SendError, Snapshots, Transport,
-    TransportError, Tx,
+    Dest, Directory, Endpoint, IpcResult, Opening, ReceiveMode, Rx, SendError, Snapshots,
+    Transport, TransportError, Tx,
 };
 use crate::domain::Domain;
 
 type Pub = Publisher<ipc::Service, [u8], ()>;
 type Sub = Subscriber<ipc::Service, [u8], ()>;
+/// A publish-subscribe service of byte frames (an inbox, a bus, heartbeats, snapshots).
+type BytesService =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>;
+/// A claim of an address or a name: an event service this process created.
+type Claim = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
 
 /// Most modules (and tools) a domain holds at once, plus room for stale ports.
 const MAX_NODES: usize = 300;
@@ -46,21 +51,8 @@ const INBOX_DEPTH: usize = 64;
 /// Largest broadcast or multicast frame.
 const BCAST_MAX_FRAME: usize = 4096;
 
-fn ipc_err(op: &'static str) -> impl Fn(&dyn core::fmt::Debug) -> TransportError {
-    move |e| TransportError::Ipc {
-        op,
-        detail: format!("{e:?}"),
-    }
-}
-
-macro_rules! ipc {
-    ($op:literal, $e:expr) => {
-        $e.map_err(|e| ipc_err($op)(&e))
-    };
-}
-
 fn service_name(name: &str) -> Result<ServiceName, TransportError> {
-    ipc!("service name", ServiceName::new(name))
+    ServiceName::new(name).ipc("service name")
 }
 
 /// The iceoryx2 backend for one domain.
@@ -88,13 +80,12 @@ impl IpcTransport {
             domain.check_access()?;
         }
         let mut config = Config::default();
-        config.global.prefix = ipc!("prefix", FileName::new(domain.prefix().as_bytes()))?;
+        config.global.prefix = FileName::new(domain.prefix().as_bytes()).ipc("prefix")?;
         // iceoryx2's node and service files (thousands at full size) on tmpfs, beside the
         // shared memory: creating them on a disk file system costs start-up seconds.
-        config.global.set_root_path(&ipc!(
-            "root path",
-            Path::new(crate::domain::ICEORYX2_ROOT.as_bytes())
-        )?);
+        config
+            .global
+            .set_root_path(&Path::new(crate::domain::ICEORYX2_ROOT.as_bytes()).ipc("root path")?);
         // A subscriber keeps room for this many connections of departed publishers that still
         // hold samples; the default (128) costs ~0.45 MiB of heap per subscriber.
         config
@@ -178,15 +169,13 @@ impl IpcTransport {
         &self,
         node_name: &str,
     ) -> Result<Node<S>, TransportError> {
-        let name = ipc!("node name", NodeName::new(node_name))?;
-        let node = ipc!(
-            "node creation",
-            NodeBuilder::new()
-                .name(&name)
-                .config(&self.config)
-                .signal_handling_mode(SignalHandlingMode::Disabled)
-                .create::<S>()
-        )?;
+        let name = NodeName::new(node_name).ipc("node name")?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&self.config)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<S>()
+            .ipc("node creation")?;
         if !self.closed.replace(true) {
             // iceoryx2 opens its management segment to everyone; the domain is one user's.
             self.domain.close_shared_files();
@@ -199,10 +188,7 @@ impl IpcTransport {
         node: &Node<ipc::Service>,
         addr: Addr,
         name: &str,
-    ) -> Result<
-        Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
-        TransportError,
-    > {
+    ) -> Result<Vec<Claim>, TransportError> {
         let dir = self.scan();
         let mut claims = Vec::new();
         for (service, is_addr) in [
@@ -253,7 +239,10 @@ impl IpcTransport {
                         );
                     }
                     Err(e) => {
-                        return Err(ipc_err("claim")(&format!("{service}: {e:?} (another process may be starting with the same address or name)")));
+                        return Err(TransportError::Claim {
+                            service,
+                            failure: e.into(),
+                        });
                     }
                 }
             }
@@ -262,13 +251,7 @@ impl IpcTransport {
     }
 }
 
-fn inbox_service(
-    node: &Node<ipc::Service>,
-    addr: Addr,
-) -> Result<
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    TransportError,
-> {
+fn inbox_service(node: &Node<ipc::Service>, addr: Addr) -> Result<BytesService, TransportError> {
     // No `max_publishers`: whoever creates the inbox gives it the sender slots of its
     // configuration (`launch::INBOX_SENDERS`), and an opener takes what the inbox has instead
     // of requiring a number of its own. Fewer slots make every receive cheaper (iceoryx2 looks
@@ -289,30 +272,22 @@ fn inbox_service(
             PublishSubscribeOpenOrCreateError::PublishSubscribeOpenError(
                 PublishSubscribeOpenError::HangsInCreation,
             ) => TransportError::InboxInCreation { addr },
-            e => ipc_err("open inbox")(&e),
+            e => TransportError::ipc("open inbox", e),
         })
 }
 
-fn shared_bus(
-    node: &Node<ipc::Service>,
-    name: &str,
-) -> Result<
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    TransportError,
-> {
-    ipc!(
-        "open broadcast",
-        node.service_builder(&service_name(name)?)
-            .publish_subscribe::<[u8]>()
-            .max_publishers(MAX_NODES)
-            .max_subscribers(MAX_NODES)
-            .max_nodes(MAX_NODES)
-            .subscriber_max_buffer_size(16)
-            .subscriber_max_borrowed_samples(4)
-            .history_size(0)
-            .enable_safe_overflow(false)
-            .open_or_create()
-    )
+fn shared_bus(node: &Node<ipc::Service>, name: &str) -> Result<BytesService, TransportError> {
+    node.service_builder(&service_name(name)?)
+        .publish_subscribe::<[u8]>()
+        .max_publishers(MAX_NODES)
+        .max_subscribers(MAX_NODES)
+        .max_nodes(MAX_NODES)
+        .subscriber_max_buffer_size(16)
+        .subscriber_max_borrowed_samples(4)
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .open_or_create()
+        .ipc("open broadcast")
 }
 
 /// Refuses `addr` or `name` if the published directory lists another live process with it.
@@ -340,25 +315,18 @@ fn refuse_taken(dir: &PublishedDirectory, addr: Addr, name: &str) -> Result<(), 
 }
 
 /// The service every module publishes its heartbeat on.
-fn heartbeat_service(
-    node: &Node<ipc::Service>,
-) -> Result<
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    TransportError,
-> {
-    ipc!(
-        "open heartbeat service",
-        node.service_builder(&service_name("heartbeat")?)
-            .publish_subscribe::<[u8]>()
-            .max_publishers(MAX_NODES)
-            .max_subscribers(4)
-            .max_nodes(MAX_NODES)
-            .history_size(0)
-            .subscriber_max_buffer_size(4)
-            .subscriber_max_borrowed_samples(1)
-            .enable_safe_overflow(true)
-            .open_or_create()
-    )
+fn heartbeat_service(node: &Node<ipc::Service>) -> Result<BytesService, TransportError> {
+    node.service_builder(&service_name("heartbeat")?)
+        .publish_subscribe::<[u8]>()
+        .max_publishers(MAX_NODES)
+        .max_subscribers(4)
+        .max_nodes(MAX_NODES)
+        .history_size(0)
+        .subscriber_max_buffer_size(4)
+        .subscriber_max_borrowed_samples(1)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .ipc("open heartbeat service")
 }
 
 fn node_name(addr: Addr, mode: ReceiveMode, name: &str) -> String {
@@ -375,18 +343,9 @@ fn parse_node_name(text: &str) -> Option<(Addr, ReceiveMode, String)> {
 }
 
 impl Transport for IpcTransport {
-    fn open(
-        &self,
-        addr: Addr,
-        name: &str,
-        mode: ReceiveMode,
-        joins: &Joins<'_>,
-    ) -> Result<Endpoint, TransportError> {
-        if !addr.is_module() {
-            return Err(TransportError::BadAddress(addr));
-        }
-        check_name(name)?;
-        let node = self.node(&node_name(addr, mode, name))?;
+    fn open_checked(&self, module: Opening<'_>) -> Result<Endpoint, TransportError> {
+        let Opening { addr, name, .. } = module;
+        let node = self.node(&node_name(addr, module.mode, name))?;
         // Under a supervisor, the address and name it assigned are this module's by its word.
         let assigned = self.supervised
             && std::env::var(crate::launch::ASSIGNED)
@@ -401,11 +360,12 @@ impl Transport for IpcTransport {
             }
             self.claim(&node, addr, name)?
         };
-        let bus_names: Vec<String> = joins
+        let bus_names: Vec<String> = module
+            .joins
             .broadcast
             .then(|| "bcast".to_owned())
             .into_iter()
-            .chain(joins.groups.iter().map(|g| format!("group.{g}")))
+            .chain(module.joins.groups.iter().map(|g| format!("group.{g}")))
             .collect();
         let table = Arc::new(WakeTable::open(&self.domain)?);
         // A sleeping module waits on its own word and its buses' (groups may share one).
@@ -417,34 +377,30 @@ impl Transport for IpcTransport {
             }
         }
         debug_assert!(words.len() <= wake::MAX_WAIT_WORDS);
-        let inbox = ipc!(
-            "inbox subscriber",
-            inbox_service(&node, addr)?
-                .subscriber_builder()
-                .buffer_size(INBOX_DEPTH)
-                .create()
-        )?;
+        let inbox = inbox_service(&node, addr)?
+            .subscriber_builder()
+            .buffer_size(INBOX_DEPTH)
+            .create()
+            .ipc("inbox subscriber")?;
         let mut subs = vec![inbox];
         for bus in &bus_names {
-            subs.push(ipc!(
-                "bus subscriber",
+            subs.push(
                 shared_bus(&node, bus)?
                     .subscriber_builder()
                     .buffer_size(16)
                     .create()
-            )?);
+                    .ipc("bus subscriber")?,
+            );
         }
-        let heartbeat = ipc!(
-            "heartbeat publisher",
-            heartbeat_service(&node)?
-                .publisher_builder()
-                .initial_max_slice_len(modbot_ipc_schema::heartbeat::LEN)
-                .allocation_strategy(AllocationStrategy::Static)
-                .max_loaned_samples(1)
-                .create()
-        )?;
+        let heartbeat = heartbeat_service(&node)?
+            .publisher_builder()
+            .initial_max_slice_len(modbot_ipc_schema::heartbeat::LEN)
+            .allocation_strategy(AllocationStrategy::Static)
+            .max_loaned_samples(1)
+            .create()
+            .ipc("heartbeat publisher")?;
         let node = std::rc::Rc::new(node);
-        let sleeps = (mode == ReceiveMode::Blocking).then(|| Sleeper {
+        let sleeps = (module.mode == ReceiveMode::Blocking).then(|| Sleeper {
             table: table.clone(),
             waits: vec![rustix::thread::futex::Wait::new(); words.len()],
             words,
@@ -597,7 +553,7 @@ impl Rx for IpcRx {
     fn try_receive(&mut self, on_frame: &mut dyn FnMut(&[u8])) -> Result<bool, TransportError> {
         if let [inbox] = self.subs.as_slice() {
             // Only an inbox (most modules): no turn to take.
-            return Ok(match ipc!("receive", inbox.receive())? {
+            return Ok(match inbox.receive().ipc("receive")? {
                 Some(sample) => {
                     on_frame(sample.payload());
                     true
@@ -608,7 +564,7 @@ impl Rx for IpcRx {
         let n = self.subs.len();
         for i in 0..n {
             let idx = (self.next + i) % n;
-            if let Some(sample) = ipc!("receive", self.subs[idx].receive())? {
+            if let Some(sample) = self.subs[idx].receive().ipc("receive")? {
                 self.next = (idx + 1) % n;
                 on_frame(sample.payload());
                 return Ok(true);
@@ -628,7 +584,7 @@ impl Rx for IpcRx {
             &mut sleeper.waits,
             &mut || {
                 for sub in subs {
-                    if ipc!("has samples", sub.has_samples())? {
+                    if sub.has_samples().ipc("has samples")? {
                         return Ok(true);
                     }
                 }
@@ -645,9 +601,7 @@ struct PeerLink {
     wake: Option<Word>,
     /// The inbox service this link reaches (modules only), to tell a full inbox from one that
     /// nobody reads any more.
-    service: Option<
-        iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    >,
+    service: Option<BytesService>,
 }
 
 struct IpcTx {
@@ -664,7 +618,7 @@ struct IpcTx {
     /// The domain's wake-up table.
     wake: Arc<WakeTable>,
     /// Held for the endpoint's life: they make the address and the name ours.
-    _claims: Vec<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>>,
+    _claims: Vec<Claim>,
 }
 
 impl IpcTx {
@@ -687,7 +641,7 @@ impl IpcTx {
                         slots: service.static_config().max_publishers(),
                     }
                 }
-                e => ipc_err("inbox publisher")(&e),
+                e => TransportError::ipc("inbox publisher", e),
             })?;
         self.peers[usize::from(to.0)] = Some(PeerLink {
             publisher,
@@ -701,15 +655,13 @@ impl IpcTx {
         if self.buses.contains_key(bus) {
             return Ok(());
         }
-        let publisher = ipc!(
-            "bus publisher",
-            shared_bus(&self.node, bus)?
-                .publisher_builder()
-                .initial_max_slice_len(BCAST_MAX_FRAME)
-                .max_loaned_samples(2)
-                .backpressure_strategy(BackpressureStrategy::DiscardData)
-                .create()
-        )?;
+        let publisher = shared_bus(&self.node, bus)?
+            .publisher_builder()
+            .initial_max_slice_len(BCAST_MAX_FRAME)
+            .max_loaned_samples(2)
+            .backpressure_strategy(BackpressureStrategy::DiscardData)
+            .create()
+            .ipc("bus publisher")?;
         self.buses.insert(
             bus.to_owned(),
             PeerLink {
@@ -728,7 +680,7 @@ fn send_on(
     len: usize,
     fill: &mut dyn FnMut(&mut [u8]),
 ) -> Result<usize, TransportError> {
-    let mut sample = ipc!("loan", link.publisher.loan_slice_uninit(len))?;
+    let mut sample = link.publisher.loan_slice_uninit(len).ipc("loan")?;
     let payload = sample.payload_mut();
     // SAFETY: the payload is `len` bytes of shared memory mapped by iceoryx2. Those pages are
     // zero-filled by the kernel when first mapped and afterwards only ever hold bytes written
@@ -740,7 +692,7 @@ fn send_on(
     fill(bytes);
     // SAFETY: see above; every byte is initialised.
     let sample = unsafe { sample.assume_init() };
-    let delivered = ipc!("send", sample.send())?;
+    let delivered = sample.send().ipc("send")?;
     if delivered > 0 {
         if let (Some(table), Some(word)) = (wake, link.wake) {
             table.notify(word);
@@ -840,13 +792,11 @@ impl HeartbeatMonitor {
     /// Subscribes to the heartbeats of `transport`'s domain.
     pub fn new(transport: &IpcTransport) -> Result<HeartbeatMonitor, TransportError> {
         let node = transport.node(&format!("hbmon.{}", std::process::id()))?;
-        let subscriber = ipc!(
-            "heartbeat subscriber",
-            heartbeat_service(&node)?
-                .subscriber_builder()
-                .buffer_size(4)
-                .create()
-        )?;
+        let subscriber = heartbeat_service(&node)?
+            .subscriber_builder()
+            .buffer_size(4)
+            .create()
+            .ipc("heartbeat subscriber")?;
         Ok(HeartbeatMonitor {
             _node: node,
             subscriber,
@@ -856,7 +806,7 @@ impl HeartbeatMonitor {
     /// Lends every heartbeat received since the last call to `f`, oldest first.
     pub fn drain(&self, f: &mut dyn FnMut(&[u8])) -> Result<usize, TransportError> {
         let mut n = 0;
-        while let Some(sample) = ipc!("receive heartbeat", self.subscriber.receive())? {
+        while let Some(sample) = self.subscriber.receive().ipc("receive heartbeat")? {
             f(sample.payload());
             n += 1;
         }
@@ -875,30 +825,22 @@ struct IpcSnapshots {
     readers: HashMap<Addr, (Sub, Option<SnapshotSample>)>,
 }
 
-fn bb_service(
-    node: &Node<ipc::Service>,
-    addr: Addr,
-) -> Result<
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, [u8], ()>,
-    TransportError,
-> {
-    ipc!(
-        "open snapshot service",
-        node.service_builder(&service_name(&format!("bb.{}", addr.0))?)
-            .publish_subscribe::<[u8]>()
-            // A snapshot starts 64-byte aligned, so readers view its bulk items as `&[T]`.
-            .payload_alignment(
-                Alignment::new(modbot_ipc_schema::snapshot::BULK_ALIGN).expect("a power of two"),
-            )
-            .max_publishers(2)
-            .max_subscribers(64)
-            .max_nodes(MAX_NODES)
-            .history_size(1)
-            .subscriber_max_buffer_size(2)
-            .subscriber_max_borrowed_samples(2)
-            .enable_safe_overflow(true)
-            .open_or_create()
-    )
+fn bb_service(node: &Node<ipc::Service>, addr: Addr) -> Result<BytesService, TransportError> {
+    node.service_builder(&service_name(&format!("bb.{}", addr.0))?)
+        .publish_subscribe::<[u8]>()
+        // A snapshot starts 64-byte aligned, so readers view its bulk items as `&[T]`.
+        .payload_alignment(
+            Alignment::new(modbot_ipc_schema::snapshot::BULK_ALIGN).expect("a power of two"),
+        )
+        .max_publishers(2)
+        .max_subscribers(64)
+        .max_nodes(MAX_NODES)
+        .history_size(1)
+        .subscriber_max_buffer_size(2)
+        .subscriber_max_borrowed_samples(2)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .ipc("open snapshot service")
 }
 
 impl Snapshots for IpcSnapshots {
@@ -908,15 +850,15 @@ impl Snapshots for IpcSnapshots {
         fill: &mut dyn FnMut(&mut [u8]),
     ) -> Result<(), TransportError> {
         if self.publisher.is_none() {
-            self.publisher = Some(ipc!(
-                "snapshot publisher",
+            self.publisher = Some(
                 bb_service(&self.node, self.me)?
                     .publisher_builder()
                     .initial_max_slice_len(len.max(256))
                     .allocation_strategy(AllocationStrategy::PowerOfTwo)
                     .max_loaned_samples(1)
                     .create()
-            )?);
+                    .ipc("snapshot publisher")?,
+            );
         }
         let link = PeerLink {
             publisher: self.publisher.take().expect("created above"),
@@ -934,18 +876,16 @@ impl Snapshots for IpcSnapshots {
         read: &mut dyn FnMut(&[u8]),
     ) -> Result<bool, TransportError> {
         if !self.readers.contains_key(&of) {
-            let sub = ipc!(
-                "snapshot subscriber",
-                bb_service(&self.node, of)?
-                    .subscriber_builder()
-                    .buffer_size(2)
-                    .history_request(1)
-                    .create()
-            )?;
+            let sub = bb_service(&self.node, of)?
+                .subscriber_builder()
+                .buffer_size(2)
+                .history_request(1)
+                .create()
+                .ipc("snapshot subscriber")?;
             self.readers.insert(of, (sub, None));
         }
         let (sub, latest) = self.readers.get_mut(&of).expect("inserted above");
-        while let Some(sample) = ipc!("receive snapshot", sub.receive())? {
+        while let Some(sample) = sub.receive().ipc("receive snapshot")? {
             *latest = Some(sample);
         }
         match latest {

@@ -17,8 +17,8 @@ use iceoryx2::service::port_factory::request_response::PortFactory;
 use modbot_ipc_schema::Addr;
 
 use super::wake::{WakeTable, Word};
-use super::{ipc_err, service_name, IpcTransport};
-use crate::TransportError;
+use super::{service_name, IpcTransport};
+use crate::{IpcResult, TransportError};
 
 /// The relay service.
 const SERVICE: &str = "relay";
@@ -47,7 +47,7 @@ fn service(node: &Node<ipc::Service>, create: bool) -> Result<Option<Factory>, T
         return match builder().open() {
             Ok(f) => Ok(Some(f)),
             Err(RequestResponseOpenError::DoesNotExist) => Ok(None),
-            Err(e) => Err(ipc_err("open the relay")(&e)),
+            Err(e) => Err(TransportError::ipc("open the relay", e)),
         };
     }
     // A tool may still hold the relay of an earlier supervisor (stopped, or dead and cleaned
@@ -57,17 +57,17 @@ fn service(node: &Node<ipc::Service>, create: bool) -> Result<Option<Factory>, T
         match builder().create() {
             Ok(f) => return Ok(Some(f)),
             Err(RequestResponseCreateError::AlreadyExists) => {}
-            Err(e) => return Err(ipc_err("create the relay")(&e)),
+            Err(e) => return Err(TransportError::ipc("create the relay", e)),
         }
         match builder().open() {
             Ok(f) => return Ok(Some(f)),
             Err(RequestResponseOpenError::DoesNotExist) => {}
-            Err(e) => return Err(ipc_err("take over the relay")(&e)),
+            Err(e) => return Err(TransportError::ipc("take over the relay", e)),
         }
     }
-    Err(ipc_err("create the relay")(
-        &"created and removed by other processes meanwhile, three times",
-    ))
+    Err(TransportError::Contended {
+        op: "create the relay",
+    })
 }
 
 /// A request waiting for its answer, held by the supervisor.
@@ -83,11 +83,11 @@ impl RelayRequest {
         let response = self
             .0
             .loan_slice_uninit(bytes.len())
-            .map_err(|e| ipc_err("loan a relay answer")(&e))?;
+            .ipc("loan a relay answer")?;
         response
             .write_from_slice(bytes)
             .send()
-            .map_err(|e| ipc_err("send a relay answer")(&e))
+            .ipc("send a relay answer")
     }
 }
 
@@ -113,7 +113,7 @@ impl RelayServer {
                 iceoryx2::service::port_factory::server::ServerCreateError::ExceedsMaxSupportedServers => {
                     TransportError::AnotherSupervisor { pid: None }
                 }
-                e => ipc_err("relay server")(&e),
+                e => TransportError::ipc("relay server", e),
             })?;
         Ok(RelayServer {
             server,
@@ -127,7 +127,7 @@ impl RelayServer {
         self.server
             .receive()
             .map(|r| r.map(RelayRequest))
-            .map_err(|e| ipc_err("receive a relay request")(&e))
+            .ipc("receive a relay request")
     }
 }
 
@@ -157,7 +157,7 @@ impl RelayClient {
             .initial_max_slice_len(MAX_MESSAGE)
             .allocation_strategy(AllocationStrategy::Static)
             .create()
-            .map_err(|e| ipc_err("relay client")(&e))?;
+            .ipc("relay client")?;
         let wake = (
             WakeTable::open(transport.domain())?,
             Word::module(supervisor),
@@ -202,10 +202,10 @@ impl RelayClient {
                 let pending = self
                     .client
                     .loan_slice_uninit(request.len())
-                    .map_err(|e| ipc_err("loan a relay request")(&e))?
+                    .ipc("loan a relay request")?
                     .write_from_slice(request)
                     .send()
-                    .map_err(|e| ipc_err("send a relay request")(&e))?;
+                    .ipc("send a relay request")?;
                 in_flight.push((next, pending, Instant::now() + timeout));
                 next += 1;
             }
@@ -214,22 +214,11 @@ impl RelayClient {
             let mut i = 0;
             while i < in_flight.len() {
                 let (index, pending, deadline) = &in_flight[i];
-                let response = pending
-                    .receive()
-                    .map_err(|e| ipc_err("receive a relay answer")(&e))?;
+                let response = pending.receive().ipc("receive a relay answer")?;
                 if let Some(response) = response {
                     read(*index, Ok(response.payload()));
                 } else if Instant::now() >= *deadline {
-                    read(
-                        *index,
-                        Err(TransportError::Ipc {
-                            op: "relay",
-                            detail: format!(
-                                "the supervisor did not answer within {} ms",
-                                timeout.as_millis()
-                            ),
-                        }),
-                    );
+                    read(*index, Err(TransportError::RelayTimeout { timeout }));
                 } else {
                     i += 1;
                     continue;

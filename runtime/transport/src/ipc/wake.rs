@@ -109,16 +109,13 @@ impl WakeTable {
     /// Maps the table of `domain`, creating it if no process of the domain has yet.
     pub fn open(domain: &Domain) -> Result<WakeTable, TransportError> {
         let path = PathBuf::from(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()));
-        let file = open_or_create(&path).map_err(|e| wake_err(&path, &e))?;
-        let len = file.metadata().map_err(|e| wake_err(&path, &e))?.len();
+        let file = open_or_create(&path).map_err(|e| wake_err(&path, e))?;
+        let len = file.metadata().map_err(|e| wake_err(&path, e))?.len();
         if len != TABLE_LEN as u64 {
-            return Err(TransportError::Ipc {
-                op: "wake-up table",
-                detail: format!(
-                    "{} has {len} bytes, not {TABLE_LEN}: it was left by another modbot version \
-                     (stop the domain with `modbot down`, or remove the file)",
-                    path.display()
-                ),
+            return Err(TransportError::WakeTableSize {
+                path,
+                len,
+                expected: TABLE_LEN,
             });
         }
         // SAFETY: a shared mapping of a file of exactly TABLE_LEN bytes that this process
@@ -133,7 +130,7 @@ impl WakeTable {
                 0,
             )
         }
-        .map_err(|e| wake_err(&path, &std::io::Error::from(e)))?;
+        .map_err(|e| wake_err(&path, std::io::Error::from(e)))?;
         Ok(WakeTable {
             base: base.cast(),
             path,
@@ -259,10 +256,7 @@ impl WakeTable {
             | Err(rustix::io::Errno::AGAIN)
             | Err(rustix::io::Errno::TIMEDOUT)
             | Err(rustix::io::Errno::INTR) => Ok(()),
-            Err(e) => Err(TransportError::Ipc {
-                op: "wait for a wake-up",
-                detail: format!("futex_waitv: {e} (needs Linux 5.16 or later)"),
-            }),
+            Err(e) => Err(TransportError::WakeWait(e.into())),
         }
     }
 }
@@ -313,10 +307,10 @@ fn open_or_create(path: &std::path::Path) -> std::io::Result<std::fs::File> {
     open()
 }
 
-fn wake_err(path: &std::path::Path, e: &std::io::Error) -> TransportError {
-    TransportError::Ipc {
-        op: "wake-up table",
-        detail: format!("{}: {e}", path.display()),
+fn wake_err(path: &std::path::Path, e: std::io::Error) -> TransportError {
+    TransportError::WakeTable {
+        path: path.to_owned(),
+        failure: e.into(),
     }
 }
 

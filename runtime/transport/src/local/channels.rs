@@ -70,9 +70,10 @@ impl LocalChannels {
             })
         });
         if channel.spec != *spec {
-            return Err(TransportError::Ipc {
-                op: "open channel",
-                detail: format!("channel {name} is {:?}, opened as {spec:?}", channel.spec),
+            return Err(TransportError::ChannelSpecDiffers {
+                name: name.to_owned(),
+                have: channel.spec,
+                asked: *spec,
             });
         }
         Ok(channel.clone())
@@ -96,9 +97,9 @@ impl Channels for LocalChannels {
         let channel = self.channel(name, spec)?;
         let mut state = lock(&channel.state);
         if state.publishers >= spec.publishers {
-            return Err(TransportError::Ipc {
-                op: "channel publisher",
-                detail: format!("channel {name} has its {} publishers", spec.publishers),
+            return Err(TransportError::ChannelPublishersTaken {
+                name: name.to_owned(),
+                max: spec.publishers,
             });
         }
         state.publishers += 1;
@@ -115,9 +116,9 @@ impl Channels for LocalChannels {
         let mut state = lock(&channel.state);
         state.subscribers.retain(|q| q.strong_count() > 0);
         if state.subscribers.len() >= spec.subscribers {
-            return Err(TransportError::Ipc {
-                op: "channel subscriber",
-                detail: format!("channel {name} has its {} subscribers", spec.subscribers),
+            return Err(TransportError::ChannelSubscribersTaken {
+                name: name.to_owned(),
+                max: spec.subscribers,
             });
         }
         let queue: Arc<Queue> = Arc::new(Mutex::new(state.history.iter().cloned().collect()));

@@ -12,8 +12,8 @@ use crossbeam::channel::{bounded, Receiver, RecvTimeoutError, Sender, TrySendErr
 use modbot_ipc_schema::Addr;
 
 use super::{
-    check_name, Dest, Directory, Endpoint, Joins, PeerInfo, ReceiveMode, Rx, SendError, Snapshots,
-    Transport, TransportError, Tx,
+    Dest, Directory, Endpoint, Opening, PeerInfo, ReceiveMode, Rx, SendError, Snapshots, Transport,
+    TransportError, Tx,
 };
 
 mod channels;
@@ -79,17 +79,8 @@ impl LocalTransport {
 }
 
 impl Transport for LocalTransport {
-    fn open(
-        &self,
-        addr: Addr,
-        name: &str,
-        mode: ReceiveMode,
-        joins: &Joins<'_>,
-    ) -> Result<Endpoint, TransportError> {
-        if !addr.is_module() {
-            return Err(TransportError::BadAddress(addr));
-        }
-        check_name(name)?;
+    fn open_checked(&self, module: Opening<'_>) -> Result<Endpoint, TransportError> {
+        let Opening { addr, name, .. } = module;
         let mut d = lock(&self.domain);
         if let Some(s) = d.slots.get(&addr.0).filter(|s| s.alive) {
             return Err(TransportError::AddressTaken {
@@ -113,11 +104,11 @@ impl Transport for LocalTransport {
             Slot {
                 id,
                 name: name.to_owned(),
-                mode,
+                mode: module.mode,
                 alive: true,
                 inbox: tx,
-                groups: joins.groups.to_vec(),
-                broadcast: joins.broadcast,
+                groups: module.joins.groups.to_vec(),
+                broadcast: module.joins.broadcast,
             },
         );
         drop(d);
