@@ -120,6 +120,8 @@ pub trait ObjectValue: Copy {
     const TYPE: DataType;
     /// Little-endian bytes.
     fn to_bytes(self) -> Vec<u8>;
+    /// `f` of the little-endian bytes, without allocating (the firmware's cyclic writes).
+    fn with_bytes<R>(self, f: impl FnOnce(&[u8]) -> R) -> R;
     /// From little-endian bytes of exactly the right length.
     fn from_bytes(bytes: &[u8]) -> Option<Self>;
 }
@@ -130,6 +132,9 @@ macro_rules! numeric_value {
             const TYPE: DataType = $data_type;
             fn to_bytes(self) -> Vec<u8> {
                 self.to_le_bytes().to_vec()
+            }
+            fn with_bytes<R>(self, f: impl FnOnce(&[u8]) -> R) -> R {
+                f(&self.to_le_bytes())
             }
             fn from_bytes(bytes: &[u8]) -> Option<Self> {
                 Some(<$t>::from_le_bytes(bytes.try_into().ok()?))
@@ -153,6 +158,9 @@ impl ObjectValue for bool {
     const TYPE: DataType = DataType::Boolean;
     fn to_bytes(self) -> Vec<u8> {
         vec![u8::from(self)]
+    }
+    fn with_bytes<R>(self, f: impl FnOnce(&[u8]) -> R) -> R {
+        f(&[u8::from(self)])
     }
     fn from_bytes(bytes: &[u8]) -> Option<Self> {
         match bytes {
@@ -343,7 +351,8 @@ impl ObjectDictionary {
                 given: T::TYPE,
             });
         }
-        entry.value = value.to_bytes();
+        // In place: the entry's buffer has the type's size already, so no allocation.
+        value.with_bytes(|bytes| replace_bytes(&mut entry.value, bytes));
         Ok(())
     }
 
@@ -352,9 +361,15 @@ impl ObjectDictionary {
         let entry = self
             .entry_mut(index, sub_index)
             .ok_or(OdError::NotFound { index, sub_index })?;
-        entry.value = value.to_vec();
+        replace_bytes(&mut entry.value, value);
         Ok(())
     }
+}
+
+/// `value` becomes `bytes`, reusing its buffer.
+fn replace_bytes(value: &mut Vec<u8>, bytes: &[u8]) {
+    value.clear();
+    value.extend_from_slice(bytes);
 }
 
 #[cfg(test)]

@@ -37,6 +37,9 @@ use modbot_bus::{
 
 use crate::application::Application;
 use crate::dictionary::{ObjectDictionary, ObjectEntry};
+use crate::pdo::PdoDefinition;
+use crate::sii::Identity;
+use crate::slave::SlaveConfig;
 
 /// A drive's encoder and torque units.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,6 +65,21 @@ impl DriveUnits {
     pub fn scale(&self) -> Scale {
         Scale::of_drive(self.increments_per_rev, 1, self.rated_torque_mnm)
     }
+}
+
+/// A drive slave's configuration with a drive's usual default mapping (controlword, mode and
+/// target position out; statusword, mode display and position actual in): the master maps
+/// what it needs in PRE-OP.
+pub fn drive_config(identity: Identity, name: &str) -> SlaveConfig {
+    SlaveConfig::new(identity, name)
+        .with_rx_pdos(vec![PdoDefinition {
+            index: 0x1600,
+            entries: vec![(0x6040, 0), (0x6060, 0), (0x607A, 0)],
+        }])
+        .with_tx_pdos(vec![PdoDefinition {
+            index: 0x1A00,
+            entries: vec![(0x6041, 0), (0x6061, 0), (0x6064, 0)],
+        }])
 }
 
 /// A CiA 402 drive on an elastic joint.

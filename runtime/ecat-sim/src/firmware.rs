@@ -7,7 +7,7 @@ use crate::esc::sync_manager::{SmDirection, SyncManager};
 use crate::esc::EscEvent;
 use crate::pdo::{self, PdoLayout};
 use crate::process_data;
-use crate::slave::Slave;
+use crate::slave::{scratch_of, Slave};
 
 const SM_MAILBOX_OUT: u8 = 0;
 const SM_MAILBOX_IN: u8 = 1;
@@ -29,7 +29,7 @@ impl Slave {
 
     /// Reacts to everything the ESC queued.
     pub(crate) fn handle_events(&mut self) {
-        for event in self.esc.take_events() {
+        while let Some(event) = self.esc.next_event() {
             match event {
                 EscEvent::AlControl(value) => self.on_al_control(value),
                 EscEvent::MailboxReceived { sm } if sm == SM_MAILBOX_OUT => {
@@ -97,8 +97,8 @@ impl Slave {
         self.stepped_this_frame = true;
         if self.state == AlState::Op && self.outputs.bytes() > 0 {
             let sm = self.esc.sync_manager(SM_OUTPUTS);
-            let buffer = self.esc.pdi_read(sm.start, usize::from(sm.length)).to_vec();
-            process_data::buffer_to_dictionary(&self.outputs, &buffer, &mut self.od);
+            let buffer = self.esc.pdi_read(sm.start, usize::from(sm.length));
+            process_data::buffer_to_dictionary(&self.outputs, buffer, &mut self.od);
         }
         let dt_s = match self.esc.sync0_cycle_ns() {
             Some(ns) => f64::from(ns) * 1e-9,
@@ -114,9 +114,9 @@ impl Slave {
             return;
         }
         let sm = self.esc.sync_manager(SM_INPUTS);
-        let mut buffer = vec![0u8; usize::from(sm.length)];
-        process_data::dictionary_to_buffer(&self.inputs, &self.od, &mut buffer);
-        self.esc.pdi_write(sm.start, &buffer);
+        let buffer = scratch_of(&mut self.scratch, usize::from(sm.length));
+        process_data::dictionary_to_buffer(&self.inputs, &self.od, buffer);
+        self.esc.pdi_write(sm.start, buffer);
     }
 
     fn on_al_control(&mut self, value: u16) {

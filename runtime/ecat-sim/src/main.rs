@@ -22,10 +22,9 @@ use clap::Parser;
 use modbot_bus::{DriveFault, PlantParams};
 use modbot_ecat_sim::chain::{Chain, ChainConfig};
 use modbot_ecat_sim::clock::MonotonicClock;
-use modbot_ecat_sim::drive::{Cia402Drive, DriveUnits};
-use modbot_ecat_sim::pdo::PdoDefinition;
+use modbot_ecat_sim::drive::{drive_config, Cia402Drive, DriveUnits};
 use modbot_ecat_sim::sii::Identity;
-use modbot_ecat_sim::slave::{Slave, SlaveConfig};
+use modbot_ecat_sim::slave::Slave;
 
 /// A chain of emulated EtherCAT CiA 402 drives, served on a network interface.
 #[derive(Debug, Parser)]
@@ -199,17 +198,7 @@ fn chain(cli: &Cli) -> anyhow::Result<Chain> {
             serial: position as u32 + 1,
         };
         let drive = Cia402Drive::new(joint(cli, position)?, units)?;
-        // A drive's usual default mapping (the master maps what it needs in PRE-OP).
-        let config = SlaveConfig::new(identity, &cli.name)
-            .with_rx_pdos(vec![PdoDefinition {
-                index: 0x1600,
-                entries: vec![(0x6040, 0), (0x6060, 0), (0x607A, 0)],
-            }])
-            .with_tx_pdos(vec![PdoDefinition {
-                index: 0x1A00,
-                entries: vec![(0x6041, 0), (0x6061, 0), (0x6064, 0)],
-            }]);
-        slaves.push(Slave::new(config, drive));
+        slaves.push(Slave::new(drive_config(identity, &cli.name), drive));
     }
     let config = ChainConfig {
         default_period_s: cli.period_us as f64 * 1e-6,

@@ -107,6 +107,9 @@ pub struct Slave {
     pub(crate) last_outputs_ns: u64,
     /// Where in its SYNC0 cycle the last frame that exchanged its process data found it, ns.
     pub(crate) sync0_offset_ns: Option<u64>,
+    /// Bytes read before a write (read-write datagrams) and the process data on their way
+    /// between sync manager and dictionary: kept, so a cyclic frame allocates nothing.
+    pub(crate) scratch: Vec<u8>,
 }
 
 impl std::fmt::Debug for Slave {
@@ -144,6 +147,8 @@ impl Slave {
             frame_ns: 0,
             last_outputs_ns: 0,
             sync0_offset_ns: None,
+            // A datagram's data fits in a standard frame.
+            scratch: Vec::with_capacity(1500),
         };
         slave.power_on(0);
         slave
@@ -279,27 +284,27 @@ impl Slave {
                 u16::from(self.esc.write(ado, datagram.data(), timing))
             }
             Command::Aprw | Command::Fprw if addressed => {
-                let mut old = datagram.data().to_vec();
-                let read = self.esc.read(ado, &mut old, timing);
+                let old = scratch_of(&mut self.scratch, datagram.len());
+                let read = self.esc.read(ado, old, timing);
                 let written = self.esc.write(ado, datagram.data(), timing);
-                datagram.data_mut().copy_from_slice(&old);
+                datagram.data_mut().copy_from_slice(old);
                 u16::from(read) + 2 * u16::from(written)
             }
             Command::Brd => {
-                let mut mine = vec![0u8; datagram.len()];
-                let read = self.esc.read(ado, &mut mine, timing);
+                let mine = scratch_of(&mut self.scratch, datagram.len());
+                let read = self.esc.read(ado, mine, timing);
                 if read {
-                    for (d, m) in datagram.data_mut().iter_mut().zip(mine) {
+                    for (d, m) in datagram.data_mut().iter_mut().zip(mine.iter()) {
                         *d |= m;
                     }
                 }
                 u16::from(read)
             }
             Command::Brw => {
-                let mut mine = vec![0u8; datagram.len()];
-                let read = self.esc.read(ado, &mut mine, timing);
+                let mine = scratch_of(&mut self.scratch, datagram.len());
+                let read = self.esc.read(ado, mine, timing);
                 let written = self.esc.write(ado, datagram.data(), timing);
-                for (d, m) in datagram.data_mut().iter_mut().zip(mine) {
+                for (d, m) in datagram.data_mut().iter_mut().zip(mine.iter()) {
                     *d |= m;
                 }
                 u16::from(read) + 2 * u16::from(written)
@@ -444,4 +449,11 @@ fn sii_description(config: &SlaveConfig, od: &ObjectDictionary) -> SiiDescriptio
         rx_pdos: sii_pdos(&config.rx_pdos, 2, od),
         tx_pdos: sii_pdos(&config.tx_pdos, 3, od),
     }
+}
+
+/// `scratch` as `len` zeroed bytes (it grows once, to the largest datagram seen).
+pub(crate) fn scratch_of(scratch: &mut Vec<u8>, len: usize) -> &mut [u8] {
+    scratch.clear();
+    scratch.resize(len, 0);
+    scratch
 }

@@ -13,11 +13,7 @@ mod support;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
-use ethercrab::{
-    Command, DcSync, DefaultLock, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress,
-    SubDeviceGroup, Timeouts,
-};
+use ethercrab::{Command, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress};
 use futures_lite::future::block_on;
 use modbot_ecat_sim::{Chain, Clock, ManualClock};
 use modbot_ethercat::dc::GridLock;
@@ -31,19 +27,6 @@ const CYCLES: u64 = 4_000;
 const LATE_EVERY: u64 = 500;
 /// The reference clock's station address (ethercrab: 0x1000 + position; slave 0).
 const REFERENCE: u16 = 0x1000;
-
-type Group = SubDeviceGroup<8, 128, DefaultLock, Op, HasDc>;
-
-fn timeouts() -> Timeouts {
-    Timeouts {
-        wait_loop_delay: Duration::from_millis(1),
-        state_transition: Duration::from_secs(30),
-        pdu: Duration::from_secs(1),
-        eeprom: Duration::from_secs(10),
-        mailbox_echo: Duration::from_secs(10),
-        mailbox_response: Duration::from_secs(10),
-    }
-}
 
 /// The latency of cycle `n`'s frames after the tick: 30–50 µs, and 400 µs more every
 /// [`LATE_EVERY`] cycles (deterministic).
@@ -68,34 +51,6 @@ fn distance(x: u64, target: u64) -> i64 {
     }
 }
 
-/// INIT → OP with SYNC0 every period on every slave, the clock moved one period per cycle.
-async fn bring_up(md: &MainDevice<'_>, clock: &ManualClock) -> Group {
-    let now = || clock.now_ns();
-    let mut group = md
-        .init_single_group::<8, 128>(now)
-        .await
-        .expect("init to PRE-OP");
-    for mut sd in group.iter_mut(md) {
-        sd.set_dc_sync(DcSync::Sync0);
-    }
-    let group = group.into_pre_op_pdi(md).await.expect("PRE-OP with PDI");
-    let dc = DcConfiguration {
-        start_delay: Duration::from_millis(10),
-        sync0_period: Duration::from_nanos(PERIOD_NS),
-        sync0_shift: Duration::ZERO,
-    };
-    let group = group.configure_dc_sync(md, dc).await.expect("DC sync");
-    let group = group.into_safe_op(md).await.expect("SAFE-OP");
-    let group = group.request_into_op(md).await.expect("request OP");
-    for _ in 0..1000 {
-        clock.advance(PERIOD_NS);
-        if group.tx_rx_dc(md).await.expect("cycle").all_op() {
-            return group;
-        }
-    }
-    panic!("the slaves did not reach OP");
-}
-
 /// What a run saw, per cycle: the frame's place in the reference's SYNC0 cycle, and in
 /// every slave's.
 struct Run {
@@ -116,14 +71,14 @@ fn run(storage: &'static PduStorage<16, { PduStorage::element_size(1100) }>, loc
     let wire = Wire::start(tx, rx, chain.clone());
     let md = MainDevice::new(
         pdu_loop,
-        timeouts(),
+        support::timeouts(),
         MainDeviceConfig {
             dc_static_sync_iterations: 100,
             ..MainDeviceConfig::default()
         },
     );
     let out = block_on(async {
-        let group = bring_up(&md, &clock).await;
+        let group = support::bring_up_dc(&md, &clock, PERIOD_NS).await;
         let mut sut = GridLock::new(PERIOD_NS);
         // The first SYNC0 pulse is 10 ms after configure_dc_sync: the grid starts after it.
         let first_tick = clock.now_ns() + 20 * PERIOD_NS;

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use ethercrab::std::ethercat_now;
 use ethercrab::subdevice_group::DcConfiguration;
-use ethercrab::{DcSync, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress, Timeouts};
+use ethercrab::{DcSync, MainDevice, MainDeviceConfig, PduStorage, RegisterAddress};
 use futures_lite::future::block_on;
 use modbot_ecat_sim::MonotonicClock;
 use support::{EchoIo, Wire};
@@ -41,15 +41,7 @@ fn ethercrab_synchronises_six_slaves_with_distributed_clocks() {
         let wire = Wire::start(tx, rx, chain.clone());
         let maindevice = MainDevice::new(
             pdu_loop,
-            // Generous: a loaded machine holds the emulator's thread up for tens of ms.
-            Timeouts {
-                wait_loop_delay: Duration::from_millis(1),
-                state_transition: Duration::from_secs(30),
-                pdu: Duration::from_secs(1),
-                eeprom: Duration::from_secs(10),
-                mailbox_echo: Duration::from_secs(10),
-                mailbox_response: Duration::from_secs(10),
-            },
+            support::timeouts(),
             MainDeviceConfig {
                 dc_static_sync_iterations: 1000,
                 ..MainDeviceConfig::default()

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use ethercrab::error::{Error, MailboxError};
 use ethercrab::std::ethercat_now;
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceState, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, SubDeviceState};
 use futures_lite::future::block_on;
 use modbot_ecat_sim::{AlState, ManualClock, MonotonicClock};
 use support::{EchoIo, Wire};
@@ -30,21 +30,6 @@ fn abort_code(result: Result<impl std::fmt::Debug, Error>) -> u32 {
     }
 }
 
-/// Generous: the emulated chain answers on a thread of this process, which a loaded machine
-/// (two CPU hogs on two cores) holds up for tens of milliseconds; ethercrab's defaults (an
-/// EEPROM read in 10 ms) then time out where nothing is wrong. A lost frame still times out,
-/// after `pdu`.
-fn timeouts() -> Timeouts {
-    Timeouts {
-        wait_loop_delay: Duration::from_millis(1),
-        state_transition: Duration::from_secs(30),
-        pdu: Duration::from_secs(1),
-        eeprom: Duration::from_secs(10),
-        mailbox_echo: Duration::from_secs(10),
-        mailbox_response: Duration::from_secs(10),
-    }
-}
-
 /// INIT → OP with an SDO remap in PRE-OP, then `CYCLES` cycles of process data.
 #[test]
 fn ethercrab_brings_six_slaves_to_op_and_exchanges_process_data() {
@@ -56,7 +41,8 @@ fn ethercrab_brings_six_slaves_to_op_and_exchanges_process_data() {
         )));
         let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split the PDU storage once");
         let wire = Wire::start(tx, rx, chain.clone());
-        let maindevice = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
+        let maindevice =
+            MainDevice::new(pdu_loop, support::timeouts(), MainDeviceConfig::default());
 
         block_on(async {
             let group = maindevice
@@ -202,7 +188,8 @@ fn ethercrab_sees_lost_frames_a_slave_losing_power_and_the_watchdog() {
         let chain = Arc::new(Mutex::new(support::chain(SLAVES, clock.clone())));
         let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split the PDU storage once");
         let wire = Wire::start(tx, rx, chain.clone());
-        let maindevice = MainDevice::new(pdu_loop, timeouts(), MainDeviceConfig::default());
+        let maindevice =
+            MainDevice::new(pdu_loop, support::timeouts(), MainDeviceConfig::default());
 
         block_on(async {
             let group = maindevice

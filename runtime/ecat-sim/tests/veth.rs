@@ -14,7 +14,7 @@ use std::thread;
 use std::time::Duration;
 
 use ethercrab::std::{ethercat_now, tx_rx_task};
-use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
+use ethercrab::{MainDevice, MainDeviceConfig, PduStorage};
 use futures_lite::future::block_on;
 use modbot_ecat_sim::{serve, MonotonicClock};
 
@@ -142,15 +142,7 @@ fn ethercrab_brings_slaves_to_op_over_a_veth_pair() {
     thread::sleep(Duration::from_millis(200));
     let maindevice = MainDevice::new(
         pdu_loop,
-        // Generous: a loaded machine holds the emulator's process up for tens of ms.
-        Timeouts {
-            wait_loop_delay: Duration::from_millis(1),
-            state_transition: Duration::from_secs(30),
-            pdu: Duration::from_secs(1),
-            eeprom: Duration::from_secs(10),
-            mailbox_echo: Duration::from_secs(10),
-            mailbox_response: Duration::from_secs(10),
-        },
+        support::timeouts(),
         MainDeviceConfig {
             dc_static_sync_iterations: 100,
             ..MainDeviceConfig::default()

@@ -226,9 +226,20 @@ impl Esc {
         Fmmu::decode(&bytes)
     }
 
-    /// The events since the last call, oldest first.
+    /// The events since the last call, oldest first (tests; the firmware takes them one by
+    /// one with [`Esc::next_event`], which keeps the queue's buffer).
     pub fn take_events(&mut self) -> Vec<EscEvent> {
         std::mem::take(&mut self.events)
+    }
+
+    /// The oldest event not taken yet. The queue holds a frame's few events: taking from its
+    /// front costs less than the allocation a fresh queue would.
+    pub fn next_event(&mut self) -> Option<EscEvent> {
+        if self.events.is_empty() {
+            None
+        } else {
+            Some(self.events.remove(0))
+        }
     }
 
     // ---- the master's side ------------------------------------------------------------
@@ -444,9 +455,8 @@ impl Esc {
         let end = start + data.len();
         let local = self.clock.local(timing.port0_ns);
         let sii_control_before = self.get_u16(reg::SII_CONTROL);
-        let sm_activate_before: Vec<u8> = (0..CHANNELS)
-            .map(|n| self.sync_manager(n).activate)
-            .collect();
+        let sm_activate_before: [u8; CHANNELS as usize] =
+            std::array::from_fn(|n| self.sync_manager(n as u8).activate);
         // The system time register is not memory: a write is a value for the control loop.
         let mut system_time = dc::system_time(&self.mem, local).to_le_bytes();
         let mut system_time_written = [false; 8];

@@ -3,16 +3,18 @@
 
 #![allow(dead_code)]
 
+use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::task::{Wake, Waker};
 use std::thread::{self, JoinHandle, Thread};
 use std::time::Duration;
 
-use ethercrab::{PduRx, PduTx};
+use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op};
+use ethercrab::{DcSync, DefaultLock, MainDevice, PduRx, PduTx, SubDeviceGroup, Timeouts};
 use modbot_ecat_sim::{
-    Application, Chain, Clock, Identity, ObjectDictionary, ObjectEntry, PdoDefinition, Reply,
-    Slave, SlaveConfig,
+    Application, Chain, Clock, Identity, ManualClock, ObjectDictionary, ObjectEntry, PdoDefinition,
+    Reply, Slave, SlaveConfig,
 };
 
 /// Vendor id of the test devices.
@@ -100,6 +102,12 @@ pub fn chain(count: usize, clock: impl Clock + 'static) -> Chain {
     Chain::new(slaves, clock)
 }
 
+thread_local! {
+    /// True on the wire's thread while the chain processes a frame (a test's counting
+    /// allocator looks at it).
+    pub static IN_CHAIN: Cell<bool> = const { Cell::new(false) };
+}
+
 struct Unpark(Thread);
 
 impl Wake for Unpark {
@@ -139,7 +147,11 @@ impl Wire {
                                 Ok(bytes.len())
                             })
                             .expect("hand the frame to the wire");
-                        let reply = chain.lock().unwrap().process(&mut buf);
+                        let mut chain = chain.lock().unwrap();
+                        IN_CHAIN.with(|c| c.set(true));
+                        let reply = chain.process(&mut buf);
+                        IN_CHAIN.with(|c| c.set(false));
+                        drop(chain);
                         match reply {
                             Ok(Reply::Frame) => {
                                 frames2.fetch_add(1, Ordering::Relaxed);
@@ -197,4 +209,51 @@ pub fn with_watchdog<T: Send + 'static>(
             panic!("test did not finish within {limit:?}")
         }
     }
+}
+
+/// The master's timeouts in the tests. Generous: the emulated chain answers on a thread of the
+/// test or a process of its own, which a loaded machine (two CPU hogs on two cores) holds up
+/// for tens of milliseconds; ethercrab's defaults (an EEPROM read in 10 ms) then time out
+/// where nothing is wrong. A lost frame still times out, after `pdu`.
+pub fn timeouts() -> Timeouts {
+    Timeouts {
+        wait_loop_delay: Duration::from_millis(1),
+        state_transition: Duration::from_secs(30),
+        pdu: Duration::from_secs(1),
+        eeprom: Duration::from_secs(10),
+        mailbox_echo: Duration::from_secs(10),
+        mailbox_response: Duration::from_secs(10),
+    }
+}
+
+/// A group of up to 8 slaves in OP with distributed clocks.
+pub type DcGroup = SubDeviceGroup<8, 128, DefaultLock, Op, HasDc>;
+
+/// INIT → OP with SYNC0 every `period_ns` on every slave, the chain's clock moved one period
+/// per cycle until all are in OP.
+pub async fn bring_up_dc(md: &MainDevice<'_>, clock: &ManualClock, period_ns: u64) -> DcGroup {
+    let now = || clock.now_ns();
+    let mut group = md
+        .init_single_group::<8, 128>(now)
+        .await
+        .expect("init to PRE-OP");
+    for mut sd in group.iter_mut(md) {
+        sd.set_dc_sync(DcSync::Sync0);
+    }
+    let group = group.into_pre_op_pdi(md).await.expect("PRE-OP with PDI");
+    let dc = DcConfiguration {
+        start_delay: Duration::from_millis(10),
+        sync0_period: Duration::from_nanos(period_ns),
+        sync0_shift: Duration::ZERO,
+    };
+    let group = group.configure_dc_sync(md, dc).await.expect("DC sync");
+    let group = group.into_safe_op(md).await.expect("SAFE-OP");
+    let group = group.request_into_op(md).await.expect("request OP");
+    for _ in 0..4000 {
+        clock.advance(period_ns);
+        if group.tx_rx_dc(md).await.expect("cycle").all_op() {
+            return group;
+        }
+    }
+    panic!("the slaves did not reach OP");
 }
