@@ -18,7 +18,11 @@
 //!   (`ethercat.bare_*`), in alternating blocks of the same process. The issue's target —
 //!   missed cycles ≤ the bare loop's + 0.5 % — is reported in the targets, never asserted.
 //! - **SYNC0 offset** (`ethercat.sync0_offset`, with distributed clocks, 6 drives, 1 kHz):
-//!   ethercrab's `cycle_start_offset` of every cycle — where in the SYNC0 cycle the frame lands.
+//!   ethercrab's `cycle_start_offset` of every cycle — where in the SYNC0 cycle the frame lands
+//!   — with each cycle given its timer's due time as the tick's time, as the bus bridge gives
+//!   the grid's, so the master locks SYNC0 to the loop (`modbot_ethercat::dc::GridLock`);
+//!   `ethercat.sync0_from_target`: how far from the lock's target (half a period after the
+//!   tick) each frame landed once the lock was won.
 //!
 //! The measuring side (`ecat-master`, one process per configuration: ethercrab allows one
 //! master per process) and the echo run under SCHED_FIFO (60; the emulator and the echo 59)
@@ -288,12 +292,32 @@ fn push_sync0(report: &mut Report, m: &Measured) {
             .param("fifo", m.fifo)
             .is_baseline(),
     );
+    if let Some(t) = &m.sync0_from_target {
+        report.push(
+            row("ethercat.sync0_from_target", t)
+                .param("slaves", m.slaves)
+                .param("hz", 1000)
+                .param("fifo", m.fifo)
+                .is_baseline(),
+        );
+    }
     let faults = m.loops.first().map_or(0, |l| l.bus.faults);
+    let lock = match (m.locked_at, &m.sync0_from_target) {
+        (Some(at), Some(t)) => format!(
+            "locked at cycle {at}{}; from then on each frame within p50 {:.1} µs, p99 {:.1} µs, \
+             max {:.1} µs of the target (half a period after the tick)",
+            if m.locked_at_end { ", still locked at the end" } else { ", lost by the end" },
+            t.p50 as f64 / 1e3,
+            t.p99 as f64 / 1e3,
+            t.max as f64 / 1e3
+        ),
+        _ => "the lock was not won".to_owned(),
+    };
     report.note(format!(
-        "ethercat: distributed clocks (SYNC0 every 1 ms, {} slaves, bring-up {:.0} ms): where each \
-         cycle's frame landed in the SYNC0 cycle (ethercrab's cycle_start_offset) p50 {:.1} µs \
-         p99 {:.1} µs max {:.1} µs over {} cycles of the 1 kHz loop (the loop's phase against \
-         SYNC0 is arbitrary: the spread, not the median, is the measure); {} bus fault(s)",
+        "ethercat: distributed clocks (SYNC0 every 1 ms, {} slaves, bring-up {:.0} ms), each \
+         cycle given its timer's due time as the tick's: where each cycle's frame landed in the \
+         SYNC0 cycle (ethercrab's cycle_start_offset) p50 {:.1} µs p99 {:.1} µs max {:.1} µs \
+         over {} cycles of the 1 kHz loop; {lock}; {} bus fault(s)",
         m.slaves,
         m.bring_up_ms,
         s.p50 as f64 / 1e3,

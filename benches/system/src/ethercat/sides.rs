@@ -96,8 +96,15 @@ pub struct Measured {
     /// Per block: the cycle's median over the ping-pong's.
     pub ratios: Vec<f64>,
     pub loops: Vec<Loop>,
-    /// With DC: ethercrab's `cycle_start_offset` of every cycle of the 1 kHz loop.
+    /// With DC: ethercrab's `cycle_start_offset` of every cycle of the 1 kHz loop, whose
+    /// cycles pass the timer's due time as the tick's time (the grid lock runs).
     pub sync0: Option<Stats>,
+    /// With DC: how far from the lock's target each frame landed, once locked.
+    pub sync0_from_target: Option<Stats>,
+    /// With DC: the cycle the lock was first won at (from the loop's start), and whether it
+    /// held at the end.
+    pub locked_at: Option<u64>,
+    pub locked_at_end: bool,
     /// Cycles of the whole run that ended in a bus fault (the frames came back), and the
     /// first fault as the backend describes it.
     pub faults: u64,
@@ -247,8 +254,12 @@ impl Bus {
     /// cycle whose frame did not come back took the PDU timeout (its time stays in the rows),
     /// one with a working counter short or long or a slave out of OP exchanged its frames.
     /// Only [`NO_REPLY_IN_A_ROW`] cycles in a row without a reply end the measurement.
-    fn cycle(&mut self) -> anyhow::Result<bool> {
-        match self.backend.cycle(0.001, &self.commands, &mut self.actuals) {
+    /// One bus cycle; `tick_ns`: the time of the tick it belongs to, for the grid lock.
+    fn cycle(&mut self, tick_ns: Option<u64>) -> anyhow::Result<bool> {
+        match self
+            .backend
+            .cycle_at(tick_ns, 0.001, &self.commands, &mut self.actuals)
+        {
             Ok(()) => {
                 self.no_reply_in_a_row = 0;
                 Ok(true)
@@ -284,7 +295,7 @@ fn frame_lengths(bus: &mut Bus, sniff: &str) -> anyhow::Result<Vec<usize>> {
     let mut seen: Vec<Vec<usize>> = Vec::new();
     for _ in 0..3 {
         while link.try_recv(&mut buf)?.is_some() {}
-        bus.cycle()
+        bus.cycle(None)
             .context("a bus cycle failed while the frame sizes were measured")?;
         let mut lengths = Vec::new();
         // The replies are back: the requests were seen before them.
@@ -340,6 +351,9 @@ fn master(args: &[String]) -> anyhow::Result<()> {
         ratios: Vec::new(),
         loops: Vec::new(),
         sync0: None,
+        sync0_from_target: None,
+        locked_at: None,
+        locked_at_end: false,
         faults: 0,
         first_fault: None,
         no_replies: 0,
@@ -347,11 +361,23 @@ fn master(args: &[String]) -> anyhow::Result<()> {
     let side_span = Duration::from_millis(if quick { 1000 } else { 10_000 });
     if dc {
         let mut offsets = sample::histogram();
+        let mut from_target = sample::histogram();
         let mut side = LoopSide::default();
-        let mut work = || {
-            let ok = bus.cycle();
+        let (mut cycles, mut locked_at, mut locked_now) = (0u64, None, false);
+        // The timer's due time is the tick's nominal time, as the coordinator's is in a grid:
+        // the master locks SYNC0 to it (`modbot_ethercat::dc::GridLock`).
+        let mut work = |due_ns: u64| {
+            let ok = bus.cycle(Some(due_ns));
+            cycles += 1;
             if let Some(phase) = bus.backend.sync0_phase() {
                 offsets.saturating_record(phase.last_ns.max(1));
+                locked_now = phase.locked;
+                if phase.locked && locked_at.is_none() {
+                    locked_at = Some(cycles);
+                }
+                if let (Some(target), Some(_)) = (phase.target_ns, locked_at) {
+                    from_target.saturating_record(phase.last_ns.abs_diff(target).max(1));
+                }
             }
             ok
         };
@@ -362,6 +388,8 @@ fn master(args: &[String]) -> anyhow::Result<()> {
             &mut Acc::new(&mut side),
         )?;
         out.sync0 = Some(Stats::of(&offsets));
+        out.sync0_from_target = (!from_target.is_empty()).then(|| Stats::of(&from_target));
+        (out.locked_at, out.locked_at_end) = (locked_at, locked_now);
         out.loops.push(Loop {
             hz: 1000,
             bare: LoopSide::default(),
@@ -378,7 +406,7 @@ fn master(args: &[String]) -> anyhow::Result<()> {
         };
         let mut cycle = || {
             let t = Instant::now();
-            bus.cycle()?;
+            bus.cycle(None)?;
             Ok(sample::since(t))
         };
         let mut pong = || ping.one();
@@ -412,7 +440,8 @@ fn bare_and_bus(bus: &mut Bus, hz: u64, span: Duration, quick: bool) -> anyhow::
     let (mut bare, mut with_bus) = (LoopSide::default(), LoopSide::default());
     let (mut bare_acc, mut bus_acc) = (Acc::new(&mut bare), Acc::new(&mut with_bus));
     for b in 0..blocks {
-        let mut work = || bus.cycle();
+        // Without distributed clocks (these segments): no lock, no tick time.
+        let mut work = |_: u64| bus.cycle(None);
         if b % 2 == 0 {
             timed_loop(period, block, None, &mut bare_acc)?;
             timed_loop(period, block, Some(&mut work), &mut bus_acc)?;
@@ -464,7 +493,7 @@ const WARM_PERIODS: u64 = 20;
 fn timed_loop(
     period_ns: u64,
     span: Duration,
-    mut work: Option<&mut dyn FnMut() -> anyhow::Result<bool>>,
+    mut work: Option<&mut dyn FnMut(u64) -> anyhow::Result<bool>>,
     acc: &mut Acc<'_>,
 ) -> anyhow::Result<()> {
     let shutdown = modbot_core::signals::Shutdown::on_signals()?;
@@ -481,7 +510,7 @@ fn timed_loop(
         let due = timer.due_ns(expirations - 1);
         let woke = timer.now_ns();
         let ok = match work.as_mut() {
-            Some(w) => w()?,
+            Some(w) => w(due)?,
             None => true,
         };
         let end = timer.now_ns();
