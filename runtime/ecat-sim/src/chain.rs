@@ -204,6 +204,13 @@ impl Chain {
             slave.esc.set_port1_link(has_next);
             slave.begin_frame(timing.port0_ns);
             for &span in &self.spans {
+                // Read per datagram: one of the frame's may have just set it.
+                if span
+                    .only_for_station
+                    .is_some_and(|s| s != slave.station_address())
+                {
+                    continue;
+                }
                 if let Some(mut datagram) = frame::datagram_at(frame, span) {
                     slave.process(&mut datagram, &timing);
                 }

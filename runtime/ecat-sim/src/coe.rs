@@ -149,7 +149,7 @@ impl SdoServer {
         if entry.access == Access::WriteOnly {
             return abort_response(index, sub_index, abort::WRITE_ONLY);
         }
-        let data = entry.value.clone();
+        let data = entry.value.to_vec();
         if (1..=4).contains(&data.len()) {
             let unused = (4 - data.len()) as u8;
             let mut bytes = [0u8; 4];

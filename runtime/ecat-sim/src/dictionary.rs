@@ -5,7 +5,7 @@
 //! [`ObjectDictionary::set`]); the master goes through the SDO server, which checks access
 //! rights, sizes and the state machine first (see [`crate::coe`] and [`crate::pdo`]).
 
-use std::collections::BTreeMap;
+use smallvec::SmallVec;
 
 /// CoE data types (ETG.1000.6 Table 64), the ones the model knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -185,9 +185,13 @@ pub struct ObjectEntry {
     pub access: Access,
     /// PDO mappability.
     pub pdo: PdoMappable,
-    /// The value, little endian.
-    pub value: Vec<u8>,
+    /// The value, little endian: numbers inside the entry, strings on the heap.
+    pub value: ObjectBytes,
 }
+
+/// An entry's value: up to 8 bytes (every number) kept in place, so the cyclic copies between
+/// process data and dictionary touch the entry only.
+pub type ObjectBytes = SmallVec<[u8; 8]>;
 
 impl ObjectEntry {
     /// A read-only, unmappable entry holding `value`.
@@ -199,7 +203,7 @@ impl ObjectEntry {
             data_type: T::TYPE,
             access: Access::ReadOnly,
             pdo: PdoMappable::No,
-            value: value.to_bytes(),
+            value: ObjectBytes::from_vec(value.to_bytes()),
         }
     }
 
@@ -212,7 +216,7 @@ impl ObjectEntry {
             data_type: DataType::VisibleString,
             access: Access::ReadOnly,
             pdo: PdoMappable::No,
-            value: value.as_bytes().to_vec(),
+            value: ObjectBytes::from_slice(value.as_bytes()),
         }
     }
 
@@ -274,9 +278,21 @@ pub enum OdError {
 }
 
 /// The dictionary: entries ordered by index, then subindex.
+///
+/// A sorted pair of vectors rather than a map: a lookup is a binary search over the keys
+/// alone (4 bytes each, a drive's ~70 entries in a few cache lines), and an entry keeps its
+/// slot until the next insert, so a process-data image can find its entries once
+/// ([`ObjectDictionary::slot`]) and reach them by slot every cycle.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ObjectDictionary {
-    entries: BTreeMap<(u16, u8), ObjectEntry>,
+    /// `index << 8 | sub_index` of each entry, ascending.
+    keys: Vec<u32>,
+    /// The entries, in the order of `keys`.
+    entries: Vec<ObjectEntry>,
+}
+
+fn key(index: u16, sub_index: u8) -> u32 {
+    u32::from(index) << 8 | u32::from(sub_index)
 }
 
 impl ObjectDictionary {
@@ -285,36 +301,59 @@ impl ObjectDictionary {
         Self::default()
     }
 
-    /// Adds or replaces an entry; returns the one it replaced.
+    /// Adds or replaces an entry; returns the one it replaced. Slots found before an insert
+    /// of a new index:subindex are no longer valid.
     pub fn insert(&mut self, entry: ObjectEntry) -> Option<ObjectEntry> {
-        self.entries.insert((entry.index, entry.sub_index), entry)
+        let k = key(entry.index, entry.sub_index);
+        match self.keys.binary_search(&k) {
+            Ok(at) => Some(std::mem::replace(&mut self.entries[at], entry)),
+            Err(at) => {
+                self.keys.insert(at, k);
+                self.entries.insert(at, entry);
+                None
+            }
+        }
+    }
+
+    /// Where index:subindex is kept (valid until the next insert).
+    pub fn slot(&self, index: u16, sub_index: u8) -> Option<usize> {
+        self.keys.binary_search(&key(index, sub_index)).ok()
+    }
+
+    /// The entry kept at `slot`.
+    pub fn at_slot(&self, slot: usize) -> Option<&ObjectEntry> {
+        self.entries.get(slot)
+    }
+
+    pub(crate) fn at_slot_mut(&mut self, slot: usize) -> Option<&mut ObjectEntry> {
+        self.entries.get_mut(slot)
     }
 
     /// The entry at index:subindex.
     pub fn entry(&self, index: u16, sub_index: u8) -> Option<&ObjectEntry> {
-        self.entries.get(&(index, sub_index))
+        self.slot(index, sub_index).map(|at| &self.entries[at])
     }
 
     pub(crate) fn entry_mut(&mut self, index: u16, sub_index: u8) -> Option<&mut ObjectEntry> {
-        self.entries.get_mut(&(index, sub_index))
+        self.slot(index, sub_index).map(|at| &mut self.entries[at])
     }
 
     /// True if any subindex of `index` exists.
     pub fn has_object(&self, index: u16) -> bool {
-        self.entries
-            .range((index, 0)..=(index, u8::MAX))
-            .next()
-            .is_some()
+        let first = self.keys.partition_point(|&k| k < key(index, 0));
+        self.keys
+            .get(first)
+            .is_some_and(|&k| k >> 8 == u32::from(index))
     }
 
     /// Every entry, ordered.
     pub fn entries(&self) -> impl Iterator<Item = &ObjectEntry> {
-        self.entries.values()
+        self.entries.iter()
     }
 
     /// The distinct object indices, ordered.
     pub fn indices(&self) -> Vec<u16> {
-        let mut out: Vec<u16> = self.entries.keys().map(|&(i, _)| i).collect();
+        let mut out: Vec<u16> = self.keys.iter().map(|&k| (k >> 8) as u16).collect();
         out.dedup();
         out
     }
@@ -367,9 +406,13 @@ impl ObjectDictionary {
 }
 
 /// `value` becomes `bytes`, reusing its buffer.
-fn replace_bytes(value: &mut Vec<u8>, bytes: &[u8]) {
-    value.clear();
-    value.extend_from_slice(bytes);
+fn replace_bytes(value: &mut ObjectBytes, bytes: &[u8]) {
+    if value.len() == bytes.len() {
+        value.copy_from_slice(bytes);
+    } else {
+        value.clear();
+        value.extend_from_slice(bytes);
+    }
 }
 
 #[cfg(test)]
@@ -417,5 +460,33 @@ mod tests {
     fn strings_take_their_length_in_bits() {
         let entry = ObjectEntry::string(0x1008, 0, "Device name", "MB-IO");
         assert_eq!(entry.bit_len(), 40);
+    }
+
+    #[test]
+    fn entries_are_kept_in_index_then_subindex_order_whatever_the_insert_order() {
+        let mut sut = ObjectDictionary::new();
+        for (index, sub_index) in [(0x6041, 0), (0x1018, 2), (0x6040, 0), (0x1018, 1)] {
+            sut.insert(ObjectEntry::new(index, sub_index, "x", 0u16));
+        }
+        let order: Vec<(u16, u8)> = sut.entries().map(|e| (e.index, e.sub_index)).collect();
+        assert_eq!(
+            order,
+            vec![(0x1018, 1), (0x1018, 2), (0x6040, 0), (0x6041, 0)]
+        );
+        assert_eq!(sut.indices(), vec![0x1018, 0x6040, 0x6041]);
+        assert!(sut.has_object(0x1018) && !sut.has_object(0x1019) && !sut.has_object(0x1017));
+    }
+
+    #[test]
+    fn an_insert_of_an_existing_entry_replaces_it_in_its_slot() {
+        let mut sut = ObjectDictionary::new();
+        sut.insert(ObjectEntry::new(0x6040, 0, "old", 1u16));
+        sut.insert(ObjectEntry::new(0x6041, 0, "other", 2u16));
+        let slot = sut.slot(0x6040, 0);
+        let old = sut.insert(ObjectEntry::new(0x6040, 0, "new", 3u16));
+        assert_eq!(old.map(|e| e.name), Some("old".to_owned()));
+        assert_eq!(sut.slot(0x6040, 0), slot);
+        assert_eq!(sut.get::<u16>(0x6040, 0), Some(3));
+        assert_eq!(sut.entries().count(), 2);
     }
 }

@@ -5,8 +5,8 @@
 use crate::al::{status_code, AlState};
 use crate::esc::sync_manager::{SmDirection, SyncManager};
 use crate::esc::EscEvent;
-use crate::pdo::{self, PdoLayout};
-use crate::process_data;
+use crate::pdo;
+use crate::process_data::{self, BoundLayout};
 use crate::slave::{scratch_of, Slave};
 
 const SM_MAILBOX_OUT: u8 = 0;
@@ -172,8 +172,8 @@ impl Slave {
         if target <= AlState::PreOp {
             self.esc.set_sm_deactivated(SM_OUTPUTS, true);
             self.esc.set_sm_deactivated(SM_INPUTS, true);
-            self.outputs = PdoLayout::default();
-            self.inputs = PdoLayout::default();
+            self.outputs = BoundLayout::default();
+            self.inputs = BoundLayout::default();
         }
         if target == AlState::Init {
             self.esc.set_sm_deactivated(SM_MAILBOX_OUT, true);
@@ -267,8 +267,8 @@ impl Slave {
                 Some(_) => {}
             }
         }
-        self.outputs = outputs;
-        self.inputs = inputs;
+        self.outputs = BoundLayout::bind(outputs, &self.od);
+        self.inputs = BoundLayout::bind(inputs, &self.od);
         self.esc.set_sm_deactivated(SM_OUTPUTS, false);
         self.esc.set_sm_deactivated(SM_INPUTS, false);
         // Valid inputs from the first cycle on.

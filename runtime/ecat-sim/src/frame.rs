@@ -9,7 +9,7 @@
 //! datagram: | cmd (1) | idx (1) | address (4) | len:11 res:3 circ:1 more:1 (2) | irq (2) | data (len) | wkc (2) |
 //! ```
 
-use crate::datagram::{Datagram, DATAGRAM_HEADER_LEN, WKC_LEN};
+use crate::datagram::{Command, Datagram, DATAGRAM_HEADER_LEN, WKC_LEN};
 
 /// The ethertype of EtherCAT frames.
 pub const ETHERTYPE_ETHERCAT: u16 = 0x88A4;
@@ -93,6 +93,10 @@ pub struct DatagramSpan {
     pub offset: usize,
     /// Header + data + working counter.
     pub total_len: usize,
+    /// For an FPRD, FPWR or FPRW: the station address it is for. Only the slave of that
+    /// address acts on it (an FRMW is not one of these: every other slave writes it), so the
+    /// others pass it untouched — a chain skips them without a look at the datagram.
+    pub only_for_station: Option<u16>,
 }
 
 /// Decodes the headers of `frame` and lists its datagrams into `spans` (cleared first; the
@@ -147,7 +151,16 @@ pub fn decode(frame: &[u8], spans: &mut Vec<DatagramSpan>) -> Result<(), FrameEr
             });
         }
         let total_len = DATAGRAM_HEADER_LEN + len + WKC_LEN;
-        spans.push(DatagramSpan { offset, total_len });
+        let only_for_station = matches!(
+            Command::from_code(header[0]),
+            Some(Command::Fprd | Command::Fpwr | Command::Fprw)
+        )
+        .then(|| u16::from_le_bytes([header[2], header[3]]));
+        spans.push(DatagramSpan {
+            offset,
+            total_len,
+            only_for_station,
+        });
         offset += total_len;
         position += 1;
         if !more_follows {

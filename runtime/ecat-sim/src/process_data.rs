@@ -1,8 +1,50 @@
 //! Copying between the process-data buffers of the sync managers and the dictionary entries
 //! the current PDO layout maps, bit by bit (entries need not be byte aligned).
+//!
+//! A layout is bound to the dictionary once, when it comes into force ([`BoundLayout::bind`]
+//! at PRE-OP → SAFE-OP): each entry's slot is found then, so a cycle's copies search nothing.
+//! Sixty-four software slaves pass a frame one after the other; what one spends per entry and
+//! cycle is spent 64 times per frame.
 
 use crate::dictionary::ObjectDictionary;
 use crate::pdo::PdoLayout;
+
+/// A PDO layout with the dictionary slot of each entry (`None` for a gap, or an entry the
+/// dictionary does not hold: its bits read as 0 and writes to it go nowhere).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BoundLayout {
+    layout: PdoLayout,
+    slots: Vec<Option<usize>>,
+}
+
+impl BoundLayout {
+    /// `layout` with the slots of its entries in `od` (valid while `od` gets no new entry:
+    /// a slave's dictionary is complete from power-on).
+    pub fn bind(layout: PdoLayout, od: &ObjectDictionary) -> Self {
+        let slots = layout
+            .entries
+            .iter()
+            .map(|e| {
+                if e.is_padding() {
+                    None
+                } else {
+                    od.slot(e.index, e.sub_index)
+                }
+            })
+            .collect();
+        Self { layout, slots }
+    }
+
+    /// The layout.
+    pub fn layout(&self) -> &PdoLayout {
+        &self.layout
+    }
+
+    /// Bytes of the sync manager buffer.
+    pub fn bytes(&self) -> usize {
+        self.layout.bytes()
+    }
+}
 
 fn get_bit(bytes: &[u8], bit: usize) -> bool {
     bytes
@@ -36,9 +78,9 @@ pub fn copy_bits(src: &[u8], src_bit: usize, dst: &mut [u8], dst_bit: usize, bit
 }
 
 /// Outputs buffer → dictionary: every mapped entry takes its bits from `buffer`.
-pub fn buffer_to_dictionary(layout: &PdoLayout, buffer: &[u8], od: &mut ObjectDictionary) {
-    for entry in layout.entries.iter().filter(|e| !e.is_padding()) {
-        if let Some(object) = od.entry_mut(entry.index, entry.sub_index) {
+pub fn buffer_to_dictionary(bound: &BoundLayout, buffer: &[u8], od: &mut ObjectDictionary) {
+    for (entry, slot) in bound.layout.entries.iter().zip(&bound.slots) {
+        if let Some(object) = slot.and_then(|at| od.at_slot_mut(at)) {
             let bits = usize::from(entry.bit_len);
             if object.value.len() < bits.div_ceil(8) {
                 object.value.resize(bits.div_ceil(8), 0);
@@ -49,13 +91,10 @@ pub fn buffer_to_dictionary(layout: &PdoLayout, buffer: &[u8], od: &mut ObjectDi
 }
 
 /// Dictionary → inputs buffer: every mapped entry puts its bits into `buffer`; gaps are 0.
-pub fn dictionary_to_buffer(layout: &PdoLayout, od: &ObjectDictionary, buffer: &mut [u8]) {
-    for entry in &layout.entries {
+pub fn dictionary_to_buffer(bound: &BoundLayout, od: &ObjectDictionary, buffer: &mut [u8]) {
+    for (entry, slot) in bound.layout.entries.iter().zip(&bound.slots) {
         let bits = usize::from(entry.bit_len);
-        match od
-            .entry(entry.index, entry.sub_index)
-            .filter(|_| !entry.is_padding())
-        {
+        match slot.and_then(|at| od.at_slot(at)) {
             Some(object) => copy_bits(&object.value, 0, buffer, entry.bit_offset, bits),
             None => {
                 for i in 0..bits {
@@ -109,6 +148,7 @@ mod tests {
             ],
             bits: 24,
         };
+        let layout = BoundLayout::bind(layout, &od);
         let mut buffer = [0xFFu8; 3];
         dictionary_to_buffer(&layout, &od, &mut buffer);
         assert_eq!(buffer, [0x01, 0xEF, 0xBE]);

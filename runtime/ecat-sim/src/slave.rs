@@ -12,6 +12,7 @@ use crate::esc::dc::PassTiming;
 use crate::esc::{Esc, EscIdentity};
 use crate::mailbox::MailboxServer;
 use crate::pdo::{self, PdoDefinition, PdoLayout};
+use crate::process_data::BoundLayout;
 use crate::sii::{
     self, Identity, MailboxLayout, SiiDescription, SiiPdo, SiiPdoEntry, SiiSyncManager,
 };
@@ -92,9 +93,9 @@ pub struct Slave {
     /// The AL error indication.
     pub(crate) error: bool,
     /// Outputs layout, fixed at PRE-OP → SAFE-OP.
-    pub(crate) outputs: PdoLayout,
+    pub(crate) outputs: BoundLayout,
     /// Inputs layout, fixed at PRE-OP → SAFE-OP.
-    pub(crate) inputs: PdoLayout,
+    pub(crate) inputs: BoundLayout,
     /// Step period when DC SYNC0 is not active.
     pub(crate) default_period_s: f64,
     /// True once the application stepped in the current frame.
@@ -139,8 +140,8 @@ impl Slave {
             app,
             state: AlState::Init,
             error: false,
-            outputs: PdoLayout::default(),
-            inputs: PdoLayout::default(),
+            outputs: BoundLayout::default(),
+            inputs: BoundLayout::default(),
             default_period_s: 0.001,
             stepped_this_frame: false,
             steps: 0,
@@ -161,8 +162,8 @@ impl Slave {
         self.mailbox.reset();
         self.state = AlState::Init;
         self.error = false;
-        self.outputs = PdoLayout::default();
-        self.inputs = PdoLayout::default();
+        self.outputs = BoundLayout::default();
+        self.inputs = BoundLayout::default();
         self.steps = 0;
         self.sync0_offset_ns = None;
         for sm in 0..4 {
@@ -235,12 +236,12 @@ impl Slave {
 
     /// The outputs layout in force (empty before SAFE-OP).
     pub fn outputs_layout(&self) -> &PdoLayout {
-        &self.outputs
+        self.outputs.layout()
     }
 
     /// The inputs layout in force (empty before SAFE-OP).
     pub fn inputs_layout(&self) -> &PdoLayout {
-        &self.inputs
+        self.inputs.layout()
     }
 
     pub(crate) fn set_default_period(&mut self, period_s: f64) {

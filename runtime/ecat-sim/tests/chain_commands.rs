@@ -197,6 +197,64 @@ fn a_logical_read_write_counts_one_for_the_read_and_two_for_the_write() {
 }
 
 #[test]
+fn a_station_address_set_in_a_frame_addresses_the_next_datagram_of_that_frame() {
+    let mut sut = support::chain(2, ManualClock::new(0));
+    // Slave 1 (ADP -1) gets 0x2001; the FPRD behind it in the same frame reaches it and only
+    // it, and an FPRD for an address no slave holds is counted by none.
+    let out = results(
+        &mut sut,
+        FrameBuilder::new()
+            .datagram(
+                APWR,
+                0,
+                physical_address(0xFFFF, 0x0010),
+                &0x2001u16.to_le_bytes(),
+            )
+            .datagram(FPRD, 1, physical_address(0x2001, 0x0010), &[0; 2])
+            .datagram(FPRD, 2, physical_address(0x2002, 0x0010), &[0; 2])
+            .build(),
+    );
+    assert_eq!(out[0].0, 1);
+    assert_eq!((out[1].0, out[1].2.clone()), (1, vec![0x01, 0x20]));
+    assert_eq!(out[2].0, 0);
+}
+
+#[test]
+fn an_fmmu_configured_in_a_frame_maps_the_logical_datagram_behind_it() {
+    let mut sut = addressed_chain(2);
+    let mut fmmu = [0u8; 16];
+    fmmu[0..4].copy_from_slice(&0x40u32.to_le_bytes());
+    fmmu[4..6].copy_from_slice(&2u16.to_le_bytes());
+    fmmu[7] = 7;
+    fmmu[8..10].copy_from_slice(&0x2000u16.to_le_bytes());
+    fmmu[11] = 2;
+    fmmu[12] = 1;
+    let out = results(
+        &mut sut,
+        FrameBuilder::new()
+            .datagram(FPWR, 0, physical_address(0x1001, 0x0600), &fmmu)
+            .datagram(LRW, 1, 0x40, &[0xAB, 0xCD])
+            .datagram(FPRD, 2, physical_address(0x1001, 0x2000), &[0; 2])
+            .build(),
+    );
+    assert_eq!(
+        out[1].0, 2,
+        "the write half counted by the one slave mapping it"
+    );
+    assert_eq!(out[2].2, [0xAB, 0xCD]);
+    // Disabled again (activate 0): the same logical datagram maps nothing.
+    fmmu[12] = 0;
+    let out = results(
+        &mut sut,
+        FrameBuilder::new()
+            .datagram(FPWR, 0, physical_address(0x1001, 0x0600), &fmmu)
+            .datagram(LRW, 1, 0x40, &[0x11, 0x22])
+            .build(),
+    );
+    assert_eq!(out[1].0, 0);
+}
+
+#[test]
 fn the_reply_comes_from_the_locally_administered_master_address() {
     let mut sut = support::chain(1, ManualClock::new(0));
     let mut frame = FrameBuilder::new().datagram(BRD, 0, 0, &[0]).build();

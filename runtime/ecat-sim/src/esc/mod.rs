@@ -96,6 +96,13 @@ pub struct Esc {
     port1_link: bool,
     /// Events for the firmware, in order.
     events: Vec<EscEvent>,
+    /// FMMUs 0..[`CHANNELS`] as their registers say, decoded when those are written: every
+    /// logical datagram asks each of them, so a cyclic frame decodes none.
+    fmmus: [Fmmu; CHANNELS as usize],
+    /// The configured station address (0x0010), kept beside the memory: every slave compares
+    /// it with every station-addressed datagram of a frame (ethercrab reads each slave's AL
+    /// status by FPRD every cycle: 64 slaves, 64 × 64 compares).
+    station: u16,
 }
 
 fn overlaps(start: usize, end: usize, register: u16, len: usize) -> bool {
@@ -113,6 +120,8 @@ impl Esc {
             clock: DcClock::new(now_ns, 0.0),
             port1_link: false,
             events: Vec::new(),
+            fmmus: [Fmmu::decode(&[0; 16]); CHANNELS as usize],
+            station: 0,
         };
         esc.power_on(now_ns);
         esc
@@ -146,6 +155,13 @@ impl Esc {
         self.put_u16(reg::DC_CONTROL_LOOP, 0x1000);
         self.put_u16(reg::DC_CONTROL_LOOP + 4, 0x0C00);
         self.refresh_dl_status();
+        self.refresh_fmmus();
+        self.station = self.get_u16(reg::STATION_ADDRESS);
+    }
+
+    /// Decodes the FMMU registers into the cache the logical datagrams use.
+    fn refresh_fmmus(&mut self) {
+        self.fmmus = std::array::from_fn(|n| self.fmmu(n as u8));
     }
 
     fn put_u16(&mut self, at: u16, value: u16) {
@@ -171,7 +187,7 @@ impl Esc {
 
     /// The configured station address (0x0010).
     pub fn station_address(&self) -> u16 {
-        self.get_u16(reg::STATION_ADDRESS)
+        self.station
     }
 
     /// Whether a slave behind this one answers on port 1.
@@ -287,11 +303,8 @@ impl Esc {
     /// copies it to memory. Returns true if any byte was written.
     pub fn logical_write(&mut self, logical: u32, data: &[u8], timing: &PassTiming) -> bool {
         let mut any = false;
-        for n in 0..CHANNELS {
-            let fmmu = self.fmmu(n);
-            if !fmmu.write {
-                continue;
-            }
+        let fmmus = self.fmmus;
+        for fmmu in fmmus.iter().filter(|f| f.write) {
             if let Some((offset, physical, len)) = fmmu.overlap(logical, data.len()) {
                 any |= self.write(physical, &data[offset..offset + len], timing);
             }
@@ -303,11 +316,8 @@ impl Esc {
     /// copies memory into it. Returns true if any byte was read.
     pub fn logical_read(&mut self, logical: u32, data: &mut [u8], timing: &PassTiming) -> bool {
         let mut any = false;
-        for n in 0..CHANNELS {
-            let fmmu = self.fmmu(n);
-            if !fmmu.read {
-                continue;
-            }
+        let fmmus = self.fmmus;
+        for fmmu in fmmus.iter().filter(|f| f.read) {
             if let Some((offset, physical, len)) = fmmu.overlap(logical, data.len()) {
                 any |= self.read(physical, &mut data[offset..offset + len], timing);
             }
@@ -317,8 +327,7 @@ impl Esc {
 
     /// True if an enabled read (or write, per `write`) FMMU maps any byte of the datagram.
     pub fn logical_maps(&self, logical: u32, len: usize, write: bool) -> bool {
-        (0..CHANNELS).any(|n| {
-            let fmmu = self.fmmu(n);
+        self.fmmus.iter().any(|fmmu| {
             (if write { fmmu.write } else { fmmu.read }) && fmmu.overlap(logical, len).is_some()
         })
     }
@@ -502,6 +511,17 @@ impl Esc {
                 // Enabling or disabling a sync manager resets its buffer state.
                 self.mem[Self::sm_status_at(n)] = 0;
             }
+        }
+        if overlaps(
+            start,
+            end,
+            reg::FMMU_BASE,
+            usize::from(CHANNELS) * usize::from(reg::FMMU_LEN),
+        ) {
+            self.refresh_fmmus();
+        }
+        if overlaps(start, end, reg::STATION_ADDRESS, 2) {
+            self.station = self.get_u16(reg::STATION_ADDRESS);
         }
         if overlaps(start, end, reg::AL_CONTROL, 2) {
             let value = self.get_u16(reg::AL_CONTROL);
