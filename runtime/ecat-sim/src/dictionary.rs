@@ -291,6 +291,29 @@ pub struct ObjectDictionary {
     entries: Vec<ObjectEntry>,
 }
 
+/// An index:subindex an application reads or writes every cycle, with the slot it was found in
+/// last: [`ObjectDictionary::read`] and [`ObjectDictionary::write`] search only when that slot
+/// no longer holds it (another dictionary, or one with entries inserted since).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Object {
+    /// Object index.
+    pub index: u16,
+    /// Subindex.
+    pub sub_index: u8,
+    slot: usize,
+}
+
+impl Object {
+    /// index:subindex, not looked for yet.
+    pub const fn new(index: u16, sub_index: u8) -> Self {
+        Self {
+            index,
+            sub_index,
+            slot: 0,
+        }
+    }
+}
+
 fn key(index: u16, sub_index: u8) -> u32 {
     u32::from(index) << 8 | u32::from(sub_index)
 }
@@ -365,11 +388,7 @@ impl ObjectDictionary {
 
     /// The typed value of index:subindex (`None` if absent or of another type).
     pub fn get<T: ObjectValue>(&self, index: u16, sub_index: u8) -> Option<T> {
-        let entry = self.entry(index, sub_index)?;
-        if entry.data_type != T::TYPE {
-            return None;
-        }
-        T::from_bytes(&entry.value)
+        self.read(&mut Object::new(index, sub_index))
     }
 
     /// Sets a typed value, as the device's firmware does (no access check).
@@ -379,9 +398,35 @@ impl ObjectDictionary {
         sub_index: u8,
         value: T,
     ) -> Result<(), OdError> {
-        let entry = self
-            .entry_mut(index, sub_index)
+        self.write(&mut Object::new(index, sub_index), value)
+    }
+
+    /// Where `object` is kept: its remembered slot if that still holds it, else searched
+    /// (and remembered).
+    fn find(&self, object: &mut Object) -> Option<usize> {
+        let k = key(object.index, object.sub_index);
+        if self.keys.get(object.slot) != Some(&k) {
+            object.slot = self.keys.binary_search(&k).ok()?;
+        }
+        Some(object.slot)
+    }
+
+    /// As [`ObjectDictionary::get`], through an [`Object`] that remembers where it was found.
+    pub fn read<T: ObjectValue>(&self, object: &mut Object) -> Option<T> {
+        let entry = &self.entries[self.find(object)?];
+        if entry.data_type != T::TYPE {
+            return None;
+        }
+        T::from_bytes(&entry.value)
+    }
+
+    /// As [`ObjectDictionary::set`], through an [`Object`] that remembers where it was found.
+    pub fn write<T: ObjectValue>(&mut self, object: &mut Object, value: T) -> Result<(), OdError> {
+        let (index, sub_index) = (object.index, object.sub_index);
+        let slot = self
+            .find(object)
             .ok_or(OdError::NotFound { index, sub_index })?;
+        let entry = &mut self.entries[slot];
         if entry.data_type != T::TYPE {
             return Err(OdError::TypeMismatch {
                 index,
@@ -475,6 +520,23 @@ mod tests {
         );
         assert_eq!(sut.indices(), vec![0x1018, 0x6040, 0x6041]);
         assert!(sut.has_object(0x1018) && !sut.has_object(0x1019) && !sut.has_object(0x1017));
+    }
+
+    #[test]
+    fn an_object_finds_its_entry_again_after_entries_were_inserted_before_it() {
+        let mut sut = ObjectDictionary::new();
+        sut.insert(ObjectEntry::new(0x6041, 0, "status", 7u16));
+        let mut status = Object::new(0x6041, 0);
+        assert_eq!(sut.read::<u16>(&mut status), Some(7));
+        sut.insert(ObjectEntry::new(0x1000, 0, "before", 1u32));
+        sut.write(&mut status, 9u16).unwrap();
+        assert_eq!(sut.get::<u16>(0x6041, 0), Some(9));
+        assert_eq!(
+            sut.get::<u32>(0x1000, 0),
+            Some(1),
+            "the entry now in its old slot"
+        );
+        assert_eq!(sut.read::<u16>(&mut Object::new(0x6042, 0)), None);
     }
 
     #[test]

@@ -36,7 +36,7 @@ use modbot_bus::{
 };
 
 use crate::application::Application;
-use crate::dictionary::{ObjectDictionary, ObjectEntry};
+use crate::dictionary::{Object, ObjectDictionary, ObjectEntry};
 use crate::pdo::PdoDefinition;
 use crate::sii::Identity;
 use crate::slave::SlaveConfig;
@@ -89,6 +89,44 @@ pub struct Cia402Drive {
     /// The conversions of `units`.
     scale: Scale,
     actual: [AxisActual; 1],
+    /// The process objects, each remembering where the dictionary keeps it.
+    objects: ProcessObjects,
+}
+
+/// The objects a drive reads (RxPDO side) and writes (TxPDO side) every step.
+#[derive(Debug, Clone, Copy)]
+struct ProcessObjects {
+    controlword: Object,
+    mode: Object,
+    target_position: Object,
+    target_velocity: Object,
+    target_torque: Object,
+    statusword: Object,
+    mode_display: Object,
+    position: Object,
+    velocity: Object,
+    torque: Object,
+    error_code: Object,
+    link_position: Object,
+}
+
+impl ProcessObjects {
+    const fn new() -> Self {
+        Self {
+            controlword: Object::new(0x6040, 0),
+            mode: Object::new(0x6060, 0),
+            target_position: Object::new(0x607A, 0),
+            target_velocity: Object::new(0x60FF, 0),
+            target_torque: Object::new(0x6071, 0),
+            statusword: Object::new(0x6041, 0),
+            mode_display: Object::new(0x6061, 0),
+            position: Object::new(0x6064, 0),
+            velocity: Object::new(0x606C, 0),
+            torque: Object::new(0x6077, 0),
+            error_code: Object::new(0x603F, 0),
+            link_position: Object::new(0x20A0, 0),
+        }
+    }
 }
 
 impl Cia402Drive {
@@ -102,6 +140,7 @@ impl Cia402Drive {
             units,
             scale: units.scale(),
             actual: [AxisActual::default()],
+            objects: ProcessObjects::new(),
         })
     }
 
@@ -153,25 +192,25 @@ impl Application for Cia402Drive {
     }
 
     fn step(&mut self, od: &mut ObjectDictionary, dt_s: f64) {
-        let scale = self.scale;
+        let (scale, o) = (self.scale, &mut self.objects);
         let command = AxisCommand {
-            controlword: od.get::<u16>(0x6040, 0).unwrap_or(0),
-            mode: od.get::<i8>(0x6060, 0).unwrap_or(0),
-            target_position: scale.rad(od.get::<i32>(0x607A, 0).unwrap_or(0)),
-            target_velocity: scale.rad(od.get::<i32>(0x60FF, 0).unwrap_or(0)),
-            target_torque: scale.nm(od.get::<i16>(0x6071, 0).unwrap_or(0)),
+            controlword: od.read::<u16>(&mut o.controlword).unwrap_or(0),
+            mode: od.read::<i8>(&mut o.mode).unwrap_or(0),
+            target_position: scale.rad(od.read::<i32>(&mut o.target_position).unwrap_or(0)),
+            target_velocity: scale.rad(od.read::<i32>(&mut o.target_velocity).unwrap_or(0)),
+            target_torque: scale.nm(od.read::<i16>(&mut o.target_torque).unwrap_or(0)),
         };
         // The simulated drive never fails a cycle.
         let _ = self.sim.cycle(dt_s, &[command], &mut self.actual);
         let a = self.actual[0];
-        // The objects exist (objects() declared them) with these types: set cannot fail.
-        let _ = od.set(0x6041, 0, a.statusword);
-        let _ = od.set(0x6061, 0, a.mode);
-        let _ = od.set(0x6064, 0, scale.counts(a.motor_position));
-        let _ = od.set(0x606C, 0, scale.counts(a.motor_velocity));
-        let _ = od.set(0x6077, 0, scale.torque(a.motor_torque));
-        let _ = od.set(0x603F, 0, a.error_code);
-        let _ = od.set(0x20A0, 0, scale.counts(a.link_position));
+        // The objects exist (objects() declared them) with these types: write cannot fail.
+        let _ = od.write(&mut o.statusword, a.statusword);
+        let _ = od.write(&mut o.mode_display, a.mode);
+        let _ = od.write(&mut o.position, scale.counts(a.motor_position));
+        let _ = od.write(&mut o.velocity, scale.counts(a.motor_velocity));
+        let _ = od.write(&mut o.torque, scale.torque(a.motor_torque));
+        let _ = od.write(&mut o.error_code, a.error_code);
+        let _ = od.write(&mut o.link_position, scale.counts(a.link_position));
     }
 
     /// Abort connection option code 3 (0x6007): the drive quick-stops when the master's

@@ -76,7 +76,7 @@ pub use chain::{Chain, ChainConfig, Reply};
 pub use clock::{Clock, ManualClock, MonotonicClock};
 pub use datagram::{Command, Datagram};
 pub use dictionary::{
-    Access, DataType, ObjectDictionary, ObjectEntry, ObjectValue, OdError, PdoMappable,
+    Access, DataType, Object, ObjectDictionary, ObjectEntry, ObjectValue, OdError, PdoMappable,
 };
 pub use frame::{FrameBuilder, FrameError};
 pub use pdo::PdoDefinition;
