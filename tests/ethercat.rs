@@ -232,7 +232,8 @@ fn arm_on(sut: &mut TestDomain, segment: &Segment, more: &[&str]) -> u32 {
 }
 
 #[test]
-fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_restart_it() {
+fn a_slave_that_drops_out_stops_the_robot_naming_it_and_after_its_return_only_a_reset_brings_the_robot_back(
+) {
     let mut segment = Segment::new(6, &[]);
     let mut sut = TestDomain::new("ecdrop");
     sut.run_in_netns(&segment.netns.0);
@@ -265,22 +266,38 @@ fn a_slave_that_drops_out_stops_the_robot_naming_it_and_its_return_does_not_rest
         text.contains("EtherCAT slave 3 ('modbot-drive'), axis 3 stopped answering"),
         "{text}"
     );
+    // A reset while the slave is still off: the segment is brought up again and slave 3 is
+    // not on it: refused, naming it; the robot stays stopped.
+    let out = sut.modbot(&["robot", "reset"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("refused: the bus still fails: EtherCAT slave"),
+        "{err}"
+    );
+    assert!(
+        err.contains("axis 3 is declared on slave 3, but the segment on"),
+        "the re-initialisation names the missing slave: {err}"
+    );
+    assert!(ledger(&sut).contains("SAFE STOP"), "{}", ledger(&sut));
     // The slave comes back (in INIT, as after a power cycle), and an assembly switch follows:
-    // the robot stays stopped — only an operator's reset may bring it back, and it is refused
-    // while the slave is not in OP: the bus still fails.
+    // the robot stays stopped — only an operator's reset brings it back, bringing the segment
+    // up again and enabling every drive.
     segment.command("on 3");
     let out = sut.modbot_ok(&["assembly", "switch", "hold"]);
     assert!(out.contains("switched to hold"), "{out}");
     let text = ledger(&sut);
     assert!(text.contains("SAFE STOP"), "{text}");
     assert_eq!(text.matches("operation enabled").count(), 0, "{text}");
-    let out = sut.modbot(&["robot", "reset"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let out = sut.modbot_ok(&["robot", "reset"]);
     assert!(
-        err.contains("refused: the bus still fails: EtherCAT slave 3"),
-        "{err}"
+        out.contains("brought up again: 6 slaves in OP")
+            && out.contains("every drive enabled at tick"),
+        "{out}"
     );
+    let text = ledger(&sut);
+    assert!(!text.contains("SAFE STOP"), "{text}");
+    assert_eq!(text.matches("operation enabled").count(), 6, "{text}");
     sut.modbot_ok(&["down"]);
     sut.wait_exit(up, Duration::from_secs(60));
 }

@@ -84,6 +84,17 @@ pub trait Backend: Send {
         self.cycle(dt_s, commands, actuals)
     }
 
+    /// An operator's reset while the bus fails (a slave that lost power and came back in
+    /// INIT, a cable plugged in again): brings the segment back as at start — every slave
+    /// found, checked and brought to its operational state again — so the reset can go on.
+    /// `Ok(Some(what))`: done, in words; `Ok(None)`: the backend cannot (the default: the
+    /// simulator's bus never fails); `Err`: why the segment did not come back. It runs on
+    /// the bridge's thread and takes as long as a start's bring-up (no cycle runs meanwhile:
+    /// the robot stands in safe stop).
+    fn rejoin(&mut self) -> Result<Option<String>, Box<dyn std::error::Error + Send + Sync>> {
+        Ok(None)
+    }
+
     /// `fault` in words for the log and the ledger, naming the slave as the backend knows it.
     fn describe(&self, fault: &BusFault) -> String {
         fault.to_string()

@@ -114,6 +114,8 @@ pub struct Bridge {
     /// A reset under way, and what the bridge says of the last one asked for.
     recovery: Option<Recovery>,
     reset: Option<ResetAsk>,
+    /// What the backend did to bring a failing bus back for the reset under way, in words.
+    rejoined: Option<String>,
     /// Per axis: the position a reset holds, and the controlword it sent last.
     hold: Vec<f64>,
     sent: Vec<u16>,
@@ -157,6 +159,7 @@ impl Bridge {
             assembly_faulted: false,
             recovery: None,
             reset: None,
+            rejoined: None,
             hold: vec![0.0; n],
             sent: vec![0; n],
             state: (0, 0),
@@ -341,8 +344,12 @@ impl Bridge {
         let (cycles, since) = (recovery.cycles, recovery.since_tick);
         if recovery.enabled_for >= reset::SETTLE_CYCLES {
             self.recovery = None;
+            let rejoined = self
+                .rejoined
+                .take()
+                .map_or(String::new(), |what| format!("{what}; "));
             let done = format!(
-                "every drive enabled at tick {} ({} cycles after the reset began at tick {since}), holding where it was found",
+                "{rejoined}every drive enabled at tick {} ({} cycles after the reset began at tick {since}), holding where it was found",
                 self.last_tick, cycles
             );
             tracing::info!("reset: {done}");
@@ -370,8 +377,8 @@ impl Bridge {
     fn begin_reset(&mut self) {
         let refused = if self.assembly_faulted {
             Some(ResetRefused::AssemblyFaulted)
-        } else if let Some(why) = &self.bus_failure {
-            Some(ResetRefused::BusFails(why.clone()))
+        } else if let Some(why) = self.bus_failure.take() {
+            self.rejoin(why)
         } else {
             (0..self.axes()).find_map(|axis| {
                 self.backend
@@ -413,6 +420,27 @@ impl Bridge {
             enabled_for: 0,
         });
         self.reset = None;
+    }
+
+    /// A reset asked for while the bus fails (`why`): the backend brings the segment back
+    /// ([`Backend::rejoin`]); refused if it cannot, or if it did not come back.
+    fn rejoin(&mut self, why: String) -> Option<ResetRefused> {
+        match self.backend.rejoin() {
+            Ok(Some(what)) => {
+                tracing::info!("reset: {what}");
+                self.rejoined = Some(what);
+                None
+            }
+            Ok(None) => {
+                self.bus_failure = Some(why.clone());
+                Some(ResetRefused::BusFails(why))
+            }
+            Err(error) => {
+                let still = format!("{why} (brought up again: {error})");
+                self.bus_failure = Some(still.clone());
+                Some(ResetRefused::BusFails(still))
+            }
+        }
     }
 
     /// An operator asks for a reset at `now_ns` (`modbot robot reset`): it is taken at the
@@ -677,6 +705,7 @@ impl Bridge {
     fn hold_stopped(&mut self, reason: String) {
         self.backend.quick_stop_all();
         if self.recovery.take().is_some() {
+            self.rejoined = None;
             self.reset = Some(ResetAsk::Refused(ResetRefused::Stopped(reason.clone())));
         }
         self.safe_stop = Some(SafeStop {
@@ -1236,12 +1265,14 @@ mod tests {
         assert!(sut.safe_stop.is_none());
     }
 
-    /// A backend whose cycles fail from cycle `from` on with `fault`.
+    /// A backend whose cycles fail from cycle `from` on with `fault`, until a rejoin brings
+    /// it back (`rejoins`: `None` cannot rejoin; `Some(false)`: a rejoin fails).
     struct Failing {
         sim: SimBackend,
         cycle: u64,
         from: u64,
         fault: BusFault,
+        rejoins: Option<bool>,
     }
 
     impl Backend for Failing {
@@ -1267,6 +1298,16 @@ mod tests {
         fn name(&self) -> &'static str {
             "failing"
         }
+        fn rejoin(&mut self) -> Result<Option<String>, Box<dyn std::error::Error + Send + Sync>> {
+            match self.rejoins {
+                None => Ok(None),
+                Some(false) => Err("slave 1 is missing".into()),
+                Some(true) => {
+                    self.from = u64::MAX;
+                    Ok(Some("the segment brought up again".into()))
+                }
+            }
+        }
     }
 
     fn failing(from: u64, fault: BusFault) -> Bridge {
@@ -1277,6 +1318,7 @@ mod tests {
                 cycle: 0,
                 from,
                 fault,
+                rejoins: None,
             }),
             MS,
         )
@@ -1320,6 +1362,68 @@ mod tests {
             "an assembly switch ended a bus fault's stop"
         );
         assert_eq!(sut.bus_faults, 2);
+    }
+
+    /// The bridge of `failing` after its bus failed at cycle 7 and stopped the robot, its
+    /// backend rejoining as `rejoins` says; and the time.
+    fn stopped_by_a_lost_slave(rejoins: Option<bool>) -> (Bridge, u64) {
+        let sim = SimBackend::new(2, PlantParams::default());
+        let backend = Failing {
+            sim,
+            cycle: 0,
+            from: 7,
+            fault: BusFault::SlaveLost { position: 1 },
+            rejoins,
+        };
+        let mut sut = Bridge::new(Box::new(backend), MS);
+        let mut t = 1_000 * MS;
+        enabled(&mut sut, &mut t);
+        for tick in 6..10 {
+            serve_at(&mut sut, &mut t, release(tick, 0, false), 0.0);
+        }
+        assert_eq!(sut.robot_state().kind(), "safe_stop");
+        (sut, t)
+    }
+
+    /// Asks for a reset and serves releases until it is answered.
+    fn reset_answer(sut: &mut Bridge, t: &mut u64) -> Result<String, ResetRefused> {
+        sut.ask_reset(*t);
+        for tick in 10..100 {
+            serve_at(sut, t, release(tick, 0, false), 0.0);
+            if let Some(answer) = sut.take_reset_answer(*t) {
+                return answer;
+            }
+        }
+        panic!("no answer to the reset: {}", sut.ledger());
+    }
+
+    #[test]
+    fn a_reset_while_the_bus_fails_brings_the_segment_back_and_enables_every_drive() {
+        let (mut sut, mut t) = stopped_by_a_lost_slave(Some(true));
+        let done = reset_answer(&mut sut, &mut t).expect("the reset went through");
+        assert!(
+            done.starts_with("the segment brought up again; every drive enabled at tick"),
+            "{done}"
+        );
+        assert!(sut.robot_state().is_operational(), "{}", sut.robot_state());
+    }
+
+    #[test]
+    fn a_reset_is_refused_naming_the_bus_when_the_segment_does_not_come_back() {
+        let (mut sut, mut t) = stopped_by_a_lost_slave(Some(false));
+        let why = reset_answer(&mut sut, &mut t).unwrap_err();
+        assert_eq!(
+            why.to_string(),
+            "the bus still fails: slave 1 stopped answering (brought up again: slave 1 is missing)"
+        );
+        assert_eq!(sut.robot_state().kind(), "safe_stop");
+        // A backend that cannot rejoin: refused with the bus's fault alone.
+        let (mut sut, mut t) = stopped_by_a_lost_slave(None);
+        let why = reset_answer(&mut sut, &mut t).unwrap_err();
+        assert_eq!(
+            why.to_string(),
+            "the bus still fails: slave 1 stopped answering"
+        );
     }
 
     #[test]

@@ -33,6 +33,8 @@ const QUICK_STOP: u16 = 0x0002;
 
 /// CiA 402 drives on an EtherCAT segment.
 pub struct EthercatBackend {
+    /// The bus as the description declares it: a rejoin brings it up again from this.
+    config: EthercatConfig,
     master: Master,
     running: Running,
     drives: Vec<DriveConfig>,
@@ -90,6 +92,32 @@ fn with_inputs<DC>(
     }
 }
 
+/// With distributed clocks: the station address of the first slave with a clock.
+fn reference_clock(master: &Master, running: &Running) -> Option<u16> {
+    match running {
+        Running::Dc(g) => g
+            .iter(master.md)
+            .find(|sd| sd.dc_support().any())
+            .map(|sd| sd.configured_address()),
+        Running::Free(_) => None,
+    }
+}
+
+fn log_slaves(slaves: &[SlaveInfo]) {
+    for s in slaves {
+        tracing::info!(
+            "EtherCAT slave {} '{}': vendor {:#010x} product {:#010x} revision {:#010x} serial {}{}",
+            s.position,
+            s.name,
+            s.vendor,
+            s.product,
+            s.revision,
+            s.serial,
+            if s.dc { ", distributed clocks" } else { "" }
+        );
+    }
+}
+
 impl EthercatBackend {
     /// Opens the master on the configured interface and brings the segment up to OP. A frame
     /// not back within `pdu_timeout` is lost.
@@ -99,26 +127,10 @@ impl EthercatBackend {
     ) -> Result<EthercatBackend, EthercatError> {
         let mut master = Master::open(&config.interface, pdu_timeout, config.dc)?;
         let (running, slaves, expected_wkc) = master.bring_up(config)?;
-        let reference = match &running {
-            Running::Dc(g) => g
-                .iter(master.md)
-                .find(|sd| sd.dc_support().any())
-                .map(|sd| sd.configured_address()),
-            Running::Free(_) => None,
-        };
-        for s in &slaves {
-            tracing::info!(
-                "EtherCAT slave {} '{}': vendor {:#010x} product {:#010x} revision {:#010x} serial {}{}",
-                s.position,
-                s.name,
-                s.vendor,
-                s.product,
-                s.revision,
-                s.serial,
-                if s.dc { ", distributed clocks" } else { "" }
-            );
-        }
+        let reference = reference_clock(&master, &running);
+        log_slaves(&slaves);
         Ok(EthercatBackend {
+            config: config.clone(),
             master,
             running,
             held: vec![false; config.drives.len()],
@@ -298,5 +310,27 @@ impl Backend for EthercatBackend {
 
     fn name(&self) -> &'static str {
         "ethercat"
+    }
+
+    /// The segment brought up again from INIT, as at start (identities checked, PDOs mapped,
+    /// distributed clocks configured, every slave to OP): what an operator's reset needs after
+    /// a slave lost power or its link. ethercrab initialises a segment as a whole, so every
+    /// slave goes through INIT; the drives come back switch-on-disabled, and the reset enables
+    /// them. The phase lock starts afresh.
+    fn rejoin(&mut self) -> Result<Option<String>, Box<dyn std::error::Error + Send + Sync>> {
+        let started = std::time::Instant::now();
+        let (running, slaves, expected_wkc) = self.master.bring_up(&self.config)?;
+        self.reference = reference_clock(&self.master, &running);
+        self.running = running;
+        self.slaves = slaves;
+        self.expected_wkc = expected_wkc;
+        self.lock = GridLock::new(self.config.period_ns);
+        log_slaves(&self.slaves);
+        Ok(Some(format!(
+            "the EtherCAT segment on '{}' brought up again: {} slaves in OP in {} ms",
+            self.master.interface(),
+            self.slaves.len(),
+            started.elapsed().as_millis()
+        )))
     }
 }
