@@ -46,9 +46,9 @@ if [ ${#missing[@]} -gt 0 ]; then
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" > /dev/null
 fi
 
-if [ "${1:-}" = "--tests" ] && ! python3 -c "import h5py, fmpy" 2> /dev/null; then
-    echo "setup: installing h5py and FMPy (for the tests)"
-    python3 -m pip install --quiet --disable-pip-version-check "h5py>=3.8" "fmpy==0.3.32"
+if [ "${1:-}" = "--tests" ] && ! python3 -c "import h5py, fmpy, mcap" 2> /dev/null; then
+    echo "setup: installing h5py, FMPy and mcap (for the tests)"
+    python3 -m pip install --quiet --disable-pip-version-check "h5py>=3.8" "fmpy==0.3.32" "mcap>=1.1,<2"
 fi
 
 here="$(cd "$(dirname "$0")" && pwd)"

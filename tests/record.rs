@@ -225,7 +225,8 @@ fn rows(path: &Path) -> u64 {
 /// alike are identical to the last bit in every row (`modbot record compare`, exit 0); a run
 /// whose `ptp` dwells 50 ms at its points differs, and the comparison names the first tick and
 /// signal that differ (exit 1). The first, exported for Foxglove (`modbot record export
-/// --mcap`), reads back with the mcap crate: a channel per signal, a message per row.
+/// --mcap`), reads back with the mcap crate and with Foxglove's Python `mcap` package: a
+/// channel per signal, a message per row.
 #[test]
 fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_first_difference() {
     let _arm = one_arm_at_a_time();
@@ -321,6 +322,34 @@ fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_
         2500 * per_topic.len()
     );
     assert!(said.contains(&total), "{said}");
+    // And as Foxglove's own reader sees it (the `mcap` package from PyPI): the same channels
+    // and counts, each channel's schema JSON, and the value of a message by its log time.
+    let seen = python(
+        r#"
+import json, sys
+from collections import Counter
+from mcap.reader import make_reader
+counts, value, schemas = Counter(), None, set()
+with open(sys.argv[1], "rb") as f:
+    for schema, channel, message in make_reader(f).iter_messages():
+        assert channel.message_encoding == "json", channel.message_encoding
+        schemas.add((schema.encoding, json.loads(schema.data)["required"] == ["tick", "value"]))
+        counts[channel.topic] += 1
+        if channel.topic == "/modbot/robot.link_position" and message.log_time == 2_000_000_000:
+            value = json.loads(message.data)
+print(len(counts), sorted(set(counts.values())), sorted(schemas))
+print(value["tick"], len(value["value"]))
+"#,
+        &[mcap.to_str().unwrap()],
+    );
+    assert_eq!(
+        seen,
+        format!(
+            "{} [2500] [('jsonschema', True)]\n2000 6\n",
+            per_topic.len()
+        ),
+        "{seen}"
+    );
     let _ = std::fs::remove_file(mcap);
     for f in [a, b, c] {
         let _ = std::fs::remove_file(f);

@@ -1,5 +1,6 @@
 //! Python, for the checks made by tools no one here wrote: h5py reads the recordings, FMPy
-//! validates and simulates the FMUs. The README's test command installs them (`./test.sh`).
+//! validates and simulates the FMUs, Foxglove's `mcap` package reads the MCAP exports. The
+//! README's test command installs them (`./test.sh`).
 
 use std::process::Command;
 
@@ -17,7 +18,7 @@ pub fn python(script: &str, args: &[&str]) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         out.status.success(),
-        "python3 failed ({}):\n{stderr}\n(./test.sh installs h5py and FMPy)",
+        "python3 failed ({}):\n{stderr}\n(./test.sh installs h5py, FMPy and mcap)",
         out.status
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
