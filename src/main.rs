@@ -122,6 +122,10 @@ enum Command {
         /// reproducible, switches included.
         #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
         switches: Vec<(u64, String)>,
+        /// With --lockstep: hold the grid before tick TICK until a robot program takes the
+        /// coordinator's gate and steps it (lifted by itself after 20 s without one).
+        #[arg(long, value_name = "TICK")]
+        gate: Option<u64>,
         /// Record to this HDF5 file: the description's `record { ... }` writes here, or, if it
         /// declares none, every output of the system's own components is recorded.
         #[arg(long, value_name = "FILE")]
@@ -308,6 +312,7 @@ fn main() -> ExitCode {
             trace,
             lockstep,
             switches,
+            gate,
             record,
             station,
         } => up_cmd::up(
@@ -320,6 +325,7 @@ fn main() -> ExitCode {
                 trace,
                 lockstep,
                 switches,
+                gate,
             },
             station.as_deref(),
         ),

@@ -411,3 +411,93 @@ fn kill_and_wait_for_restart(sut: &mut TestDomain, up: u32, module: &str) {
         },
     );
 }
+
+/// `modbot up --lockstep --gate 500`: the grid runs ticks 0..499 and holds before tick 500
+/// until the gate's owner moves it. A caller that names its process (`gate(until, pid)`, as a
+/// robot program does) owns the gate: the grid runs to 600 and is held there, every release
+/// done; another caller is refused while that process lives; once it ends, the gate lifts by
+/// itself and the grid runs on. Without `--lockstep` the gate is refused at start.
+#[test]
+fn a_gated_lockstep_grid_holds_until_its_owner_steps_it_and_runs_on_when_the_owner_ends() {
+    let _one = one_grid();
+    let mut sut = TestDomain::new("gate");
+    let demo = demo();
+    let domain = format!("domain={}", sut.name());
+    let refused = sut.modbot(&[
+        "up",
+        demo.to_str().unwrap(),
+        "--var",
+        &domain,
+        "--gate",
+        "5",
+    ]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "{err}");
+    assert!(
+        err.contains("--gate holds a grid in lockstep; add --lockstep"),
+        "{err}"
+    );
+    let up = sut.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            demo.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--lockstep",
+            "--gate",
+            "500",
+        ],
+    );
+    sut.wait_for("the grid at tick 500", Duration::from_secs(60), || {
+        let t = top(&sut);
+        t.contains("ticks") && ticks_of(&t) == 500
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(ticks_of(&top(&sut)), 500, "held before tick 500");
+    // The owner: a process of the test's, named in the call (killed however the test ends).
+    struct Owner(std::process::Child);
+    impl Drop for Owner {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let owner = Owner(
+        std::process::Command::new("sleep")
+            .arg("600")
+            .spawn()
+            .expect("start sleep"),
+    );
+    let pid = owner.0.id().to_string();
+    let moved = sut.modbot_ok(&["call", "coordinator.gate", "600", &pid]);
+    assert!(moved.starts_with("600\n"), "{moved}");
+    sut.wait_for("held before tick 600", Duration::from_secs(60), || {
+        sut.modbot_ok(&["call", "coordinator.gate", "600", &pid]) == "600\ntrue\n"
+    });
+    // The ledger `modbot top` shows is refreshed every 200 ms.
+    sut.wait_for("the ledger at tick 600", Duration::from_secs(10), || {
+        ticks_of(&top(&sut)) == 600
+    });
+    let other = sut.modbot(&["call", "coordinator.gate", "700"]);
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(!other.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("busy (3): the grid is stepped by process {pid}")),
+        "{err}"
+    );
+    assert_eq!(ticks_of(&top(&sut)), 600, "a refused caller moved nothing");
+    drop(owner);
+    sut.wait_for("the grid running on", Duration::from_secs(60), || {
+        ticks_of(&top(&sut)) > 700
+    });
+    sut.modbot_ok(&["down"]);
+    sut.wait_exit(up, Duration::from_secs(60));
+    let log = sut.output_of(up);
+    assert!(
+        log.contains("the gate was lifted at tick 600 (its owner (address")
+            && log.contains(&format!("pid {pid}) is gone)")),
+        "{log}"
+    );
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}

@@ -401,6 +401,17 @@ impl Ctx {
         }
     }
 
+    /// The directory entry of the caller being served (its name and pid), the directory read
+    /// again if the caller is new to this module's phone book; `None` for a caller the
+    /// directory does not have alive.
+    pub fn caller_entry(&mut self) -> Option<&crate::phonebook::Entry> {
+        let caller = self.caller();
+        if !self.book.get(caller).is_some_and(|e| e.alive) {
+            self.refresh_book();
+        }
+        self.book.get(caller).filter(|e| e.alive)
+    }
+
     /// Re-reads the directory now.
     pub(crate) fn refresh_book(&mut self) -> crate::phonebook::Changes {
         match self.book.refresh(self.link.directory.as_ref()) {

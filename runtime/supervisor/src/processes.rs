@@ -51,13 +51,16 @@ pub struct GridRun {
     pub lockstep: bool,
     /// Assembly switches at given ticks: (tick, assembly).
     pub switches: Vec<(u64, String)>,
+    /// In lockstep, hold the grid before this tick until a robot program steps it (the
+    /// coordinator's gate).
+    pub gate: Option<u64>,
 }
 
 /// Why the grid's processes cannot be added to a system ([`add_processes`]).
 #[derive(Debug, thiserror::Error)]
 pub enum GridProcessError {
     #[error(
-        "{}: --ticks, --trace, --lockstep and --switch need a grid, and the description has none",
+        "{}: --ticks, --trace, --lockstep, --switch and --gate need a grid, and the description has none",
         .file.display()
     )]
     NoGrid { file: PathBuf },
@@ -66,6 +69,11 @@ pub enum GridProcessError {
         .file.display()
     )]
     NoAssemblies { file: PathBuf },
+    #[error(
+        "{}: --gate holds a grid in lockstep; add --lockstep (this grid follows real time)",
+        .file.display()
+    )]
+    GateNeedsLockstep { file: PathBuf },
     #[error(
         "{}:{line}: the grid needs the program '{program}', which is not found ({searched})",
         .file.display()
@@ -109,7 +117,12 @@ pub fn add_processes(
         }
     }
     let Some(grid) = spec.grid.clone() else {
-        if run.ticks.is_some() || run.trace.is_some() || run.lockstep || !run.switches.is_empty() {
+        if run.ticks.is_some()
+            || run.trace.is_some()
+            || run.lockstep
+            || !run.switches.is_empty()
+            || run.gate.is_some()
+        {
             let file = file.to_path_buf();
             return Err(GridProcessError::NoGrid { file });
         }
@@ -119,6 +132,10 @@ pub fn add_processes(
     if !run.switches.is_empty() && grid.assembly.is_none() {
         let file = file.to_path_buf();
         return Err(GridProcessError::NoAssemblies { file });
+    }
+    if run.gate.is_some() && grid.timing.clock != modbot_grid::GridClock::Lockstep {
+        let file = file.to_path_buf();
+        return Err(GridProcessError::GateNeedsLockstep { file });
     }
     let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
     let mut next_addr = || {
@@ -206,6 +223,9 @@ pub fn add_processes(
     }
     for (tick, name) in &run.switches {
         args.extend(["--switch".to_owned(), format!("{tick}:{name}")]);
+    }
+    if let Some(tick) = run.gate {
+        args.extend(["--gate".to_owned(), tick.to_string()]);
     }
     added.push(ModuleSpec {
         name: COORDINATOR.into(),

@@ -33,7 +33,9 @@
 //!   - [`service`]: the process (its options, its methods, the main loop), and `shared`, what
 //!     its methods and its switch job share;
 //!   - `switch_job`: the service thread's side of a switch: the supervisor loads the
-//!     assembly, its hosts start, the links open, the tick thread is asked to announce it.
+//!     assembly, its hosts start, the links open, the tick thread is asked to announce it;
+//!   - `gate`: the lockstep gate a robot program steps the grid with (who owns it, where it
+//!     holds, when it lifts by itself).
 
 use std::io::Write;
 
@@ -51,6 +53,7 @@ use modbot_grid::wire::{self, Listener, Sub};
 use modbot_grid::{GridClock, GridSpec, OverrunPolicy};
 use timing::TickTiming;
 
+mod gate;
 mod incoming;
 mod links;
 pub mod service;
@@ -521,6 +524,17 @@ impl<W: Write> Coordinator<W> {
     /// assemblies: a fault then stops every component).
     fn base(&self) -> usize {
         self.spec.assembly.as_ref().map_or(0, |a| a.base)
+    }
+
+    /// No release is under way: every component released (the running assembly's and an
+    /// incoming one's) has sent its done notice. A gated grid is held once it is quiet.
+    pub fn quiet(&self) -> bool {
+        let idle = |c: &Comp| c.pending.is_none();
+        self.comps.iter().all(idle)
+            && self
+                .incoming
+                .as_ref()
+                .is_none_or(|i| i.comps.iter().all(idle))
     }
 
     /// Whether a component due at `n` (of the running assembly unless it faulted — it is not

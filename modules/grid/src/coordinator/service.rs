@@ -18,6 +18,7 @@ use modbot_grid::offload::Offload;
 use modbot_ipc_schema::{switch, Args, Value};
 use modbot_modules::common::{init_logging, ModuleArgs};
 
+use super::gate::{Gate, GateRefused, Owner};
 use super::shared::Shared;
 use super::switch_job::Switching;
 use super::tick_thread::{self as ticker, FromTick, ToTick};
@@ -30,7 +31,9 @@ use crate::grid_args::GridArgs;
 /// Methods: `ledger()` → the overrun ledger (see `modbot top`); with assemblies,
 /// `switch(name)` → the generation the assembly gets (prepared while the current one runs,
 /// then switched at an announced tick), and `assembly()` → where the assemblies stand (see
-/// `modbot assembly`; both answers are in the format of `modbot_ipc_schema::switch`).
+/// `modbot assembly`; both answers are in the format of `modbot_ipc_schema::switch`). In
+/// lockstep, `gate([until])` → `next` (i64), `held` (bool) and `ungate()`: the gate a robot
+/// program steps the grid with (see `gate`).
 #[derive(Debug, clap::Parser)]
 #[command(name = "modbot-coordinator", version)]
 pub struct Cli {
@@ -48,6 +51,10 @@ pub struct Cli {
     /// waits at that tick while the assembly is prepared, so the run is reproducible.
     #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
     switches: Vec<(u64, String)>,
+    /// In lockstep, hold the grid before tick TICK until a robot program takes the gate and
+    /// steps it (`gate(until)`); lifted by itself after 20 s without one.
+    #[arg(long, value_name = "TICK")]
+    gate: Option<u64>,
 }
 
 fn switch_method(
@@ -83,6 +90,108 @@ fn request_switch(s: &mut Shared, name: &str) -> Result<u16, MethodError> {
     s.requested = Some((name.to_owned(), generation));
     s.busy = true;
     Ok(generation)
+}
+
+/// `gate([until [, pid]])` takes the gate (or asks where it stands) and, with `until` ≥ 0,
+/// moves it: answers the tick the grid holds before and whether it is held there (every
+/// release before it done). `pid`: the caller's process, from a caller the directory does not
+/// list (a tool, as `modbot program run` is), so the gate lifts when that process ends.
+fn gate_method(
+    s: &mut Shared,
+    ctx: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let refused = |e: GateRefused| match e {
+        GateRefused::Owned { .. } => MethodError::Busy(e.to_string()),
+        _ => MethodError::Failed(e.to_string()),
+    };
+    if !s.lockstep {
+        return Err(refused(GateRefused::RealTime));
+    }
+    let until = match args.len() {
+        0 => None,
+        _ => u64::try_from(args.i64(0)?).ok(),
+    };
+    let declared = match args.len() {
+        0 | 1 => None,
+        _ => Some(u32::try_from(args.i64(1)?).map_err(|_| {
+            MethodError::Failed("the caller's pid must be a positive 32-bit number".into())
+        })?),
+    };
+    let caller = caller_of(ctx, declared);
+    let now = ctx.now_ns();
+    let book = ctx.phone_book();
+    let (answer, changed) = s
+        .gate
+        .call(caller, until, s.ticks, now, |o| owner_name(book, o))
+        .map_err(refused)?;
+    if let Some(why) = s.gate.take_lifted() {
+        tracing::warn!("{why}; now taken again by address {}", caller.addr.0);
+    }
+    if changed.is_some() {
+        s.gate_changed = changed;
+    }
+    reply.push(Value::I64(answer.next as i64));
+    reply.push(Value::Bool(answer.held));
+    Ok(())
+}
+
+/// `ungate()`: the gate's owner lets the grid run free.
+fn ungate_method(
+    s: &mut Shared,
+    ctx: &mut Ctx,
+    _: &Args<'_>,
+    _: &mut Reply,
+) -> Result<(), MethodError> {
+    if !s.lockstep {
+        return Err(MethodError::Failed(GateRefused::RealTime.to_string()));
+    }
+    let addr = ctx.caller();
+    let owner = s.gate.owner().filter(|o| o.addr == addr);
+    let caller = owner.unwrap_or_else(|| caller_of(ctx, None));
+    s.gate_changed = Some(
+        s.gate
+            .lift(caller)
+            .map_err(|e| MethodError::Failed(e.to_string()))?,
+    );
+    Ok(())
+}
+
+/// The caller as an owner of the gate: its address, and its process as the directory has it,
+/// else as the caller said (`declared`).
+fn caller_of(ctx: &mut Ctx, declared: Option<u32>) -> Owner {
+    let addr = ctx.caller();
+    let pid = ctx.caller_entry().map(|e| e.pid).or(declared);
+    Owner { addr, pid }
+}
+
+/// Who `owner` is, if it still lives: the directory's module at its address (the same
+/// process), else its process if that still runs (or, its process unknown, "the caller at
+/// address A": only the lease frees that gate).
+fn owner_name(book: &modbot_core::phonebook::PhoneBook, owner: Owner) -> Option<String> {
+    let listed = book
+        .get(owner.addr)
+        .filter(|e| e.alive && Some(e.pid) == owner.pid);
+    if let Some(e) = listed {
+        return Some(format!("{} (pid {})", e.name, e.pid));
+    }
+    match owner.pid {
+        Some(pid) if process_runs(pid) => Some(format!("process {pid} (address {})", owner.addr.0)),
+        Some(_) => None,
+        None => Some(format!("the caller at address {}", owner.addr.0)),
+    }
+}
+
+/// Whether process `pid` still runs (a signal 0 reaches it, or it is another user's).
+fn process_runs(pid: u32) -> bool {
+    let Ok(pid) = i32::try_from(pid) else {
+        return false;
+    };
+    match nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), None) {
+        Ok(()) => true,
+        Err(e) => e == nix::errno::Errno::EPERM,
+    }
 }
 
 fn assembly_method(
@@ -137,6 +246,12 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let coord = Coordinator::new(&*node, grid.clone(), trace)?
         .with_grace(period_ns / 4)
         .with_shutdown(shutdown.clone());
+    let lockstep = grid.timing.clock == modbot_grid::GridClock::Lockstep;
+    if cli.gate.is_some() && !lockstep {
+        anyhow::bail!("--gate holds a grid in lockstep; this grid runs in real time");
+    }
+    let started = modbot_core::clock::Clock::now_ns(&modbot_core::clock::MonotonicClock);
+    let (gate, first_gate) = Gate::initial(cli.gate, started);
     let mut module = ModuleBuilder::new(
         cli.module.name.as_deref().unwrap_or("coordinator"),
         cli.module.addr.unwrap_or(250),
@@ -145,6 +260,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     .method("ledger", ledger_method)
     .method("switch", switch_method)
     .method("assembly", assembly_method)
+    .method("gate", gate_method)
+    .method("ungate", ungate_method)
     .on_done(on_done)
     .open(
         transport,
@@ -161,6 +278,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 switch::Status::default().encode(&mut answer);
                 answer
             },
+            lockstep,
+            gate,
+            gate_changed: None,
+            ticks: 0,
         },
     )?;
     wait_for_hosts(&mut module, &hosts, &shutdown)?;
@@ -181,6 +302,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         period_ns,
         max_ticks: cli.ticks,
         script: cli.switches.clone(),
+        gate: first_gate,
         shutdown: shutdown.clone(),
     };
     // `grid { mlock = true }`: locked before the tick thread starts.
@@ -220,7 +342,11 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             };
             busy = true;
             match message {
-                FromTick::Ticks(n) => switching.ticks(n),
+                FromTick::Ticks(n) => {
+                    module.state_mut().ticks = n;
+                    switching.ticks(n)
+                }
+                FromTick::Held { seq, next } => module.state_mut().gate.held(seq, next),
                 FromTick::Ledger(bytes) => {
                     let old = std::mem::replace(&mut module.state_mut().ledger, bytes);
                     let _ = give_back.try_send(old);
@@ -257,6 +383,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             }
         }
+        if let Some(setting) = module.state_mut().gate_changed.take() {
+            let _ = to_tick.send(ToTick::Gate(setting));
+        }
         if result.is_err() {
             break;
         }
@@ -267,6 +396,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             last_look = Instant::now();
             for host in notice_restarts(&mut module, &mut host_pids, &host_modules) {
                 let _ = to_tick.send(ToTick::HostRestarted(host));
+            }
+            if let Some(setting) = look_at_gate(&mut module) {
+                let _ = to_tick.send(ToTick::Gate(setting));
             }
         }
         if ended == Some(true) {
@@ -338,6 +470,17 @@ fn notice_restarts(
         }
     }
     restarted
+}
+
+/// Lifts the gate whose owner is gone or silent for its lease (see `gate`).
+fn look_at_gate(module: &mut Module<Shared>) -> Option<super::gate::Setting> {
+    let now = module.ctx().now_ns();
+    let owner = module.state().gate.owner();
+    let name = owner.and_then(|o| owner_name(module.ctx().phone_book(), o));
+    let s = module.state_mut();
+    let (setting, why) = s.gate.look(now, s.ticks, |_| name.clone())?;
+    tracing::warn!("{why}");
+    Some(setting)
 }
 
 /// Waits until every host module is up (they listen before they announce).

@@ -2,6 +2,8 @@
 
 use modbot_core::CallHandle;
 
+use super::gate::{Gate, Setting};
+
 /// The ledger as last encoded, for the `ledger` method, and the assembly switches.
 pub struct Shared {
     pub(super) ledger: Vec<u8>,
@@ -20,4 +22,12 @@ pub struct Shared {
     /// `assembly()`'s answer, encoded (`modbot_ipc_schema::switch`), kept current by the main
     /// loop.
     pub(super) status: Vec<u8>,
+    /// The grid runs in lockstep (only such a grid has a gate).
+    pub(super) lockstep: bool,
+    /// The gate a robot program steps the grid with.
+    pub(super) gate: Gate,
+    /// A setting of the gate the main loop has still to send to the tick thread.
+    pub(super) gate_changed: Option<Setting>,
+    /// The grid's tick as the tick thread last said.
+    pub(super) ticks: u64,
 }

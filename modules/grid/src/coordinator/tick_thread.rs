@@ -6,6 +6,7 @@
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError};
 use std::time::{Duration, Instant};
 
+use super::gate::Setting;
 use super::{BeginSwitchError, Coordinator, HostLink, SwitchState};
 use modbot_core::clock::{Clock, MonotonicClock};
 use modbot_core::signals::Shutdown;
@@ -36,6 +37,9 @@ pub enum ToTick {
     HostRestarted(String),
     /// The scripted switch due now could not be asked for: go on.
     ScriptRefused,
+    /// Hold the grid before this tick (lockstep), or run free; answered by
+    /// [`FromTick::Held`].
+    Gate(Setting),
 }
 
 /// What the tick thread tells the service thread.
@@ -67,6 +71,8 @@ pub enum FromTick {
     Failed(String),
     /// A scripted switch to this assembly is due (`--switch TICK:NAME`).
     Script(String),
+    /// The gate of setting `seq` holds the grid before tick `next`, every release done.
+    Held { seq: u32, next: u64 },
 }
 
 /// How the tick thread runs.
@@ -78,6 +84,8 @@ pub struct Run {
     pub max_ticks: Option<u64>,
     /// Switches to ask for at ticks: (tick, assembly).
     pub script: Vec<(u64, String)>,
+    /// The gate from the start (`--gate`).
+    pub gate: Option<Setting>,
     /// Ends the run when requested.
     pub shutdown: Shutdown,
 }
@@ -168,8 +176,13 @@ fn tick(
         period_ns,
         max_ticks,
         mut script,
+        gate,
         shutdown,
     } = run;
+    let mut gate = Gated {
+        setting: gate,
+        reported: None,
+    };
     script.sort_by_key(|s| s.0);
     let mut script = Script {
         due: script.into(),
@@ -216,8 +229,15 @@ fn tick(
         }
         // In lockstep the grid waits while an assembly is prepared: the tick of the switch
         // then depends on the tick it was asked for alone.
+        // And before the gate's tick, until its owner moves it (see `gate`).
+        let gated = lockstep && gate.closed(coord.ticks());
         let hold = lockstep
-            && (script.awaiting || matches!(coord.switch_state(), SwitchState::Preparing { .. }));
+            && (script.awaiting
+                || gated
+                || matches!(coord.switch_state(), SwitchState::Preparing { .. }));
+        if gated {
+            gate.report(coord, out);
+        }
         if hold {
             coord.between_ticks();
             std::thread::sleep(Duration::from_micros(200));
@@ -231,6 +251,7 @@ fn tick(
         for _ in 0..COMMANDS_PER_TICK {
             match commands.try_recv() {
                 Ok(ToTick::ScriptRefused) => script.awaiting = false,
+                Ok(ToTick::Gate(setting)) => gate.setting = Some(setting),
                 Ok(ToTick::Abort) => {
                     script.awaiting = false;
                     obey(coord, ToTick::Abort, out);
@@ -277,7 +298,41 @@ fn obey(coord: &mut Coord, command: ToTick, out: &SyncSender<FromTick>) {
         ToTick::HostRestarted(host) => {
             coord.host_restarted(&host);
         }
-        ToTick::ScriptRefused => {}
+        ToTick::ScriptRefused | ToTick::Gate(_) => {}
+    }
+}
+
+/// The gate on the tick thread: its setting, and the setting it said was held.
+struct Gated {
+    setting: Option<Setting>,
+    reported: Option<u32>,
+}
+
+impl Gated {
+    /// Whether the grid must wait before tick `ticks`.
+    fn closed(&self, ticks: u64) -> bool {
+        self.setting
+            .is_some_and(|s| s.until.is_some_and(|until| ticks >= until))
+    }
+
+    /// Says once per setting that the grid is held: every release before the gate done.
+    fn report(&mut self, coord: &Coord, out: &SyncSender<FromTick>) {
+        let Some(setting) = self.setting else {
+            return;
+        };
+        if self.reported != Some(setting.seq) && coord.quiet() {
+            self.reported = Some(setting.seq);
+            tell(
+                out,
+                FromTick::Held {
+                    seq: setting.seq,
+                    next: coord.ticks(),
+                },
+            );
+            // The service thread answers the gate's owner from this: at once, not within the
+            // 5 ms of the tick count.
+            tell(out, FromTick::Ticks(coord.ticks()));
+        }
     }
 }
 
