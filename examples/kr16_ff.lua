@@ -4,7 +4,7 @@
 -- prepared and switched to by its command, without a restart — and compares the residual
 -- oscillation of the links after arrival. Both moves start from rest at the same point.
 --
---   modbot up examples/kr16.lua --lockstep &
+--   modbot up examples/kr16.lua --lockstep --gate 1000 &   -- every digit the same every run
 --   modbot program run examples/kr16_ff.lua --domain kr16
 --   modbot data ls --domain kr16                       -- both runs and their results
 --

@@ -369,6 +369,88 @@ fn the_kr16_program_shows_the_elastic_feed_forward_cutting_the_residual_oscillat
     down(&mut sut, up);
 }
 
+/// Programs that repeat: `examples/kr16_ff.lua` on `examples/kr16.lua` in lockstep, three
+/// times, each in a domain and directory of its own, the grid gated at tick 1000 (`modbot up
+/// --lockstep --gate 1000`): the program steps the grid, so every command starts and ends at
+/// the same tick and every printed number is the same to the last digit (the `run N:` lines
+/// with their ticks and results at full precision, the residuals, the ratio), as are the
+/// assembly data it kept, its plot, and its recording, row by row and bit by bit.
+#[test]
+fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_every_run() {
+    let _arm = one_arm_at_a_time();
+    let examples = arm().parent().unwrap().to_path_buf();
+    let program = examples.join("kr16_ff.lua");
+    let system = examples.join("kr16.lua");
+    let mut runs = Vec::new();
+    for n in 1..=3 {
+        let mut sut = TestDomain::new(&format!("kr16rep{n}"));
+        let dir = TempDir::new(&format!("kr16rep{n}"));
+        sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
+        let domain = format!("domain={}", sut.name());
+        let up = sut.spawn_logged(
+            "modbot",
+            &[
+                "up",
+                system.to_str().unwrap(),
+                "--var",
+                &domain,
+                "--lockstep",
+                "--gate",
+                "1000",
+            ],
+        );
+        wait_enabled(&sut, up);
+        let ran = sut.modbot_in(dir.path(), &["program", "run", program.to_str().unwrap()]);
+        let (out, err) = (
+            String::from_utf8_lossy(&ran.stdout).into_owned(),
+            String::from_utf8_lossy(&ran.stderr).into_owned(),
+        );
+        assert_eq!(ran.status.code(), Some(0), "run {n}: {out}{err}");
+        let at = std::path::absolute(dir.path())
+            .unwrap()
+            .display()
+            .to_string();
+        // Its first line names the run's store file (the directory's name differs).
+        let data: String = sut
+            .modbot_ok(&["data", "ls"])
+            .lines()
+            .filter(|l| !l.starts_with("# "))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let svg = std::fs::read(dir.path().join("kr16_ff.svg")).expect("the plot");
+        down(&mut sut, up);
+        runs.push((out.replace(&at, "DIR"), data.replace(&at, "DIR"), svg, dir));
+    }
+    let (first, data, svg, dir) = &runs[0];
+    assert!(first.contains("run 2: move (ptp_ff)"), "{first}");
+    let start: u64 = first
+        .lines()
+        .find(|l| l.starts_with("run 2: "))
+        .and_then(|l| l.split("ticks ").nth(1))
+        .and_then(|t| t.split("..").next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{first}"));
+    assert!(
+        start >= 1000,
+        "the first move starts after the gate: {first}"
+    );
+    let h5 = dir.path().join("kr16_ff.h5");
+    for (n, (out, d, s, other)) in runs.iter().enumerate().skip(1) {
+        assert_eq!(out, first, "run {} printed other numbers", n + 1);
+        assert_eq!(d, data, "run {} kept other data", n + 1);
+        assert!(s == svg, "run {} plotted another SVG", n + 1);
+        let compared = std::process::Command::new(env!("CARGO_BIN_EXE_modbot"))
+            .args(["record", "compare"])
+            .arg(&h5)
+            .arg(other.path().join("kr16_ff.h5"))
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&compared.stdout);
+        assert_eq!(compared.status.code(), Some(0), "run {}: {said}", n + 1);
+        assert!(said.starts_with("identical through tick "), "{said}");
+    }
+}
+
 /// The polylines of the SVG `svg` with 10 points or more: its data lines (the axes and the
 /// legend's marks have fewer).
 fn long_polylines(svg: &str) -> usize {

@@ -4,8 +4,10 @@
 //! `modbot bb host_ctrl_g3` shows what an assembly's components do, and a robot program reads
 //! them (`read("settle.settled")`).
 
+use std::sync::Mutex;
+
 use modbot_core::blackboard::{BlackboardError, ItemId};
-use modbot_core::{Blackboard, OwnedValue, Value};
+use modbot_core::{Args, Blackboard, Ctx, MethodError, OwnedValue, Reply, Value};
 use modbot_grid::outputs_view::{copy_port, OutputsView, SharedOutputs};
 use modbot_grid::PortValue;
 
@@ -87,6 +89,57 @@ impl Board {
             }
         }
     }
+}
+
+/// The views of the host modules of this process, by module name, for [`latest_method`] (a
+/// method is a plain function: it finds its module's view by the name it serves under).
+static VIEWS: Mutex<Vec<(String, SharedOutputs, f64)>> = Mutex::new(Vec::new());
+
+/// Makes `view` the one `latest` answers from for the module `name`.
+pub fn register_view(name: &str, view: SharedOutputs, base_period_s: f64) {
+    let mut views = VIEWS.lock().unwrap_or_else(|p| p.into_inner());
+    views.retain(|(n, _, _)| n != name);
+    views.push((name.to_owned(), view, base_period_s));
+}
+
+/// `latest(item)`: the item (`tick`, `base_period_s` or `<component>.<output>`) as the serving
+/// thread left it, read from its view at the moment of the call — not from the blackboard,
+/// which the module's thread copies between rounds of calls. In lockstep the view is current
+/// before each done notice, so a program that saw a gated grid held reads the outputs of every
+/// release before the gate (see `coordinator::gate`).
+pub fn latest_method<S>(
+    _: &mut S,
+    ctx: &mut Ctx,
+    args: &Args<'_>,
+    reply: &mut Reply,
+) -> Result<(), MethodError> {
+    let item = args.text(0)?;
+    let views = VIEWS.lock().unwrap_or_else(|p| p.into_inner());
+    let (_, view, base_period_s) = views
+        .iter()
+        .find(|(n, _, _)| n == ctx.name())
+        .ok_or_else(|| MethodError::Failed("this module shows no grid outputs".into()))?;
+    let view = lock(view);
+    if item == "base_period_s" {
+        reply.push(Value::F64(*base_period_s));
+        return Ok(());
+    }
+    if item == "tick" {
+        reply.push(Value::I64(i64::try_from(view.tick).unwrap_or(i64::MAX)));
+        return Ok(());
+    }
+    let at = view
+        .names
+        .iter()
+        .position(|n| n == item)
+        .ok_or_else(|| MethodError::UnknownItem(format!("no output '{item}' here")))?;
+    match &view.values[at] {
+        PortValue::Bool(b) => reply.push(Value::Bool(*b)),
+        PortValue::I64(i) => reply.push(Value::I64(*i)),
+        PortValue::F64(x) => reply.push(Value::F64(*x)),
+        PortValue::F64s(xs) => reply.push(Value::F64s(modbot_ipc_schema::F64s::from_slice(xs))),
+    }
+    Ok(())
 }
 
 fn lock(view: &SharedOutputs) -> std::sync::MutexGuard<'_, OutputsView> {

@@ -119,9 +119,15 @@ impl HostProcess {
             self.grid.base_period.as_secs_f64(),
         );
         let bb = board.blackboard()?;
+        crate::board::register_view(
+            &name,
+            self.host.outputs_view(),
+            self.grid.base_period.as_secs_f64(),
+        );
         let service = serve_module(
             move || {
-                let module = declare(ModuleBuilder::new(&name, addr).mode(mode));
+                let module = declare(ModuleBuilder::new(&name, addr).mode(mode))
+                    .method("latest", crate::board::latest_method::<S>);
                 Ok(module.blackboard(bb).open(transport, state)?)
             },
             move |module| board.refresh(&mut module.ctx().bb),

@@ -327,7 +327,10 @@ impl Host {
         }
         if served > 0 {
             let outputs = self.hosted.iter().map(|h| h.outputs.as_slice());
-            outputs_view::refresh(&self.view, self.last_tick, outputs);
+            // In lockstep the view is current before the done notice leaves, so a program
+            // that saw the grid held reads these outputs (see `outputs_view`).
+            let lockstep = self.spec.timing.clock == crate::GridClock::Lockstep;
+            outputs_view::refresh(&self.view, self.last_tick, outputs, lockstep);
             self.send_done()?;
             if let Err(e) = self.done_wake.notify() {
                 tracing::debug!("done wake-up not sent: {e:?}");

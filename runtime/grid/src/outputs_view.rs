@@ -34,13 +34,22 @@ pub fn copy_port(to: &mut PortValue, from: &PortValue) {
     }
 }
 
-/// Refreshes `view` with `outputs` (each component's, in order) at `tick`, if nobody holds it.
+/// Refreshes `view` with `outputs` (each component's, in order) at `tick`, if nobody holds it
+/// — or, with `wait` (a grid in lockstep, where no deadline is kept), once its reader lets go:
+/// then a reader that learns every release is done (a gated grid, held) finds their outputs
+/// here.
 pub fn refresh<'a>(
     view: &Mutex<OutputsView>,
     tick: u64,
     outputs: impl Iterator<Item = &'a [PortValue]>,
+    wait: bool,
 ) {
-    let Ok(mut v) = view.try_lock() else {
+    let locked = if wait {
+        Ok(view.lock().unwrap_or_else(|p| p.into_inner()))
+    } else {
+        view.try_lock()
+    };
+    let Ok(mut v) = locked else {
         return;
     };
     let mut slots = v.values.iter_mut();
@@ -67,7 +76,7 @@ mod tests {
         });
         let a = [PortValue::F64(1.5)];
         let b = [PortValue::F64s(vec![2.0, 3.0])];
-        refresh(&sut, 7, [&a[..], &b[..]].into_iter());
+        refresh(&sut, 7, [&a[..], &b[..]].into_iter(), false);
         let v = sut.lock().unwrap();
         assert_eq!(
             v.values,
@@ -83,7 +92,31 @@ mod tests {
             ..OutputsView::default()
         });
         let held = sut.lock().unwrap();
-        refresh(&sut, 1, [&[PortValue::F64(1.0)][..]].into_iter());
+        refresh(&sut, 1, [&[PortValue::F64(1.0)][..]].into_iter(), false);
         assert_eq!(held.seq, 0);
+    }
+
+    #[test]
+    fn a_waiting_refresh_copies_once_its_reader_lets_go() {
+        let sut = std::sync::Arc::new(Mutex::new(OutputsView {
+            values: vec![PortValue::F64(0.0)],
+            ..OutputsView::default()
+        }));
+        let held = sut.lock().unwrap();
+        let writer = {
+            let sut = sut.clone();
+            std::thread::spawn(move || {
+                refresh(&sut, 3, [&[PortValue::F64(2.0)][..]].into_iter(), true)
+            })
+        };
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        assert_eq!(held.seq, 0, "the writer waits");
+        drop(held);
+        writer.join().unwrap();
+        let v = sut.lock().unwrap();
+        assert_eq!(
+            (v.values[0].clone(), v.tick, v.seq),
+            (PortValue::F64(2.0), 3, 1)
+        );
     }
 }

@@ -45,6 +45,9 @@ pub enum SwitchError {
     Timeout { generation: u16, waited_ms: u64 },
     #[error("the coordinator's answer is not understood: {0}")]
     Answer(#[from] SwitchAnswerError),
+    /// A program stepping a gated grid could not run it to the announced tick.
+    #[error("the grid could not be run to the switch's tick {tick}: {why}")]
+    Stepping { tick: u64, why: String },
 }
 
 /// Asks the coordinator where the assemblies stand.
@@ -64,12 +67,25 @@ pub fn status(module: &mut impl Calls) -> Result<Status, SwitchError> {
 
 /// Switches to assembly `name`: the coordinator prepares it while the running one goes on,
 /// then switches at an announced tick. Waits up to `timeout` for the outcome.
-pub fn switch(
-    module: &mut impl Calls,
+pub fn switch<M: Calls>(
+    module: &mut M,
     name: &str,
     timeout: Duration,
 ) -> Result<Switched, SwitchError> {
+    switch_with(module, name, timeout, &mut |_, _| Ok(()))
+}
+
+/// As [`switch`], calling `announced` with the tick the switch is announced at, once per
+/// announcement (again if it is postponed): a program that steps a gated grid runs it to that
+/// tick there, or the switch would wait for a tick that never comes.
+pub fn switch_with<M: Calls>(
+    module: &mut M,
+    name: &str,
+    timeout: Duration,
+    announced: &mut dyn FnMut(&mut M, u64) -> Result<(), SwitchError>,
+) -> Result<Switched, SwitchError> {
     let asked = Instant::now();
+    let mut followed = None;
     let generation = module.call_blocking(
         COORDINATOR,
         "switch",
@@ -90,6 +106,18 @@ pub fn switch(
             }
             Err(e) => return Err(e),
         };
+        if let State::Announced {
+            generation: g,
+            tick,
+            ..
+        } = now.state
+        {
+            if g == generation && followed != Some(tick) {
+                followed = Some(tick);
+                announced(module, tick)?;
+                continue;
+            }
+        }
         if let Some(outcome) = now
             .outcomes
             .into_iter()

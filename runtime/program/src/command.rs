@@ -7,7 +7,7 @@
 //! | `params` | `{ name = "what it is", ... }`: the parameters it takes; others are refused |
 //! | `pre(p)` | the precondition: `false, "why"` (or an error) stops the program |
 //! | `run(p)` | the execution: `{ assembly = "goto", args = { q = ... }, timeout = 60 }` — each arg is written to assembly data as `<assembly>.<name>` (where the assembly file reads it with `data`), then the assembly is prepared and switched to; without `assembly` the running one goes on. A command with an assembly is a motion (`motion = false` says it is not) |
-//! | `done(p, r)` | the finish condition, asked until it holds (about every millisecond): `r.start_tick`, `r.tick`, `r.elapsed` (s of grid time since the start); without it, done at once |
+//! | `done(p, r)` | the finish condition, asked until it holds (about every millisecond; on a stepped grid every [`STEP_S`] of grid time, at the same ticks in every run): `r.start_tick`, `r.tick`, `r.elapsed` (s of grid time since the start); without it, done at once |
 //! | `eval(p, r)` | the evaluation, once done (`r.end_tick` too): a table of results, or `false, "why"` to stop the program |
 //!
 //! A run is kept in assembly data (command, assembly, where the program called it, start and
@@ -57,6 +57,10 @@ const RESERVED: &[&str] = &[
 const DEFAULT_TIMEOUT_S: f64 = 60.0;
 /// How often the finish condition is asked.
 const POLL: Duration = Duration::from_millis(1);
+/// On a stepped grid (a gated lockstep grid the program runs tick by tick, see
+/// `SystemRobot`), how far the grid runs between two askings of the finish condition, s of
+/// grid time: 10 ticks at 1 kHz (it divides the 2 s of a `wait` exactly).
+const STEP_S: f64 = 0.01;
 /// How often the coordinator is asked whether the assembly faulted.
 const FAULT_POLL: Duration = Duration::from_millis(100);
 /// A grid that has not ticked for this long (wall time) is not running.
@@ -212,12 +216,27 @@ impl Call<'_> {
             };
             match state {
                 RobotState::Operational { .. } => return Ok(true),
-                RobotState::Disabled { .. } if Instant::now() < until => {
-                    std::thread::sleep(POLL);
-                }
+                RobotState::Disabled { .. } if Instant::now() < until => self.wait_a_little()?,
                 other => return Err(self.fail(self.not_operational("is", &other))),
             }
         }
+    }
+
+    /// Lets time pass before the next look: on a stepped grid the grid runs [`STEP_S`] on,
+    /// else a moment of wall time.
+    fn wait_a_little(&self) -> mlua::Result<()> {
+        let mut shared = self.shared.borrow_mut();
+        if !shared.robot.stepped() {
+            drop(shared);
+            std::thread::sleep(POLL);
+            return Ok(());
+        }
+        let stepped = shared.robot.base_period_s().and_then(|dt| {
+            let tick = shared.robot.tick()?;
+            shared.robot.run_to(tick + stride(dt))
+        });
+        drop(shared);
+        stepped.map(|_| ()).map_err(|e| self.fail(e))
     }
 
     /// Fails a motion that began at tick `start` if the robot has left operational since.
@@ -262,6 +281,11 @@ impl Call<'_> {
         };
         self.fail(format!("{stage}: {at}{message}"))
     }
+}
+
+/// Ticks of [`STEP_S`] at a base period of `dt` s (at least one).
+fn stride(dt: f64) -> u64 {
+    ((STEP_S / dt).round() as u64).max(1)
 }
 
 /// Runs command `name` (definition `def`) with the parameters in `args`.
@@ -470,7 +494,7 @@ fn execute_call(
                 return Err(call.fail(format!("the assembly faulted: {why}")));
             }
         }
-        std::thread::sleep(POLL);
+        call.wait_a_little()?;
     };
     call.run.end_tick = end;
     r.raw_set("end_tick", end)?;

@@ -31,4 +31,17 @@ pub trait Robot {
     fn reset(&mut self) -> Result<String, RobotError>;
     /// The domain, for the commands a message suggests.
     fn domain(&self) -> &str;
+    /// Whether the program steps the grid (a gated lockstep grid, see `coordinator::gate`):
+    /// the grid stands between commands and runs only as far as [`Robot::run_to`] says, so
+    /// every tick a program sees is the same in every run. False by default.
+    fn stepped(&self) -> bool {
+        false
+    }
+    /// Runs a stepped grid until every tick up to `tick` is done; returns `tick`. Only called
+    /// when [`Robot::stepped`].
+    fn run_to(&mut self, tick: u64) -> Result<u64, RobotError> {
+        Err(RobotError::Grid(format!(
+            "this grid is not stepped: it cannot be run to tick {tick}"
+        )))
+    }
 }

@@ -6,7 +6,14 @@
 //! - `read("a.b")` is item `b` of module `a` when a module of that name runs, else output `b`
 //!   of component `a`: item `a.b` of the host that steps it — a host of the running
 //!   assembly's generation, or of the system's own components;
-//! - a fault is the coordinator's ledger saying the grid faulted.
+//! - a fault is the coordinator's ledger saying the grid faulted;
+//! - on a grid in lockstep the program takes the coordinator's gate and **steps** the grid:
+//!   it stands between commands, and runs only to the ticks the program says
+//!   ([`Robot::run_to`]); a component's output is then read from its host's view (`latest`),
+//!   which is current at the tick the grid holds before, and a switch runs the grid to its
+//!   announced tick. So a program gives the same numbers in every run (`modbot up --lockstep
+//!   --gate TICK` makes the first tick the same too). A real-time grid refuses the gate: the
+//!   program follows it as it runs.
 
 use std::time::Duration;
 
@@ -16,7 +23,7 @@ use modbot_core::error::CallError;
 use modbot_core::tool::{Calls, Tool};
 use modbot_grid::spec::{GridRole, COORDINATOR};
 use modbot_grid::switch;
-use modbot_ipc_schema::{OwnedValue, Value};
+use modbot_ipc_schema::{NakCode, OwnedValue, Value};
 
 use super::{Robot, RobotError};
 
@@ -28,6 +35,8 @@ const CALL_TIMEOUT: Duration = Duration::from_secs(30);
 const SWITCH_TIMEOUT: Duration = Duration::from_secs(60);
 /// How long a component is looked for among the hosts before it is said not to exist.
 const LOOK_AGAIN: Duration = Duration::from_secs(2);
+/// How long a stepped grid may take to reach a tick (a dead or stuck host is never done).
+const STEP_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// A running system in a domain.
 pub struct SystemRobot {
@@ -39,6 +48,8 @@ pub struct SystemRobot {
     hosts: Vec<(u16, String, String)>,
     /// The host module whose `tick` is the grid's.
     clock: Option<String>,
+    /// Stepping a gated lockstep grid: the tick it holds before.
+    stepping: Option<u64>,
 }
 
 impl SystemRobot {
@@ -47,13 +58,16 @@ impl SystemRobot {
         let domain = Domain::new(domain).map_err(|e| RobotError::Grid(e.to_string()))?;
         let tool = Tool::open(&domain, "modbot-program")
             .map_err(|e| RobotError::Grid(format!("cannot join the domain: {e}")))?;
-        Ok(SystemRobot {
+        let mut robot = SystemRobot {
             tool,
             domain: domain.name().to_owned(),
             generation: None,
             hosts: Vec::new(),
             clock: None,
-        })
+            stepping: None,
+        };
+        robot.stepping = take_gate(&mut robot.tool)?;
+        Ok(robot)
     }
 
     /// The running assembly's generation.
@@ -92,9 +106,23 @@ impl SystemRobot {
     }
 
     fn bb_get(&mut self, module: &str, item: &str) -> Result<OwnedValue, BbGetError> {
+        self.item_call(module, "bb_get", item)
+    }
+
+    /// A host's `latest(item)`: the item as its serving thread left it.
+    fn latest(&mut self, module: &str, item: &str) -> Result<OwnedValue, BbGetError> {
+        self.item_call(module, "latest", item)
+    }
+
+    fn item_call(
+        &mut self,
+        module: &str,
+        method: &str,
+        item: &str,
+    ) -> Result<OwnedValue, BbGetError> {
         self.tool.call_blocking(
             module,
-            "bb_get",
+            method,
             &[Value::Text(item)],
             CallOptions::timeout(CALL_TIMEOUT),
             |r| match r {
@@ -193,14 +221,29 @@ enum BbGetError {
 
 impl Robot for SystemRobot {
     fn switch(&mut self, name: &str) -> Result<u64, RobotError> {
-        let switched = switch::switch(&mut self.tool, name, SWITCH_TIMEOUT).map_err(|e| {
-            RobotError::Switch {
-                assembly: name.to_owned(),
-                why: match e {
-                    switch::SwitchError::Failed { reason, .. } => reason,
-                    other => other.to_string(),
-                },
+        let stepped = self.stepping.is_some();
+        let mut reached = None;
+        let mut run_there = |tool: &mut Tool, at: u64| {
+            if stepped {
+                reached = Some(
+                    run_to(tool, at).map_err(|why| switch::SwitchError::Stepping {
+                        tick: at,
+                        why: why.to_string(),
+                    })?,
+                );
             }
+            Ok(())
+        };
+        let switched = switch::switch_with(&mut self.tool, name, SWITCH_TIMEOUT, &mut run_there);
+        if let Some(next) = reached {
+            self.stepping = Some(next);
+        }
+        let switched = switched.map_err(|e| RobotError::Switch {
+            assembly: name.to_owned(),
+            why: match e {
+                switch::SwitchError::Failed { reason, .. } => reason,
+                other => other.to_string(),
+            },
         })?;
         self.generation = Some(switched.generation);
         self.hosts.retain(|(g, _, _)| *g == switched.generation);
@@ -208,6 +251,9 @@ impl Robot for SystemRobot {
     }
 
     fn tick(&mut self) -> Result<u64, RobotError> {
+        if let Some(next) = self.stepping {
+            return Ok(next.saturating_sub(1));
+        }
         match self.clock_item("tick")? {
             OwnedValue::I64(t) => Ok(u64::try_from(t).unwrap_or(0)),
             other => Err(RobotError::Grid(format!("the tick is {other}"))),
@@ -234,6 +280,13 @@ impl Robot for SystemRobot {
             return self.bb_get(module, item).map_err(read_error);
         }
         let host = self.host_of(module, what)?;
+        if self.stepping.is_some() {
+            return self.latest(&host, what).map_err(|why| {
+                self.hosts.retain(|(_, c, _)| c != module);
+                self.generation = None;
+                read_error(why)
+            });
+        }
         self.bb_get(&host, what).map_err(|why| {
             // Its host may have gone (a switch by someone else): look again next time.
             self.hosts.retain(|(_, c, _)| c != module);
@@ -288,5 +341,108 @@ impl Robot for SystemRobot {
 
     fn domain(&self) -> &str {
         &self.domain
+    }
+
+    fn stepped(&self) -> bool {
+        self.stepping.is_some()
+    }
+
+    fn run_to(&mut self, tick: u64) -> Result<u64, RobotError> {
+        let next = run_to(&mut self.tool, tick)?;
+        self.stepping = Some(next);
+        Ok(tick)
+    }
+}
+
+impl Drop for SystemRobot {
+    /// A program that ends lets the grid run free again.
+    fn drop(&mut self) {
+        if self.stepping.is_some() {
+            let _ = self.tool.call_owned(
+                COORDINATOR,
+                "ungate",
+                &[],
+                CallOptions::timeout(Duration::from_secs(1)),
+            );
+        }
+    }
+}
+
+/// The coordinator's `gate(until, pid)`: the tick the grid holds before, and whether it is
+/// held there. `Ok(None)`: the grid has no gate (it follows real time, or there is no grid).
+fn gate(tool: &mut Tool, until: i64) -> Result<Option<(u64, bool)>, RobotError> {
+    let pid = i64::from(std::process::id());
+    let answer = tool.call_blocking(
+        COORDINATOR,
+        "gate",
+        &[Value::I64(until), Value::I64(pid)],
+        CallOptions::timeout(CALL_TIMEOUT),
+        |r| match r {
+            Ok(args) => match (args.i64(0), args.bool(1)) {
+                (Ok(next), Ok(held)) => Ok(Some((u64::try_from(next).unwrap_or(0), held))),
+                _ => Err(RobotError::Grid(
+                    "the coordinator's gate answered oddly".into(),
+                )),
+            },
+            // Busy: another program steps this grid; two cannot.
+            Err(CallError::Nak { code, detail, .. }) if *code == NakCode::BUSY => {
+                Err(RobotError::Grid(detail.clone()))
+            }
+            // A real-time grid (or a coordinator without a gate), or no grid.
+            Err(CallError::Nak { .. })
+            | Err(CallError::UnknownModule(_))
+            | Err(CallError::UnknownMethod { .. }) => Ok(None),
+            Err(e) => Err(RobotError::Grid(format!("the coordinator's gate: {e}"))),
+        },
+    );
+    answer
+}
+
+/// Takes the gate of a lockstep grid and waits until the grid is held: the tick it holds
+/// before. `None`: a grid that keeps its own time (real time), or none.
+fn take_gate(tool: &mut Tool) -> Result<Option<u64>, RobotError> {
+    let Some((next, held)) = gate(tool, -1)? else {
+        return Ok(None);
+    };
+    if held {
+        return Ok(Some(next));
+    }
+    wait_held(tool, None).map(Some)
+}
+
+/// Polls the gate until the grid is held (before `next`, if given): the tick it holds before.
+fn wait_held(tool: &mut Tool, next: Option<u64>) -> Result<u64, RobotError> {
+    let deadline = std::time::Instant::now() + STEP_TIMEOUT;
+    loop {
+        match gate(tool, -1)? {
+            Some((at, true)) if next.is_none_or(|n| n == at) => return Ok(at),
+            Some(_) => {}
+            None => {
+                return Err(RobotError::Grid(
+                    "the grid's gate was refused while the program stepped it".into(),
+                ))
+            }
+        }
+        if std::time::Instant::now() > deadline {
+            return Err(RobotError::Grid(format!(
+                "the grid did not get {} within {} s (a host stopped?)",
+                next.map_or("held".to_owned(), |n| format!("to tick {n}")),
+                STEP_TIMEOUT.as_secs()
+            )));
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+}
+
+/// Runs the gated grid until tick `tick` is done: moves the gate to `tick + 1` and waits until
+/// the grid is held there. Returns the tick it holds before.
+fn run_to(tool: &mut Tool, tick: u64) -> Result<u64, RobotError> {
+    let next = tick + 1;
+    match gate(tool, i64::try_from(next).unwrap_or(i64::MAX))? {
+        Some((at, true)) if at == next => Ok(next),
+        Some(_) => wait_held(tool, Some(next)),
+        None => Err(RobotError::Grid(
+            "the grid's gate was refused while the program stepped it".into(),
+        )),
     }
 }

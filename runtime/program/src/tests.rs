@@ -26,6 +26,8 @@ struct FakeRobot {
     operational_since: u64,
     /// Stops the robot 50 ticks into the next motion.
     stop_during: bool,
+    /// Steps the grid: its tick moves only by `run_to`.
+    stepped: bool,
 }
 
 impl Robot for FakeRobot {
@@ -47,8 +49,20 @@ impl Robot for FakeRobot {
     }
 
     fn tick(&mut self) -> Result<u64, RobotError> {
-        self.tick += 10;
+        if !self.stepped {
+            self.tick += 10;
+        }
         Ok(self.tick)
+    }
+
+    fn stepped(&self) -> bool {
+        self.stepped
+    }
+
+    fn run_to(&mut self, tick: u64) -> Result<u64, RobotError> {
+        self.log.borrow_mut().push(format!("run_to {tick}"));
+        self.tick = tick;
+        Ok(tick)
     }
 
     fn base_period_s(&mut self) -> Result<f64, RobotError> {
@@ -141,6 +155,10 @@ struct Fixture {
 }
 
 fn fixture(test: &str) -> Fixture {
+    fixture_stepped(test, false)
+}
+
+fn fixture_stepped(test: &str, stepped: bool) -> Fixture {
     let dir = modbot_testkit::TempDir::new(test);
     let log = Log::default();
     let reports = Log::default();
@@ -155,6 +173,7 @@ fn fixture(test: &str) -> Fixture {
         stop: None,
         operational_since: 0,
         stop_during: false,
+        stepped,
     };
     let store = Store::open(&dir.path().join("data.redb")).unwrap();
     let to = reports.clone();
@@ -190,6 +209,55 @@ fn switches(log: &Log) -> Vec<String> {
                 .map(|s| s.split(' ').next().unwrap().to_owned())
         })
         .collect()
+}
+
+/// On a stepped grid a command's finish condition is asked every 10 ms of grid time (10 ticks
+/// at 1 kHz), the grid run exactly that far between two askings, so it finishes at the same
+/// tick in every run; two runs of a program log the same steps and keep the same runs.
+/// What a run of a program did: the fake's log, and each command's (start, end) tick.
+type Steps = (Vec<String>, Vec<(u64, u64)>);
+
+#[test]
+fn on_a_stepped_grid_a_command_runs_the_grid_in_strides_and_two_runs_are_alike() {
+    let runs: Vec<Steps> = (0..2)
+        .map(|n| {
+            let mut f = fixture_stepped(&format!("stepped{n}"), true);
+            let program = f.dir.write(
+                "stepped.lua",
+                "wait { s = 0.05 }\nptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n",
+            );
+            f.sut.run_file(&program).unwrap();
+            let runs = store_of(f.dir.path()).runs().unwrap();
+            let ticks = runs
+                .iter()
+                .map(|(_, r)| (r.start_tick, r.end_tick))
+                .collect();
+            let log = f.log.borrow().clone();
+            (log, ticks)
+        })
+        .collect();
+    let (log, ticks) = &runs[0];
+    let steps: Vec<&str> = log
+        .iter()
+        .take_while(|l| l.starts_with("run_to"))
+        .map(String::as_str)
+        .collect();
+    assert_eq!(
+        steps,
+        [
+            "run_to 1010",
+            "run_to 1020",
+            "run_to 1030",
+            "run_to 1040",
+            "run_to 1050"
+        ],
+        "{log:?}"
+    );
+    assert_eq!(ticks[0], (1000, 1050));
+    // The motion: switched at 1150 (the fake's switch takes 100 ticks), settled 200 ticks on,
+    // seen at the first stride there.
+    assert_eq!(ticks[1], (1150, 1350));
+    assert_eq!(&runs[1], &runs[0], "the second run stepped otherwise");
 }
 
 #[test]
