@@ -451,6 +451,51 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
     }
 }
 
+/// A program stepping a gated grid resets the robot itself: a drive fault (injected through
+/// the bus bridge) is the robot's fault, `robot_reset()` runs the held grid on until the bridge
+/// has taken the reset and enabled every drive (a reset is taken at a release, which a held
+/// grid makes only when the program runs it), and the next motion goes through.
+#[test]
+fn a_stepped_program_resets_a_faulted_robot_and_moves_on() {
+    let (_arm, mut sut, dir) = arm_test("program_step_reset");
+    let domain = format!("domain={}", sut.name());
+    sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
+    let up = sut.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            arm().to_str().unwrap(),
+            "--var",
+            &domain,
+            "--lockstep",
+            "--gate",
+            "1000",
+        ],
+    );
+    wait_enabled(&sut, up);
+    let program = dir.write(
+        "reset.lua",
+        "ptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n\
+         call(\"host_bus.inject\", 2, \"following\", true)\n\
+         wait { s = 0.05 }\n\
+         print(\"after the fault:\", robot_state().kind)\n\
+         call(\"host_bus.inject\", 2, \"following\", false)\n\
+         print(robot_reset())\n\
+         print(\"after the reset:\", robot_state().kind)\n\
+         ptp { q = { 0, 0, 0, 0, 0, 0 } }\n",
+    );
+    let (code, out, err) = run(&sut, &program);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(out.contains("after the fault:\tfault\n"), "{out}");
+    assert!(out.contains("every drive enabled at tick "), "{out}");
+    assert!(out.contains("after the reset:\toperational\n"), "{out}");
+    assert!(
+        out.contains("run 3: ptp (goto)") && out.contains(", ok: "),
+        "{out}"
+    );
+    down(&mut sut, up);
+}
+
 /// The polylines of the SVG `svg` with 10 points or more: its data lines (the axes and the
 /// legend's marks have fewer).
 fn long_polylines(svg: &str) -> usize {

@@ -72,6 +72,20 @@ pub fn robot_state(
 /// Asks the bus bridge for an operator's reset and waits for its answer: `Ok` with what it
 /// did, [`AskError::Refused`] with why it was refused or failed.
 pub fn reset(tool: &mut impl Calls, timeout: Duration) -> Result<String, AskError> {
+    reset_with(tool, timeout, &mut |_| {
+        std::thread::sleep(Duration::from_millis(5));
+        Ok(())
+    })
+}
+
+/// As [`reset`], calling `wait` between two looks at the answer: a program that steps a gated
+/// grid runs it on there (the bridge takes a reset at a release of the grid, and a held grid
+/// releases nothing).
+pub fn reset_with<T: Calls>(
+    tool: &mut T,
+    timeout: Duration,
+    wait: &mut dyn FnMut(&mut T) -> Result<(), AskError>,
+) -> Result<String, AskError> {
     let module = bus_module();
     let opts = || CallOptions::timeout(Duration::from_secs(2));
     let number = tool.call_blocking(&module, "reset", &[], opts(), |r| match r {
@@ -109,6 +123,6 @@ pub fn reset(tool: &mut impl Calls, timeout: Duration) -> Result<String, AskErro
         if Instant::now() > deadline {
             return Err(AskError::Pending(timeout));
         }
-        std::thread::sleep(Duration::from_millis(5));
+        wait(tool)?;
     }
 }

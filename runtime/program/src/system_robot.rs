@@ -37,6 +37,8 @@ const SWITCH_TIMEOUT: Duration = Duration::from_secs(60);
 const LOOK_AGAIN: Duration = Duration::from_secs(2);
 /// How long a stepped grid may take to reach a tick (a dead or stuck host is never done).
 const STEP_TIMEOUT: Duration = Duration::from_secs(60);
+/// How far a stepped grid runs between two looks at a reset's answer, ticks.
+const RESET_STRIDE: u64 = 10;
 
 /// A running system in a domain.
 pub struct SystemRobot {
@@ -335,8 +337,24 @@ impl Robot for SystemRobot {
     }
 
     fn reset(&mut self) -> Result<String, RobotError> {
-        modbot_bus::ask::reset(&mut self.tool, modbot_bus::ask::RESET_TIMEOUT)
-            .map_err(|e| RobotError::Robot(e.to_string()))
+        let Some(mut next) = self.stepping else {
+            return modbot_bus::ask::reset(&mut self.tool, modbot_bus::ask::RESET_TIMEOUT)
+                .map_err(|e| RobotError::Robot(e.to_string()));
+        };
+        // The bridge takes a reset at a release: the held grid runs on, RESET_STRIDE ticks at a
+        // time, until it answers.
+        let answer = modbot_bus::ask::reset_with(
+            &mut self.tool,
+            modbot_bus::ask::RESET_TIMEOUT,
+            &mut |tool| {
+                next = run_to(tool, next - 1 + RESET_STRIDE).map_err(|e| {
+                    modbot_bus::ask::AskError::Call(format!("stepping the grid: {e}"))
+                })?;
+                Ok(())
+            },
+        );
+        self.stepping = Some(next);
+        answer.map_err(|e| RobotError::Robot(e.to_string()))
     }
 
     fn domain(&self) -> &str {
