@@ -38,10 +38,17 @@ fn up(sut: &mut TestDomain, dir: &TempDir) -> u32 {
 
 /// The robot of `system` (an arm's description) in lockstep, as [`up`].
 fn up_system(sut: &mut TestDomain, dir: &TempDir, system: &Path) -> u32 {
+    up_system_with(sut, dir, system, &[])
+}
+
+/// [`up_system`] with more options for `modbot up` (`--gate 1000`).
+fn up_system_with(sut: &mut TestDomain, dir: &TempDir, system: &Path, more: &[&str]) -> u32 {
     sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
     let domain = format!("domain={}", sut.name());
     let system = system.to_str().unwrap();
-    let up = sut.spawn_logged("modbot", &["up", system, "--var", &domain, "--lockstep"]);
+    let mut args = vec!["up", system, "--var", &domain, "--lockstep"];
+    args.extend_from_slice(more);
+    let up = sut.spawn_logged("modbot", &args);
     wait_enabled(sut, up);
     up
 }
@@ -385,21 +392,7 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
     for n in 1..=3 {
         let mut sut = TestDomain::new(&format!("kr16rep{n}"));
         let dir = TempDir::new(&format!("kr16rep{n}"));
-        sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
-        let domain = format!("domain={}", sut.name());
-        let up = sut.spawn_logged(
-            "modbot",
-            &[
-                "up",
-                system.to_str().unwrap(),
-                "--var",
-                &domain,
-                "--lockstep",
-                "--gate",
-                "1000",
-            ],
-        );
-        wait_enabled(&sut, up);
+        let up = up_system_with(&mut sut, &dir, &system, &["--gate", "1000"]);
         let ran = sut.modbot_in(dir.path(), &["program", "run", program.to_str().unwrap()]);
         let (out, err) = (
             String::from_utf8_lossy(&ran.stdout).into_owned(),
@@ -458,21 +451,7 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
 #[test]
 fn a_stepped_program_resets_a_faulted_robot_and_moves_on() {
     let (_arm, mut sut, dir) = arm_test("program_step_reset");
-    let domain = format!("domain={}", sut.name());
-    sut.set_env("MODBOT_DATA_DIR", dir.path().join("data").to_str().unwrap());
-    let up = sut.spawn_logged(
-        "modbot",
-        &[
-            "up",
-            arm().to_str().unwrap(),
-            "--var",
-            &domain,
-            "--lockstep",
-            "--gate",
-            "1000",
-        ],
-    );
-    wait_enabled(&sut, up);
+    let up = up_system_with(&mut sut, &dir, &arm(), &["--gate", "1000"]);
     let program = dir.write(
         "reset.lua",
         "ptp { q = { 0.1, 0, 0, 0, 0, 0 } }\n\
