@@ -453,6 +453,10 @@ fn a_gated_lockstep_grid_holds_until_its_owner_steps_it_and_runs_on_when_the_own
         let t = top(&sut);
         t.contains("ticks") && ticks_of(&t) == 500
     });
+    // `modbot top` says why the grid stands.
+    sut.wait_for("top saying the gate holds", Duration::from_secs(10), || {
+        top(&sut).contains("held by the gate before tick 500")
+    });
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(ticks_of(&top(&sut)), 500, "held before tick 500");
     // The owner: a process of the test's, named in the call (killed however the test ends).

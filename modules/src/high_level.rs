@@ -78,6 +78,8 @@ pub struct HighLevel {
     located: bool,
     /// A patrol asked for before the first pose arrived: it begins with that pose.
     waiting: Option<(u8, Vec<P>)>,
+    /// The goal for which a guessed obstacle was dropped (see [`HighLevel::blocked`]).
+    guess_dropped_for: Option<(u8, usize)>,
 }
 
 impl HighLevel {
@@ -108,6 +110,7 @@ impl HighLevel {
             next_summary_s: 0.0,
             located: false,
             waiting: None,
+            guess_dropped_for: None,
         }
     }
 
@@ -150,6 +153,7 @@ impl HighLevel {
             };
             grid.mark_blocked(hit, 0.25);
         };
+        let before = self.grid.clone();
         let mut marked = 0;
         for (i, r) in ranges.unwrap_or_default().into_iter().enumerate() {
             let bearing = self.nav_ring.bearing_deg(i);
@@ -174,7 +178,21 @@ impl HighLevel {
             self.odo.at.y,
             self.room_name(self.odo.at)
         );
-        if let Err(e) = self.plan_to_goal() {
+        let mut planned = self.plan_to_goal();
+        let this_goal = Some((self.wing, self.goal));
+        if planned.is_err() && marked == 0 && self.guess_dropped_for != this_goal {
+            // Nothing the sonar sees, and the guess would close the way: what stopped the
+            // base is more likely something passing (a person) or an echo off a corner than a
+            // wall the map lacks. Drop the guess and try once more; a second stop on the way to
+            // this goal marks it for good.
+            tracing::info!(
+                "the guessed obstacle would close the way to the goal: trying again without it"
+            );
+            self.grid = before;
+            self.guess_dropped_for = this_goal;
+            planned = self.plan_to_goal();
+        }
+        if let Err(e) = planned {
             tracing::warn!("no way to the goal after the obstacle ({e}); skipping it");
             self.next_goal();
         }

@@ -37,6 +37,9 @@ const SWITCH_TIMEOUT: Duration = Duration::from_secs(60);
 const LOOK_AGAIN: Duration = Duration::from_secs(2);
 /// How long a stepped grid may take to reach a tick (a dead or stuck host is never done).
 const STEP_TIMEOUT: Duration = Duration::from_secs(60);
+/// After this long without a call of the gate, a program looks where the grid stands before it
+/// trusts the tick it stepped to (the coordinator lifts a gate after 20 s without a call).
+const GATE_LOOK_AGAIN: Duration = Duration::from_secs(15);
 /// How far a stepped grid runs between two looks at a reset's answer, ticks.
 const RESET_STRIDE: u64 = 10;
 
@@ -52,6 +55,9 @@ pub struct SystemRobot {
     clock: Option<String>,
     /// Stepping a gated lockstep grid: the tick it holds before.
     stepping: Option<u64>,
+    /// When the gate was last called: a program idle for the gate's lease (an idle REPL)
+    /// has lost it, and looks again before it trusts `stepping`.
+    gate_called: std::time::Instant,
 }
 
 impl SystemRobot {
@@ -67,6 +73,7 @@ impl SystemRobot {
             hosts: Vec::new(),
             clock: None,
             stepping: None,
+            gate_called: std::time::Instant::now(),
         };
         robot.stepping = take_gate(&mut robot.tool)?;
         Ok(robot)
@@ -253,6 +260,19 @@ impl Robot for SystemRobot {
     }
 
     fn tick(&mut self) -> Result<u64, RobotError> {
+        if self.stepping.is_some() && self.gate_called.elapsed() >= GATE_LOOK_AGAIN {
+            // The gate may have been lifted meanwhile: where does the grid stand?
+            let held = take_gate(&mut self.tool)?;
+            if held != self.stepping {
+                eprintln!(
+                    "modbot program: the grid ran on by itself while the program was idle; it \
+                     is held again before tick {}: from here this run is not the same as another",
+                    held.unwrap_or(0)
+                );
+            }
+            self.stepping = held;
+            self.gate_called = std::time::Instant::now();
+        }
         if let Some(next) = self.stepping {
             return Ok(next.saturating_sub(1));
         }
@@ -368,6 +388,7 @@ impl Robot for SystemRobot {
     fn run_to(&mut self, tick: u64) -> Result<u64, RobotError> {
         let next = run_to(&mut self.tool, tick)?;
         self.stepping = Some(next);
+        self.gate_called = std::time::Instant::now();
         Ok(tick)
     }
 }
@@ -386,18 +407,28 @@ impl Drop for SystemRobot {
     }
 }
 
-/// The coordinator's `gate(until, pid)`: the tick the grid holds before, and whether it is
-/// held there. `Ok(None)`: the grid has no gate (it follows real time, or there is no grid).
-fn gate(tool: &mut Tool, until: i64) -> Result<Option<(u64, bool)>, RobotError> {
+/// What the coordinator's gate says to a call.
+enum GateSays {
+    /// The tick the grid holds before, and whether it is held there.
+    At(u64, bool),
+    /// Refused, with the coordinator's words: a real-time grid, or a tick the grid has passed
+    /// (the gate was lifted meanwhile).
+    Refused(String),
+    /// No gate here: no coordinator, or one without a gate.
+    Absent,
+}
+
+/// The coordinator's `gate(until, pid)` (`until` < 0: do not move it).
+fn gate(tool: &mut Tool, until: i64) -> Result<GateSays, RobotError> {
     let pid = i64::from(std::process::id());
-    let answer = tool.call_blocking(
+    tool.call_blocking(
         COORDINATOR,
         "gate",
         &[Value::I64(until), Value::I64(pid)],
         CallOptions::timeout(CALL_TIMEOUT),
         |r| match r {
             Ok(args) => match (args.i64(0), args.bool(1)) {
-                (Ok(next), Ok(held)) => Ok(Some((u64::try_from(next).unwrap_or(0), held))),
+                (Ok(next), Ok(held)) => Ok(GateSays::At(u64::try_from(next).unwrap_or(0), held)),
                 _ => Err(RobotError::Grid(
                     "the coordinator's gate answered oddly".into(),
                 )),
@@ -406,26 +437,23 @@ fn gate(tool: &mut Tool, until: i64) -> Result<Option<(u64, bool)>, RobotError> 
             Err(CallError::Nak { code, detail, .. }) if *code == NakCode::BUSY => {
                 Err(RobotError::Grid(detail.clone()))
             }
-            // A real-time grid (or a coordinator without a gate), or no grid.
-            Err(CallError::Nak { .. })
-            | Err(CallError::UnknownModule(_))
-            | Err(CallError::UnknownMethod { .. }) => Ok(None),
+            Err(CallError::Nak { detail, .. }) => Ok(GateSays::Refused(detail.clone())),
+            Err(CallError::UnknownModule(_)) | Err(CallError::UnknownMethod { .. }) => {
+                Ok(GateSays::Absent)
+            }
             Err(e) => Err(RobotError::Grid(format!("the coordinator's gate: {e}"))),
         },
-    );
-    answer
+    )
 }
 
 /// Takes the gate of a lockstep grid and waits until the grid is held: the tick it holds
 /// before. `None`: a grid that keeps its own time (real time), or none.
 fn take_gate(tool: &mut Tool) -> Result<Option<u64>, RobotError> {
-    let Some((next, held)) = gate(tool, -1)? else {
-        return Ok(None);
-    };
-    if held {
-        return Ok(Some(next));
+    match gate(tool, -1)? {
+        GateSays::At(next, true) => Ok(Some(next)),
+        GateSays::At(_, false) => wait_held(tool, None).map(Some),
+        GateSays::Refused(_) | GateSays::Absent => Ok(None),
     }
-    wait_held(tool, None).map(Some)
 }
 
 /// Polls the gate until the grid is held (before `next`, if given): the tick it holds before.
@@ -433,11 +461,12 @@ fn wait_held(tool: &mut Tool, next: Option<u64>) -> Result<u64, RobotError> {
     let deadline = std::time::Instant::now() + STEP_TIMEOUT;
     loop {
         match gate(tool, -1)? {
-            Some((at, true)) if next.is_none_or(|n| n == at) => return Ok(at),
-            Some(_) => {}
-            None => {
+            GateSays::At(at, true) if next.is_none_or(|n| n == at) => return Ok(at),
+            GateSays::At(..) => {}
+            GateSays::Refused(why) => return Err(RobotError::Grid(why)),
+            GateSays::Absent => {
                 return Err(RobotError::Grid(
-                    "the grid's gate was refused while the program stepped it".into(),
+                    "the coordinator went away while the program stepped the grid".into(),
                 ))
             }
         }
@@ -453,14 +482,26 @@ fn wait_held(tool: &mut Tool, next: Option<u64>) -> Result<u64, RobotError> {
 }
 
 /// Runs the gated grid until tick `tick` is done: moves the gate to `tick + 1` and waits until
-/// the grid is held there. Returns the tick it holds before.
+/// the grid is held there. Returns the tick it holds before. A gate lifted meanwhile (the
+/// program did not call for 20 s: an idle REPL) is taken again where the grid has got to, with
+/// a warning: from there the run is not the same as another.
 fn run_to(tool: &mut Tool, tick: u64) -> Result<u64, RobotError> {
     let next = tick + 1;
     match gate(tool, i64::try_from(next).unwrap_or(i64::MAX))? {
-        Some((at, true)) if at == next => Ok(next),
-        Some(_) => wait_held(tool, Some(next)),
-        None => Err(RobotError::Grid(
-            "the grid's gate was refused while the program stepped it".into(),
+        GateSays::At(at, true) if at == next => Ok(next),
+        GateSays::At(..) => wait_held(tool, Some(next)),
+        GateSays::Refused(why) => match take_gate(tool)? {
+            Some(held) => {
+                eprintln!(
+                    "modbot program: the grid ran on by itself ({why}); it is held again before \
+                     tick {held}: from here this run is not the same as another"
+                );
+                Ok(held)
+            }
+            None => Err(RobotError::Grid(why)),
+        },
+        GateSays::Absent => Err(RobotError::Grid(
+            "the coordinator went away while the program stepped the grid".into(),
         )),
     }
 }

@@ -196,6 +196,8 @@ pub struct Coordinator<W: Write> {
     switched: Switched,
     /// Scratch: the ledger's state text.
     state_text: String,
+    /// The tick a program's gate holds the grid before, while it does (the ledger says so).
+    held_before: Option<u64>,
 }
 
 /// The hosts' done notices, as the coordinator waits for them.
@@ -262,7 +264,14 @@ impl<W: Write> Coordinator<W> {
             incoming: None,
             switched: Switched::default(),
             state_text: String::with_capacity(128),
+            held_before: None,
         })
+    }
+
+    /// Whether the gate holds the grid, and before which tick (see `tick_thread`): the
+    /// ledger's state says so, for `modbot top`.
+    pub fn set_held_before(&mut self, tick: Option<u64>) {
+        self.held_before = tick;
     }
 
     /// Stops waiting for a due done notice when `shutdown` is requested (a lockstep grid waits
@@ -705,13 +714,16 @@ impl<W: Write> Coordinator<W> {
         if self.spec.timing.clock == GridClock::Lockstep {
             self.state_text.push_str(" in lockstep");
         }
+        use std::fmt::Write as _;
         if let Some(a) = &self.spec.assembly {
-            use std::fmt::Write as _;
             let _ = write!(
                 self.state_text,
                 " (assembly {}, generation {})",
                 a.name, a.generation
             );
+        }
+        if let Some(tick) = self.held_before {
+            let _ = write!(self.state_text, ", held by the gate before tick {tick}");
         }
         let (p50, p99, max) = ledger::p50_p99_max(self.timing.error());
         ledger::encode_grid(

@@ -251,7 +251,10 @@ fn tick(
         for _ in 0..COMMANDS_PER_TICK {
             match commands.try_recv() {
                 Ok(ToTick::ScriptRefused) => script.awaiting = false,
-                Ok(ToTick::Gate(setting)) => gate.setting = Some(setting),
+                Ok(ToTick::Gate(setting)) => {
+                    gate.setting = Some(setting);
+                    coord.set_held_before(None);
+                }
                 Ok(ToTick::Abort) => {
                     script.awaiting = false;
                     obey(coord, ToTick::Abort, out);
@@ -316,12 +319,13 @@ impl Gated {
     }
 
     /// Says once per setting that the grid is held: every release before the gate done.
-    fn report(&mut self, coord: &Coord, out: &SyncSender<FromTick>) {
+    fn report(&mut self, coord: &mut Coord, out: &SyncSender<FromTick>) {
         let Some(setting) = self.setting else {
             return;
         };
         if self.reported != Some(setting.seq) && coord.quiet() {
             self.reported = Some(setting.seq);
+            coord.set_held_before(Some(coord.ticks()));
             tell(
                 out,
                 FromTick::Held {
