@@ -153,7 +153,6 @@ impl HighLevel {
             };
             grid.mark_blocked(hit, 0.25);
         };
-        let before = self.grid.clone();
         let mut marked = 0;
         for (i, r) in ranges.unwrap_or_default().into_iter().enumerate() {
             let bearing = self.nav_ring.bearing_deg(i);
@@ -162,9 +161,12 @@ impl HighLevel {
                 marked += 1;
             }
         }
+        // The map before a guess, to drop it again (below).
+        let mut before_guess = None;
         if marked == 0 {
             // The collision sonar stopped the base for something within two feet ahead that
             // the navigation sonar's beams missed: mark it there, so the new plan differs.
+            before_guess = Some(self.grid.clone());
             mark(&mut self.grid, crate::mobility::TWO_FEET_M, 0.0);
         }
         self.replans += 1;
@@ -180,7 +182,8 @@ impl HighLevel {
         );
         let mut planned = self.plan_to_goal();
         let this_goal = Some((self.wing, self.goal));
-        if planned.is_err() && marked == 0 && self.guess_dropped_for != this_goal {
+        let retry = planned.is_err() && self.guess_dropped_for != this_goal;
+        if let Some(before) = before_guess.filter(|_| retry) {
             // Nothing the sonar sees, and the guess would close the way: what stopped the
             // base is more likely something passing (a person) or an echo off a corner than a
             // wall the map lacks. Drop the guess and try once more; a second stop on the way to

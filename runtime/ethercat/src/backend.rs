@@ -22,7 +22,7 @@ use modbot_bus::backend::MISSING_COMMAND;
 use modbot_bus::cia402::DriveState;
 use modbot_bus::{AxisActual, AxisCommand, Backend, BusFault, Sync0Phase};
 
-use crate::config::{DriveConfig, EthercatConfig};
+use crate::config::EthercatConfig;
 use crate::dc::GridLock;
 use crate::error::EthercatError;
 use crate::master::{Master, Running, SlaveInfo, MAX_PDI, MAX_SLAVES};
@@ -37,7 +37,6 @@ pub struct EthercatBackend {
     config: EthercatConfig,
     master: Master,
     running: Running,
-    drives: Vec<DriveConfig>,
     slaves: Vec<SlaveInfo>,
     /// Per axis: held in quick stop until disable voltage.
     held: Vec<bool>,
@@ -134,7 +133,6 @@ impl EthercatBackend {
             master,
             running,
             held: vec![false; config.drives.len()],
-            drives: config.drives.clone(),
             slaves,
             expected_wkc,
             lock: GridLock::new(config.period_ns),
@@ -150,7 +148,7 @@ impl EthercatBackend {
 
     fn write_commands(&mut self, commands: &[AxisCommand], actuals: &[AxisActual]) {
         let md = self.master.md;
-        for (axis, drive) in self.drives.iter().enumerate() {
+        for (axis, drive) in self.config.drives.iter().enumerate() {
             let mut command = commands.get(axis).copied().unwrap_or(MISSING_COMMAND);
             if self.held[axis] {
                 if command.controlword & 0x0002 == 0 {
@@ -174,7 +172,7 @@ impl EthercatBackend {
     /// (it reads as not ready to switch on; its positions stay as last read).
     fn read_actuals(&self, in_op: impl Fn(usize) -> bool, actuals: &mut [AxisActual]) {
         let md = self.master.md;
-        for (drive, actual) in self.drives.iter().zip(actuals.iter_mut()) {
+        for (drive, actual) in self.config.drives.iter().zip(actuals.iter_mut()) {
             let position = usize::from(drive.position);
             if !in_op(position) {
                 actual.statusword = 0;
@@ -193,7 +191,7 @@ impl EthercatBackend {
 
 impl Backend for EthercatBackend {
     fn axes(&self) -> usize {
-        self.drives.len()
+        self.config.drives.len()
     }
 
     fn cycle(
@@ -281,7 +279,11 @@ impl Backend for EthercatBackend {
 
     fn describe(&self, fault: &BusFault) -> String {
         let name = |position: u16| {
-            let axis = self.drives.iter().position(|d| d.position == position);
+            let axis = self
+                .config
+                .drives
+                .iter()
+                .position(|d| d.position == position);
             let slave = self.slaves.get(usize::from(position));
             format!(
                 "EtherCAT slave {position}{}{}",

@@ -79,6 +79,12 @@ impl SystemRobot {
         Ok(robot)
     }
 
+    /// The gate answered just now: the grid holds before `next` (`None`: not stepped).
+    fn stepped_to(&mut self, next: Option<u64>) {
+        self.stepping = next;
+        self.gate_called = std::time::Instant::now();
+    }
+
     /// The running assembly's generation.
     fn generation(&mut self) -> Result<u16, RobotError> {
         if let Some(g) = self.generation {
@@ -244,8 +250,8 @@ impl Robot for SystemRobot {
             Ok(())
         };
         let switched = switch::switch_with(&mut self.tool, name, SWITCH_TIMEOUT, &mut run_there);
-        if let Some(next) = reached {
-            self.stepping = Some(next);
+        if reached.is_some() {
+            self.stepped_to(reached);
         }
         let switched = switched.map_err(|e| RobotError::Switch {
             assembly: name.to_owned(),
@@ -270,8 +276,7 @@ impl Robot for SystemRobot {
                     held.unwrap_or(0)
                 );
             }
-            self.stepping = held;
-            self.gate_called = std::time::Instant::now();
+            self.stepped_to(held);
         }
         if let Some(next) = self.stepping {
             return Ok(next.saturating_sub(1));
@@ -373,7 +378,7 @@ impl Robot for SystemRobot {
                 Ok(())
             },
         );
-        self.stepping = Some(next);
+        self.stepped_to(Some(next));
         answer.map_err(|e| RobotError::Robot(e.to_string()))
     }
 
@@ -387,8 +392,7 @@ impl Robot for SystemRobot {
 
     fn run_to(&mut self, tick: u64) -> Result<u64, RobotError> {
         let next = run_to(&mut self.tool, tick)?;
-        self.stepping = Some(next);
-        self.gate_called = std::time::Instant::now();
+        self.stepped_to(Some(next));
         Ok(tick)
     }
 }

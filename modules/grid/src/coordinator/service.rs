@@ -147,12 +147,9 @@ fn ungate_method(
     if !s.lockstep {
         return Err(MethodError::Failed(GateRefused::RealTime.to_string()));
     }
-    let addr = ctx.caller();
-    let owner = s.gate.owner().filter(|o| o.addr == addr);
-    let caller = owner.unwrap_or_else(|| caller_of(ctx, None));
     s.gate_changed = Some(
         s.gate
-            .lift(caller)
+            .lift(ctx.caller())
             .map_err(|e| MethodError::Failed(e.to_string()))?,
     );
     Ok(())

@@ -333,9 +333,6 @@ impl Gated {
                     next: coord.ticks(),
                 },
             );
-            // The service thread answers the gate's owner from this: at once, not within the
-            // 5 ms of the tick count.
-            tell(out, FromTick::Ticks(coord.ticks()));
         }
     }
 }
