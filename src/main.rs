@@ -114,6 +114,10 @@ enum Command {
         /// docs/grid.md), so runs can be compared byte for byte.
         #[arg(long, value_name = "OUT")]
         trace: Option<PathBuf>,
+        /// Write the grid's state hash into the trace every N ticks and after the last (`#
+        /// state_hash tick=… hash=…`; 0: never). Default 1000.
+        #[arg(long, value_name = "N")]
+        state_hash_every: Option<u64>,
         /// Run the grid in lockstep: each tick as soon as every release due at it can be
         /// made, as fast as the machine goes; no overruns, the same trace every run.
         #[arg(long)]
@@ -310,6 +314,7 @@ fn main() -> ExitCode {
             vars,
             ticks,
             trace,
+            state_hash_every,
             lockstep,
             switches,
             gate,
@@ -323,6 +328,7 @@ fn main() -> ExitCode {
             &modbot_supervisor::processes::GridRun {
                 ticks,
                 trace,
+                state_hash_every,
                 lockstep,
                 switches,
                 gate,

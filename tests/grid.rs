@@ -91,6 +91,14 @@ fn lockstep_traces_of_two_runs_are_byte_identical_and_equal_to_the_reference() {
     let second = traced_run(&mut sut, &demo(), 5000, Clock::Lockstep, "b");
     assert!(!first.contains("# overrun"), "lockstep has no overruns");
     assert!(first == second, "two runs give byte-identical traces");
+    // The grid's state hash at 1000, 2000, 3000, 4000 and the last tick, equal to the
+    // reference's: the coordinator combines the hosts' hashes as the reference does.
+    let hashes: Vec<&str> = first
+        .lines()
+        .filter(|l| l.starts_with("# state_hash "))
+        .collect();
+    assert_eq!(hashes.len(), 5, "{hashes:?}");
+    assert!(hashes[4].starts_with("# state_hash tick=4999 hash=0x"));
     let want = expected(&demo(), sut.name(), 5000);
     for (i, (got, exp)) in first.lines().zip(want.lines()).enumerate() {
         assert_eq!(got, exp, "line {i} of the trace differs from the reference");

@@ -127,9 +127,11 @@ fn the_readme_golden_vectors_match_the_encoders() {
                 let notice =
                     Release::new(n("tick"), n("released"), n("component") as u16, &versions)
                         .unwrap()
-                        .with(n("generation") as u16, n("flags") as u16);
+                        .with(n("generation") as u16, n("flags") as u16)
+                        .with_state_hash(hex_u64(field(&desc, "state_hash")));
                 let bytes = notice.as_bytes().to_vec();
                 let back = Release::batch(&bytes).unwrap().next().unwrap();
+                assert_eq!(back.state_hash.get(), 0x0123_4567_89ab_cdef);
                 assert_eq!(back.versions().collect::<Vec<_>>(), versions);
                 assert_eq!(u64::from(back.sources.get()), n("sources"));
                 assert!(back.has(Release::SAFE_STOP) && !back.has(Release::TRACK));
@@ -147,13 +149,19 @@ fn the_readme_golden_vectors_match_the_encoders() {
                     n("latency"),
                 )
                 .of_generation(n("generation") as u16)
-                .with_flags(n("flags") as u16);
+                .with_flags(n("flags") as u16 & !Done::HASHED);
+                let hash = desc.contains("state_hash=");
+                let notice = match hash {
+                    true => notice.with_state_hash(Some(hex_u64(field(&desc, "state_hash")))),
+                    false => notice,
+                };
                 let bytes = notice.as_bytes().to_vec();
                 let back = Done::batch(&bytes).unwrap().next().unwrap();
                 assert_eq!(
-                    (back.status.get(), back.latency_ns.get()),
-                    (Done::STALE, n("latency"))
+                    (back.status.get(), back.latency_ns.get(), back.flags.get()),
+                    (n("status") as u16, n("latency"), n("flags") as u16)
                 );
+                assert_eq!(back.hash().is_some(), hash);
                 bytes
             }
             "prepare" => {
@@ -490,4 +498,10 @@ fn the_readme_golden_vectors_match_the_encoders() {
         };
         assert_eq!(hex::encode(&got), hex::encode(&want), "{desc}");
     }
+}
+
+/// A `0x…` hexadecimal number of a golden description.
+fn hex_u64(text: &str) -> u64 {
+    let digits = text.strip_prefix("0x").unwrap_or(text);
+    u64::from_str_radix(digits, 16).unwrap_or_else(|e| panic!("{text}: {e}"))
 }

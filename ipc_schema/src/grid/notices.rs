@@ -1,14 +1,14 @@
 //! The notices between the coordinator and the component hosts.
 //!
 //! # Batches
-//! A release sample holds the release notices of one host for one tick back to back (152
+//! A release sample holds the release notices of one host for one tick back to back (160
 //! bytes each; the warm-up releases come one per sample), and a done sample the done notices of
-//! the releases a host served on one wake-up (32 bytes each): one wake-up and one sample per
+//! the releases a host served on one wake-up (40 bytes each): one wake-up and one sample per
 //! host and tick each way, however many components it steps. [`Release::batch`] and
 //! [`Done::batch`] read them in place; a sample whose length is not a whole number of notices
 //! is malformed.
 //!
-//! # Release notice (coordinator → host, `grid.release.<host>`), 152 bytes
+//! # Release notice (coordinator → host, `grid.release.<host>`), 160 bytes
 //! ```text
 //!  0     8    tick: the release tick n
 //!  8     8    when the coordinator released it, CLOCK_MONOTONIC ns
@@ -25,6 +25,8 @@
 //!             bits 0
 //! 24   8·16   versions: for each source component of the inputs (in the order the host was
 //!             told at load), the valid_from of the outputs to read: LET says "as valid at n"
+//! 152    8    the grid's state hash at n: the components' hashes of the versions valid at n,
+//!             combined (`modbot_grid::state_hash`; 0 where the coordinator has none)
 //! ```
 //!
 //! # Prepare notice (coordinator → the system's hosts, `grid.assembly`), 64 bytes
@@ -37,7 +39,7 @@
 //! its inputs will read, and answers with a done notice of component [`READY`] and the
 //! generation (status 0, or 1 when it could not load it).
 //!
-//! # Done notice (host → coordinator, `grid.done`), 32 bytes
+//! # Done notice (host → coordinator, `grid.done`), 40 bytes
 //! ```text
 //!  0     8    tick: the release tick it answers
 //!  8     2    component index
@@ -48,9 +50,11 @@
 //! 12     2    generation, as in the release it answers
 //! 14     2    flags: bit 0 HOLDING (the component holds the robot: its drives are stopped,
 //!             faulted or being brought back and do not follow the running assembly, whose
-//!             components the coordinator then releases to track); the other bits 0
+//!             components the coordinator then releases to track), bit 1 HASHED (the
+//!             state hash that follows is the component's); the other bits 0
 //! 16     8    execution time of the step, ns
 //! 24     8    release latency: from the coordinator's release to the step's start, ns
+//! 32     8    the component's state hash after the step (with HASHED; 0 without)
 //! ```
 
 use thiserror::Error;
@@ -82,6 +86,7 @@ pub struct Release {
     pub generation: U16,
     pub flags: U16,
     pub versions: [U64; MAX_SOURCES],
+    pub state_hash: U64,
 }
 
 impl Release {
@@ -112,6 +117,7 @@ impl Release {
             generation: U16::new(0),
             flags: U16::new(0),
             versions: [U64::new(0); MAX_SOURCES],
+            state_hash: U64::new(0),
         };
         for (slot, v) in r.versions.iter_mut().zip(versions) {
             *slot = U64::new(*v);
@@ -123,6 +129,12 @@ impl Release {
     pub fn with(mut self, generation: u16, flags: u16) -> Release {
         self.generation = U16::new(generation);
         self.flags = U16::new(flags);
+        self
+    }
+
+    /// The same notice carrying the grid's state hash at its tick.
+    pub fn with_state_hash(mut self, hash: u64) -> Release {
+        self.state_hash = U64::new(hash);
         self
     }
 
@@ -240,6 +252,7 @@ pub struct Done {
     pub flags: U16,
     pub exec_ns: U64,
     pub latency_ns: U64,
+    pub state_hash: U64,
 }
 
 impl Done {
@@ -251,6 +264,8 @@ impl Done {
     pub const STALE: u16 = 3;
     /// Flag: the component holds the robot (its drives do not follow the running assembly).
     pub const HOLDING: u16 = 1;
+    /// Flag: the notice carries the component's state hash after the step.
+    pub const HASHED: u16 = 2;
 
     pub fn new(tick: u64, component: u16, status: u16, exec_ns: u64, latency_ns: u64) -> Done {
         Done {
@@ -261,6 +276,7 @@ impl Done {
             flags: U16::new(0),
             exec_ns: U64::new(exec_ns),
             latency_ns: U64::new(latency_ns),
+            state_hash: U64::new(0),
         }
     }
 
@@ -276,11 +292,33 @@ impl Done {
         self
     }
 
+    /// The same notice with the component's state hash (flag [`Done::HASHED`]), or without
+    /// one (`None`: the component contributes none).
+    pub fn with_state_hash(mut self, hash: Option<u64>) -> Done {
+        let flags = self.flags.get() & !Done::HASHED;
+        match hash {
+            Some(h) => {
+                self.state_hash = U64::new(h);
+                self.flags = U16::new(flags | Done::HASHED);
+            }
+            None => {
+                self.state_hash = U64::new(0);
+                self.flags = U16::new(flags);
+            }
+        }
+        self
+    }
+
+    /// The component's state hash, if the notice carries one.
+    pub fn hash(&self) -> Option<u64> {
+        self.has(Done::HASHED).then(|| self.state_hash.get())
+    }
+
     pub fn has(&self, flag: u16) -> bool {
         self.flags.get() & flag != 0
     }
 
-    /// Reads a notice in place: exactly 32 bytes, and a status this format knows (0..=3; for a
+    /// Reads a notice in place: exactly 40 bytes, and a status this format knows (0..=3; for a
     /// [`READY`] answer 0 ready or 1 could not load).
     pub fn parse(bytes: &[u8]) -> Result<&Done, GridWireError> {
         let d = Done::ref_from_bytes(bytes).map_err(|_| GridWireError::Length {
@@ -317,8 +355,8 @@ mod tests {
 
     #[test]
     fn notices_have_the_documented_sizes_and_read_back() {
-        assert_eq!(core::mem::size_of::<Release>(), 152);
-        assert_eq!(core::mem::size_of::<Done>(), 32);
+        assert_eq!(core::mem::size_of::<Release>(), 160);
+        assert_eq!(core::mem::size_of::<Done>(), 40);
         let r = Release::new(7, 99, 3, &[5, 6]).unwrap();
         let back = Release::parse(r.as_bytes()).unwrap();
         assert_eq!((back.tick.get(), back.component.get()), (7, 3));
@@ -332,7 +370,8 @@ mod tests {
                 "0000",
                 "00000000",
                 "b004000000000000",
-                "2800000000000000"
+                "2800000000000000",
+                "0000000000000000"
             )
         );
         assert_eq!(Done::parse(d.as_bytes()).unwrap().exec_ns.get(), 1200);
@@ -362,6 +401,21 @@ mod tests {
         let d = Done::new(7, 3, Done::OK, 0, 0).with_flags(Done::HOLDING);
         assert_eq!(hex::encode(&d.as_bytes()[8..16]), "0300000000000100");
         assert!(Done::parse(d.as_bytes()).unwrap().has(Done::HOLDING));
+        let d = Done::new(7, 3, Done::OK, 0, 0)
+            .with_flags(Done::HOLDING)
+            .with_state_hash(Some(0x0123_4567_89ab_cdef));
+        assert_eq!(
+            hex::encode(&d.as_bytes()[14..16]),
+            "0300",
+            "HOLDING and HASHED"
+        );
+        assert_eq!(hex::encode(&d.as_bytes()[32..40]), "efcdab8967452301");
+        let back = Done::parse(d.as_bytes()).unwrap();
+        assert_eq!(back.hash(), Some(0x0123_4567_89ab_cdef));
+        assert_eq!(back.with_state_hash(None).hash(), None);
+        assert!(back.with_state_hash(None).has(Done::HOLDING));
+        let r = Release::new(7, 99, 3, &[]).unwrap().with_state_hash(0x0102);
+        assert_eq!(hex::encode(&r.as_bytes()[152..160]), "0201000000000000");
     }
 
     #[test]
@@ -397,7 +451,7 @@ mod tests {
         assert!(Release::batch(&bytes[..200]).is_err());
         assert!(Release::batch(&[]).is_err());
         let mut bad = bytes.clone();
-        bad[152 + 18] = 17; // 17 sources in the second notice
+        bad[160 + 18] = 17; // 17 sources in the second notice
         assert!(Release::batch(&bad).is_err());
         let mut dones = Done::new(7, 3, Done::OK, 1, 2).as_bytes().to_vec();
         dones.extend_from_slice(Done::new(7, 4, Done::STALE, 0, 0).as_bytes());
@@ -406,6 +460,6 @@ mod tests {
             .map(|d| (d.component.get(), d.status.get()))
             .collect();
         assert_eq!(got, vec![(3, Done::OK), (4, Done::STALE)]);
-        assert!(Done::batch(&dones[..33]).is_err());
+        assert!(Done::batch(&dones[..41]).is_err());
     }
 }

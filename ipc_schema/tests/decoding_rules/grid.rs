@@ -1,6 +1,7 @@
-//! Grid notices and output records. The golden release notice is 152 bytes (tick, released,
-//! component 16..18, sources 18..20, generation, flags 22..24, version slots from 24); the done
-//! notice 32 (tick, component 8..10, status 10..12, generation, flags 14..16, exec, latency);
+//! Grid notices and output records. The golden release notice is 160 bytes (tick, released,
+//! component 16..18, sources 18..20, generation, flags 22..24, version slots from 24, state
+//! hash 152..160); the done notice 40 (tick, component 8..10, status 10..12, generation, flags
+//! 14..16, exec, latency, state hash 32..40);
 //! the prepare notice 64 (generation, name length 2..4, name from 4).
 
 use modbot_ipc_schema::grid::{
@@ -40,8 +41,8 @@ fn a_release_sample_that_is_not_whole_notices_is_refused() {
     assert_eq!(
         release_refused(&bytes),
         Some(GridWireError::Length {
-            expected: 152,
-            got: 153
+            expected: 160,
+            got: 161
         })
     );
 }
@@ -68,7 +69,7 @@ fn a_release_naming_more_than_16_sources_is_refused() {
 fn one_malformed_notice_refuses_the_whole_sample() {
     let mut bytes = release();
     bytes.extend(release());
-    bytes[152 + 18] = 17; // the second notice's sources
+    bytes[160 + 18] = 17; // the second notice's sources
     assert_eq!(
         release_refused(&bytes),
         Some(GridWireError::TooManySources(17))
@@ -127,6 +128,28 @@ fn a_done_reader_ignores_unknown_flag_bits() {
     bytes[15] = 0x80; // bit 15
     let read = Done::batch(&bytes).unwrap().next().unwrap();
     assert!(!read.has(Done::HOLDING));
+}
+
+#[test]
+fn a_done_reader_takes_the_state_hash_only_with_its_flag() {
+    let mut bytes = done();
+    bytes[32..40].fill(0xab); // a hash without HASHED
+    let read = Done::batch(&bytes).unwrap().next().unwrap();
+    assert_eq!(read.hash(), None);
+    let hashed = golden("done tick=6");
+    let read = Done::batch(&hashed).unwrap().next().unwrap();
+    assert_eq!(read.hash(), Some(0x0123_4567_89ab_cdef));
+}
+
+#[test]
+fn a_done_notice_of_the_older_32_byte_format_is_refused_for_its_length() {
+    assert_eq!(
+        done_refused(&done()[..32]),
+        Some(GridWireError::Length {
+            expected: 40,
+            got: 32
+        })
+    );
 }
 
 #[test]

@@ -311,6 +311,13 @@ impl Component for Delay {
         put(&mut outputs[0], self.last);
         self.last = inputs[0].as_f64();
     }
+
+    /// Its output and the input it will put out next: two delays with equal outputs but
+    /// different inputs waiting are in different states.
+    fn state_hash(&self, outputs: &[PortValue], hasher: &mut crate::StateHasher) {
+        hasher.outputs(outputs);
+        hasher.f64(self.last);
+    }
 }
 
 // ---- arrays: vec_gain, pack ----
@@ -500,6 +507,31 @@ mod tests {
         assert_eq!(integrated, [1.0, 4.0].map(PortValue::F64));
         let delayed = run("delay", Params::new(), &[u(0, 1.0), u(1, 2.0), u(2, 3.0)]);
         assert_eq!(delayed, [0.0, 1.0, 2.0].map(PortValue::F64));
+    }
+
+    #[test]
+    fn a_components_state_hash_is_its_outputs_unless_it_holds_more_state() {
+        let registry = grid_registry();
+        let hash = |sut: &dyn Component, outputs: &[PortValue]| {
+            let mut h = crate::StateHasher::new();
+            sut.state_hash(outputs, &mut h);
+            h.finish()
+        };
+        let gain = Params::new().with("k", ParamValue::F64(2.0));
+        let sut = registry.instantiate("gain", &gain).unwrap();
+        let mut by_outputs = crate::StateHasher::new();
+        by_outputs.outputs(&[PortValue::F64(4.0)]);
+        assert_eq!(hash(&*sut, &[PortValue::F64(4.0)]), by_outputs.finish());
+        // Two delays putting out 1.0, one with 2.0 waiting and one with 3.0.
+        let mut a = registry.instantiate("delay", &Params::new()).unwrap();
+        let mut b = registry.instantiate("delay", &Params::new()).unwrap();
+        let mut out = [PortValue::F64(0.0)];
+        for (sut, next) in [(&mut a, 2.0), (&mut b, 3.0)] {
+            sut.step(&Released::at(0), &[PortValue::F64(1.0)], &mut out);
+            sut.step(&Released::at(1), &[PortValue::F64(next)], &mut out);
+        }
+        assert_eq!(out, [PortValue::F64(1.0)]);
+        assert_ne!(hash(&*a, &out), hash(&*b, &out));
     }
 
     #[test]

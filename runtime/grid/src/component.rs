@@ -259,6 +259,9 @@ pub struct Released {
     /// The host's clock when it took the release, ns of CLOCK_MONOTONIC (the reference run:
     /// the tick's nominal time): for a component that drives hardware with a watchdog.
     pub now_ns: u64,
+    /// The grid's state hash at the release tick (over the versions valid then; see
+    /// [`crate::state_hash`]): what the recorder writes beside the tick's values.
+    pub state_hash: u64,
 }
 
 impl Released {
@@ -323,6 +326,17 @@ pub trait Component: Send {
     /// that they take over from where the robot is when it follows again.
     fn holding(&self) -> bool {
         false
+    }
+
+    /// Writes the hash of its state after its last step (or track), which the grid folds into
+    /// the tick's hash (`# state_hash` in traces, dataset `state_hash` in recordings) so that
+    /// two runs compare in one line: by default its outputs. A component with state its
+    /// outputs do not show (a delay line's buffer) adds it; one whose outputs do not belong to
+    /// the controlled system (the recorder) writes nothing and contributes no hash. Real-time
+    /// path: no allocation, and nothing that differs run to run by design (a clock, a count
+    /// of dropped rows).
+    fn state_hash(&self, outputs: &[PortValue], hasher: &mut crate::StateHasher) {
+        hasher.outputs(outputs);
     }
 
     /// The grid stops (a normal stop: `modbot down`, its ticks done): no release follows.

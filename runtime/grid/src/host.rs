@@ -562,6 +562,7 @@ impl Host {
             generation,
             flags: release.flags.get(),
             now_ns: start,
+            state_hash: release.state_hash.get(),
         };
         if release.has(Release::TRACK) {
             h.component.track(&rel, &h.inputs, &mut h.outputs);
@@ -570,6 +571,9 @@ impl Host {
         }
         let end = now();
         publish(h, n + h.period, n)?;
+        // After publishing: the readers of the outputs do not wait for it.
+        let mut hasher = crate::StateHasher::new();
+        h.component.state_hash(&h.outputs, &mut hasher);
         let status = if h.component.unsafe_state() {
             Done::UNSAFE
         } else {
@@ -587,7 +591,8 @@ impl Host {
             Done::HOLDING
         } else {
             0
-        });
+        })
+        .with_state_hash(hasher.finish());
         self.push_done(&done)
     }
 }

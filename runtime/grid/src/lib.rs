@@ -44,6 +44,8 @@
 //! - [`recorder`]: the coordinator's trace of every output as valid at every tick.
 //! - [`record_type`]: the data recorder (`record { ... }`) as a component type: its params and
 //!   ports (the component, which writes HDF5, is `modbot-record`'s).
+//! - [`state_hash`]: the hash of a component's state after a step, and of the grid's at a
+//!   tick (`# state_hash` trace lines, the recorder's `state_hash` dataset).
 //! - [`offload`]: a writer whose bytes a thread of normal priority writes out (the trace).
 //! - [`ledger`]: the overrun ledger as `modbot top` shows it.
 //! - [`switch`]: swapping assemblies from a program (`modbot assembly switch`); the assembly
@@ -59,6 +61,7 @@ pub mod record_type;
 pub mod recorder;
 pub mod reference;
 pub mod spec;
+pub mod state_hash;
 pub mod switch;
 pub mod tick;
 pub mod trace;
@@ -73,4 +76,5 @@ pub use reference::{reference_run, reference_trace, reference_trace_with, Overru
 pub use spec::{
     ComponentSpec, Connection, GridClock, GridError, GridSpec, GridTiming, OverrunPolicy, PortRef,
 };
+pub use state_hash::StateHasher;
 pub use trace::TraceWriter;

@@ -56,8 +56,16 @@ impl<W: Write> Recorder<W> {
         })
     }
 
-    /// Records tick `n`, where component c's valid outputs are version `valid_from[c]`.
-    pub fn tick(&mut self, n: u64, valid_from: &[u64]) -> std::io::Result<()> {
+    /// The same recorder writing the grid's state hash every `every` ticks and after the last
+    /// (0: never; see [`TraceWriter::with_state_hash_every`]).
+    pub fn with_state_hash_every(mut self, every: u64) -> Recorder<W> {
+        self.writer = self.writer.with_state_hash_every(every);
+        self
+    }
+
+    /// Records tick `n`, where component c's valid outputs are version `valid_from[c]`, and
+    /// the grid's state hash at n is `state_hash`.
+    pub fn tick(&mut self, n: u64, valid_from: &[u64], state_hash: u64) -> std::io::Result<()> {
         for (c, v) in self.comps.iter_mut().enumerate() {
             let want = valid_from.get(c).copied().unwrap_or(0);
             match v.get(want) {
@@ -67,7 +75,8 @@ impl<W: Write> Recorder<W> {
                 None => self.missing += 1,
             }
         }
-        self.writer.end_tick(n)
+        self.writer.end_tick(n)?;
+        self.writer.state_hash(n, state_hash)
     }
 
     /// Flushes the trace.

@@ -21,6 +21,7 @@ use thiserror::Error;
 
 use super::component::{Component, ComponentError, PortValue, Registry, Released, Tick};
 use super::spec::GridSpec;
+use super::state_hash::{self, StateHasher};
 use super::trace::TraceWriter;
 
 /// Why the reference run could not be made.
@@ -135,24 +136,30 @@ pub fn reference_trace_with(
     ticks: u64,
     overruns: &Overruns,
 ) -> Result<String, ReferenceError> {
-    let mut writer = TraceWriter::new(Vec::new(), spec);
+    let writer = std::cell::RefCell::new(TraceWriter::new(Vec::new(), spec));
     let mut failure = None;
-    run(
+    let mut hash_failure = None;
+    run_hashed(
         spec,
         registry,
         ticks,
         Order::Forward,
         overruns,
         &mut |n, c, outputs| {
-            if let Err(e) = writer.tick(n, c, outputs) {
+            if let Err(e) = writer.borrow_mut().tick(n, c, outputs) {
                 failure.get_or_insert(e);
             }
         },
+        &mut |n, hash| {
+            if let Err(e) = writer.borrow_mut().state_hash(n, hash) {
+                hash_failure.get_or_insert(e);
+            }
+        },
     )?;
-    if let Some(e) = failure {
+    if let Some(e) = failure.or(hash_failure) {
         return Err(e.into());
     }
-    let bytes = writer.finish()?;
+    let bytes = writer.into_inner().finish()?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
 }
 
@@ -161,24 +168,11 @@ pub fn reference_trace_with(
 /// # Panics
 /// If a component cannot be instantiated (use [`reference_run`] to get the error instead).
 pub fn reference_trace(spec: &GridSpec, registry: &Registry, ticks: u64) -> String {
-    let mut writer = TraceWriter::new(Vec::new(), spec);
-    let mut failure = None;
-    let result = reference_run(spec, registry, ticks, &mut |n, c, outputs| {
-        if let Err(e) = writer.tick(n, c, outputs) {
-            failure.get_or_insert(e);
-        }
-    });
-    if let Err(e) = result {
-        panic!("reference run: {e}");
-    }
     // Writing to a Vec only fails on a bad component index or output count, which the run
     // never passes.
-    if let Some(e) = failure {
-        panic!("reference trace: {e}");
-    }
-    match writer.finish() {
-        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
-        Err(e) => panic!("reference trace: {e}"),
+    match reference_trace_with(spec, registry, ticks, &Overruns::default()) {
+        Ok(trace) => trace,
+        Err(e) => panic!("reference run: {e}"),
     }
 }
 
@@ -199,6 +193,10 @@ struct Slot {
     /// The outputs of the last release, valid from `pending_from`.
     pending: Vec<PortValue>,
     pending_from: Option<u64>,
+    /// The state hash of the valid outputs' release (none for the initial outputs) and of the
+    /// pending one's.
+    valid_hash: Option<u64>,
+    pending_hash: Option<u64>,
     /// The inputs of a release, gathered here (no allocation per release).
     inputs: Vec<PortValue>,
     /// For each input: the (component, output port) feeding it.
@@ -215,6 +213,21 @@ pub fn run(
     order: Order,
     overruns: &Overruns,
     sink: &mut dyn FnMut(u64, usize, &[PortValue]),
+) -> Result<(), ReferenceError> {
+    run_hashed(spec, registry, ticks, order, overruns, sink, &mut |_, _| {})
+}
+
+/// [`run`], also giving `on_hash(n, hash)` the grid's state hash at every tick n after the
+/// outputs valid at n (see [`crate::state_hash`]): the components' hashes of the versions
+/// valid at n, combined in component order, as the coordinator combines them.
+pub fn run_hashed(
+    spec: &GridSpec,
+    registry: &Registry,
+    ticks: u64,
+    order: Order,
+    overruns: &Overruns,
+    sink: &mut dyn FnMut(u64, usize, &[PortValue]),
+    on_hash: &mut dyn FnMut(u64, u64),
 ) -> Result<(), ReferenceError> {
     let base_ns = u64::try_from(spec.base_period.as_nanos()).unwrap_or(u64::MAX);
     let mut slots = Vec::with_capacity(spec.components.len());
@@ -243,6 +256,8 @@ pub fn run(
             valid: initial.clone(),
             pending: initial,
             pending_from: None,
+            valid_hash: None,
+            pending_hash: None,
             inputs: c.info.zero_inputs(),
             bindings,
         });
@@ -253,9 +268,17 @@ pub fn run(
             if slot.pending_from == Some(n) {
                 std::mem::swap(&mut slot.valid, &mut slot.pending);
                 slot.pending_from = None;
+                slot.valid_hash = slot.pending_hash.take();
             }
             sink(n, c, &slot.valid);
         }
+        let tick_hash = state_hash::combine(
+            slots
+                .iter()
+                .enumerate()
+                .filter_map(|(c, slot)| Some((c, slot.valid_hash?))),
+        );
+        on_hash(n, tick_hash);
         for i in 0..count {
             let c = match order {
                 Order::Forward => i,
@@ -275,13 +298,16 @@ pub fn run(
                 generation: spec.generation_of(c),
                 flags: 0,
                 now_ns: n.saturating_mul(base_ns),
+                state_hash: tick_hash,
             };
             slot.component.step(&rel, &inputs, &mut slot.pending);
             slot.inputs = inputs;
-            slot.pending_from = if overruns.late.contains(&(c, n)) {
-                None // finished too late: the outputs never became valid
+            let mut hasher = StateHasher::new();
+            slot.component.state_hash(&slot.pending, &mut hasher);
+            (slot.pending_from, slot.pending_hash) = if overruns.late.contains(&(c, n)) {
+                (None, None) // finished too late: the outputs never became valid
             } else {
-                Some(n + slot.period)
+                (Some(n + slot.period), hasher.finish())
             };
         }
     }

@@ -18,12 +18,20 @@
 //! - A value the writer was not given for a tick (a line ended early with
 //!   [`TraceWriter::end_tick`]) is written `?`.
 //! - A component without outputs adds nothing to the lines.
+//! - `# state_hash tick=N hash=0x0123456789abcdef` after tick N's line, every
+//!   [`STATE_HASH_EVERY`] ticks (or as set: `modbot up --state-hash-every N`) and after the
+//!   last tick: the grid's state hash at N (see [`crate::state_hash`]), so two traces compare
+//!   in state beyond the outputs they print. Like every `#` line, readers of values skip it.
 
 use std::fmt::Write as _;
 use std::io::{self, Write};
 
 use super::component::PortValue;
 use super::spec::GridSpec;
+
+/// How often a trace writes the grid's state hash by default: every 1000 ticks (1 s of a
+/// 1 kHz grid), and after the last.
+pub const STATE_HASH_EVERY: u64 = 1000;
 
 /// The header line of `spec`'s trace, without the newline.
 pub fn header(spec: &GridSpec) -> String {
@@ -69,6 +77,10 @@ pub struct TraceWriter<W: Write> {
     /// The tick whose line was written last, so that `end_tick` after a complete tick does
     /// not write it again.
     written: Option<u64>,
+    /// Every how many ticks the state hash is written (0: never).
+    hash_every: u64,
+    /// The last tick's state hash given, and whether it was written.
+    last_hash: Option<(u64, u64, bool)>,
 }
 
 impl<W: Write> TraceWriter<W> {
@@ -102,7 +114,33 @@ impl<W: Write> TraceWriter<W> {
             count: 0,
             current: None,
             written: None,
+            hash_every: STATE_HASH_EVERY,
+            last_hash: None,
         }
+    }
+
+    /// The same writer writing the state hash every `every` ticks and after the last (0:
+    /// never).
+    pub fn with_state_hash_every(mut self, every: u64) -> TraceWriter<W> {
+        self.hash_every = every;
+        self
+    }
+
+    /// Gives the grid's state hash at tick `n` (after its values): written when `n` is a
+    /// multiple of the writer's period, and for the last tick given, by [`finish`].
+    ///
+    /// [`finish`]: TraceWriter::finish
+    pub fn state_hash(&mut self, n: u64, hash: u64) -> io::Result<()> {
+        if self.hash_every == 0 {
+            return Ok(());
+        }
+        self.end_tick(n)?;
+        let due = n > 0 && n.is_multiple_of(self.hash_every);
+        if due {
+            writeln!(self.out, "# state_hash tick={n} hash={hash:#018x}")?;
+        }
+        self.last_hash = Some((n, hash, due));
+        Ok(())
     }
 
     /// Records the outputs of `component` valid at tick `n`. A tick other than the one being
@@ -180,6 +218,9 @@ impl<W: Write> TraceWriter<W> {
         }
         if let Some(header) = self.header.take() {
             writeln!(self.out, "{header}")?;
+        }
+        if let Some((n, hash, false)) = self.last_hash {
+            writeln!(self.out, "# state_hash tick={n} hash={hash:#018x}")?;
         }
         self.out.flush()?;
         Ok(self.out)

@@ -47,6 +47,9 @@ pub struct GridRun {
     /// Write every output at every tick here (with assemblies: of the system's own
     /// components).
     pub trace: Option<std::path::PathBuf>,
+    /// Write the grid's state hash into the trace every this many ticks (the coordinator's
+    /// default when not given).
+    pub state_hash_every: Option<u64>,
     /// Run the grid in lockstep (see [`modbot_grid::GridClock::Lockstep`]).
     pub lockstep: bool,
     /// Assembly switches at given ticks: (tick, assembly).
@@ -60,7 +63,7 @@ pub struct GridRun {
 #[derive(Debug, thiserror::Error)]
 pub enum GridProcessError {
     #[error(
-        "{}: --ticks, --trace, --lockstep, --switch and --gate need a grid, and the description has none",
+        "{}: --ticks, --trace, --state-hash-every, --lockstep, --switch and --gate need a grid, and the description has none",
         .file.display()
     )]
     NoGrid { file: PathBuf },
@@ -119,6 +122,7 @@ pub fn add_processes(
     let Some(grid) = spec.grid.clone() else {
         if run.ticks.is_some()
             || run.trace.is_some()
+            || run.state_hash_every.is_some()
             || run.lockstep
             || !run.switches.is_empty()
             || run.gate.is_some()
@@ -220,6 +224,9 @@ pub fn add_processes(
     if let Some(t) = &run.trace {
         let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
         args.extend(["--trace".to_owned(), t.display().to_string()]);
+    }
+    if let Some(every) = run.state_hash_every {
+        args.extend(["--state-hash-every".to_owned(), every.to_string()]);
     }
     for (tick, name) in &run.switches {
         args.extend(["--switch".to_owned(), format!("{tick}:{name}")]);

@@ -551,7 +551,13 @@ fn grid_demo_example_loads_and_runs_the_same_twice() {
     assert!(sut.components.len() >= 3);
     let registry = modbot_components::builtin();
     let trace = modbot_grid::reference_trace(&sut, &registry, 100);
-    assert_eq!(trace.lines().count(), 101);
+    // The header, 100 ticks, the state hash after the last.
+    assert_eq!(trace.lines().count(), 102);
+    assert!(trace
+        .lines()
+        .last()
+        .unwrap()
+        .starts_with("# state_hash tick=99 hash=0x"));
     assert_eq!(trace, modbot_grid::reference_trace(&sut, &registry, 100));
 }
 

@@ -169,7 +169,11 @@ fn two_reference_traces_are_identical() {
     );
     assert_eq!(lines.next(), Some("0 A.y=0.0 B.y=0.0 C.y=0.0"));
     assert_eq!(lines.nth(5), Some("6 A.y=5.0 B.y=6.0 C.y=0.0"));
-    assert_eq!(sut.lines().count(), 51);
+    assert_eq!(
+        sut.lines().count(),
+        52,
+        "the header, 50 ticks, the state hash after the last"
+    );
 }
 
 #[test]
@@ -187,4 +191,69 @@ fn a_component_that_cannot_be_made_fails_the_run_by_name() {
         source.as_deref(),
         Some("param 'k' (f64) is required for type 'gain'")
     );
+}
+
+/// The grid's state hash at every tick of the run of `spec` in `order`, replaying `overruns`.
+fn hashes(spec: &GridSpec, ticks: u64, order: Order, overruns: &Overruns) -> Vec<u64> {
+    let mut out = Vec::new();
+    modbot_grid::reference::run_hashed(
+        spec,
+        &modbot_components::builtin(),
+        ticks,
+        order,
+        overruns,
+        &mut |_, _, _| {},
+        &mut |n, hash| {
+            assert_eq!(n, out.len() as u64);
+            out.push(hash);
+        },
+    )
+    .unwrap();
+    out
+}
+
+#[test]
+fn the_state_hash_changes_only_when_a_version_becomes_valid_and_not_with_the_release_order() {
+    let spec = chain();
+    let forward = hashes(&spec, 60, Order::Forward, &Overruns::default());
+    assert_eq!(
+        forward,
+        hashes(&spec, 60, Order::Reverse, &Overruns::default())
+    );
+    // Periods 1, 2, 5: A's version changes every tick from 1 on; tick 0 has only the initial
+    // outputs, which carry no hash.
+    assert_eq!(
+        forward[0],
+        modbot_grid::state_hash::combine(std::iter::empty())
+    );
+    assert!(forward.windows(2).all(|w| w[0] != w[1]));
+    // A ramp and a delay, both of period 5: the hash changes at 5, 10, … only.
+    let spec = grid(
+        r#"grid {}
+component "A" { type = "ramp", host = "h", period = 5, params = { slope = 1000 } }
+component "C" { type = "delay", host = "h", period = 5 }
+connect "A.y -> C.u"
+"#,
+    );
+    let h = hashes(&spec, 30, Order::Forward, &Overruns::default());
+    for n in 1..30 {
+        assert_eq!(h[n] != h[n - 1], n % 5 == 0, "tick {n}");
+    }
+}
+
+#[test]
+fn a_late_release_replayed_keeps_the_previous_state_hash() {
+    let spec = chain();
+    let b = spec.components.iter().position(|x| x.name == "B").unwrap();
+    let on_time = hashes(&spec, 20, Order::Forward, &Overruns::default());
+    let mut overruns = Overruns::default();
+    overruns.late.insert((b, 4)); // B's release at 4 finishes late: its version 6 never counts
+    overruns.skipped.insert((b, 6));
+    let late = hashes(&spec, 20, Order::Forward, &overruns);
+    assert_eq!(late[..6], on_time[..6]);
+    assert_ne!(late[6], on_time[6]);
+    // From 6 until B's release at 8 counts (at 10) the grids are in different states; B is
+    // a gain, with no memory, and nothing read its late version: from 10 on they agree.
+    assert!((6..10).all(|n| late[n] != on_time[n]));
+    assert_eq!(late[10..], on_time[10..]);
 }

@@ -139,6 +139,7 @@ impl<W: Write> Coordinator<W> {
                 now_ns,
                 generation,
                 flags,
+                state_hash: self.tick_hash,
             };
             release(&mut inc.comps[c], c, &at, &versions, &mut inc.hosts);
         }

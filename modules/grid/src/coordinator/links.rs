@@ -44,6 +44,8 @@ pub(super) struct ReleaseAt {
     pub(super) now_ns: u64,
     pub(super) generation: Generation,
     pub(super) flags: u16,
+    /// The grid's state hash at `n`.
+    pub(super) state_hash: u64,
 }
 
 /// Releases component `c` at `at`, reading the source versions `versions` (in its sources'
@@ -59,7 +61,9 @@ pub(super) fn release(
     let Ok(notice) = Release::new(at.n, at.now_ns, c as u16, &versions[..k]) else {
         return;
     };
-    let notice = notice.with(at.generation.0, at.flags);
+    let notice = notice
+        .with(at.generation.0, at.flags)
+        .with_state_hash(at.state_hash);
     if send_release(&mut hosts[comp.host], &notice) {
         comp.pending = Some(at.n);
         comp.releases += 1;

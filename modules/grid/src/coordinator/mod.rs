@@ -48,6 +48,7 @@ use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
 use modbot_grid::ledger::{self, ComponentRow, GridRow};
 use modbot_grid::recorder::{self, Recorder};
+use modbot_grid::state_hash;
 use modbot_grid::tick::TickSource;
 use modbot_grid::wire::{self, Listener, Sub};
 use modbot_grid::{GridClock, GridSpec, OverrunPolicy};
@@ -127,6 +128,10 @@ struct Comp {
     holding: bool,
     /// Its pending release was one to track because the robot is held (`Release::HELD`).
     held_release: bool,
+    /// The state hash of the on-time completion in `ready`, and of the valid version (none
+    /// for the initial outputs, or a component that contributes none).
+    ready_hash: Option<u64>,
+    valid_hash: Option<u64>,
 }
 
 impl Comp {
@@ -134,8 +139,20 @@ impl Comp {
     fn take_ready(&mut self, n: u64) {
         if self.ready.is_some_and(|from| from <= n) {
             self.valid_from = self.ready.take().unwrap_or(self.valid_from);
+            self.valid_hash = self.ready_hash.take();
         }
     }
+}
+
+/// The grid's state hash over `comps` as their versions are valid now: each one's hash with
+/// its index, in component order (as the reference run combines them).
+fn tick_hash(comps: &[Comp]) -> u64 {
+    state_hash::combine(
+        comps
+            .iter()
+            .enumerate()
+            .filter_map(|(c, comp)| Some((c, comp.valid_hash?))),
+    )
 }
 
 /// The components of `spec`, with their hosts as positions in `host_names` (unknown: 0).
@@ -162,6 +179,8 @@ fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
             latency: Histogram::new(),
             holding: false,
             held_release: false,
+            ready_hash: None,
+            valid_hash: None,
         })
         .collect()
 }
@@ -198,6 +217,10 @@ pub struct Coordinator<W: Write> {
     state_text: String,
     /// The tick a program's gate holds the grid before, while it does (the ledger says so).
     held_before: Option<u64>,
+    /// The grid's state hash at the tick being run (see [`state_hash`]).
+    tick_hash: u64,
+    /// Whether a malformed done sample was reported (once: a host of another build).
+    malformed_done: bool,
 }
 
 /// The hosts' done notices, as the coordinator waits for them.
@@ -265,6 +288,8 @@ impl<W: Write> Coordinator<W> {
             switched: Switched::default(),
             state_text: String::with_capacity(128),
             held_before: None,
+            tick_hash: 0,
+            malformed_done: false,
         })
     }
 
@@ -278,6 +303,13 @@ impl<W: Write> Coordinator<W> {
     /// for them without a limit of time otherwise).
     pub fn with_shutdown(mut self, shutdown: Shutdown) -> Self {
         self.notices.shutdown = shutdown;
+        self
+    }
+
+    /// Writes the grid's state hash into the trace every `every` ticks and after the last (0:
+    /// never; default [`modbot_grid::trace::STATE_HASH_EVERY`]).
+    pub fn with_state_hash_every(mut self, every: u64) -> Self {
+        self.recorder = self.recorder.map(|r| r.with_state_hash_every(every));
         self
     }
 
@@ -378,8 +410,10 @@ impl<W: Write> Coordinator<W> {
         if let Some(inc) = self.incoming.as_mut() {
             inc.comps.iter_mut().for_each(|c| c.take_ready(n));
         }
+        // Over the running assembly's versions valid at n, before a switch at n.
+        self.tick_hash = tick_hash(&self.comps);
         if let Some(rec) = self.recorder.as_mut() {
-            rec.tick(n, &self.versions)?;
+            rec.tick(n, &self.versions, self.tick_hash)?;
         }
         if self
             .incoming
@@ -431,11 +465,22 @@ impl<W: Write> Coordinator<W> {
             // `wire::DONE_BATCH` notices), so the sample goes back before they are taken.
             let mut scratch = std::mem::take(&mut self.notices.scratch);
             scratch.clear();
-            let received = self.notices.sub.receive(&mut |sample| {
-                if let Ok(batch) = Done::batch(sample) {
-                    scratch.extend(batch.copied());
-                }
-            });
+            let mut malformed = None;
+            let received = self
+                .notices
+                .sub
+                .receive(&mut |sample| match Done::batch(sample) {
+                    Ok(batch) => scratch.extend(batch.copied()),
+                    Err(e) => malformed = Some(e),
+                });
+            if let Some(e) = malformed.filter(|_| !self.malformed_done) {
+                // A host of another build (the notice's size changed): it looks like a hang
+                // otherwise.
+                self.malformed_done = true;
+                tracing::warn!(
+                    "a malformed done sample is dropped ({e}): is a host of another build running?"
+                );
+            }
             for done in &scratch {
                 self.take_one_done(n, base, current, done);
             }
@@ -499,6 +544,7 @@ impl<W: Write> Coordinator<W> {
             comp.failed += 1;
         } else if n <= m + comp.period {
             comp.ready = Some(m + comp.period);
+            comp.ready_hash = done.hash();
         } else {
             comp.late += 1;
         }
@@ -663,6 +709,7 @@ impl<W: Write> Coordinator<W> {
                 now_ns,
                 generation,
                 flags,
+                state_hash: self.tick_hash,
             };
             release(&mut self.comps[c], c, &at, &versions, &mut self.hosts);
         }

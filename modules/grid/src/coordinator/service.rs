@@ -47,6 +47,10 @@ pub struct Cli {
     /// Write every output at every tick to this file.
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// Write the grid's state hash into the trace every N ticks and after the last (0:
+    /// never).
+    #[arg(long, value_name = "N", default_value_t = modbot_grid::trace::STATE_HASH_EVERY)]
+    state_hash_every: u64,
     /// Switch to assembly NAME at tick TICK (`TICK:NAME`; repeatable). In lockstep the grid
     /// waits at that tick while the assembly is prepared, so the run is reproducible.
     #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
@@ -242,7 +246,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let shutdown = signals::Shutdown::on_signals()?;
     let coord = Coordinator::new(&*node, grid.clone(), trace)?
         .with_grace(period_ns / 4)
-        .with_shutdown(shutdown.clone());
+        .with_shutdown(shutdown.clone())
+        .with_state_hash_every(cli.state_hash_every);
     let lockstep = grid.timing.clock == modbot_grid::GridClock::Lockstep;
     if cli.gate.is_some() && !lockstep {
         anyhow::bail!("--gate holds a grid in lockstep; this grid runs in real time");
