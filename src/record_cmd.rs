@@ -9,8 +9,10 @@ use clap::Subcommand;
 /// What `modbot record` does.
 #[derive(Debug, Subcommand)]
 pub enum RecordCommand {
-    /// Compare two recordings of the same signals row by row, bit for bit: "identical through
-    /// tick N" (exit 0), or the first tick, signal and values that differ (exit 1).
+    /// Compare two recordings of the same signals row by row, bit for bit, and the grid's
+    /// state hash of each row: "identical through tick N" (exit 0), or the first tick, signal
+    /// and values that differ, or the first tick whose state hash differs where no recorded
+    /// signal does (exit 1).
     Compare { a: PathBuf, b: PathBuf },
     /// Write the recording as an MCAP file (Foxglove opens it): one channel per signal,
     /// `/modbot/<comp>.<port>`, JSON messages `{"tick": N, "value": ...}` at each tick's time.
@@ -29,7 +31,8 @@ pub fn run(command: RecordCommand) -> anyhow::Result<ExitCode> {
                 println!("{c}");
                 Ok(match c {
                     modbot_record::compare::Comparison::Identical { .. } => ExitCode::SUCCESS,
-                    modbot_record::compare::Comparison::Differs { .. } => ExitCode::from(1),
+                    modbot_record::compare::Comparison::Differs { .. }
+                    | modbot_record::compare::Comparison::StateDiffers { .. } => ExitCode::from(1),
                 })
             }
             Err(e) => {

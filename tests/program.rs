@@ -535,7 +535,7 @@ fn record_and_stop_record_write_the_chosen_signals_and_an_unknown_one_stops_the_
         r#"
 import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1], "r")
-assert sorted(f.keys()) == ["generation", "robot.link_position", "robot.motor_torque", "tick", "time"], list(f.keys())
+assert sorted(f.keys()) == ["generation", "robot.link_position", "robot.motor_torque", "state_hash", "tick", "time"], list(f.keys())
 tick = f["tick"][:]
 assert len(tick) == int(sys.argv[2]) and (np.diff(tick) == 1).all(), (len(tick), sys.argv[2])
 for s in ["robot.link_position", "robot.motor_torque"]:

@@ -77,7 +77,7 @@ import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1], "r")
 signals = ["robot.link_position", "robot.demand_position", "robot.motor_position",
            "robot.motor_velocity", "robot.motor_torque", "robot.statusword"]
-assert sorted(f.keys()) == sorted(signals + ["robot.state", "tick", "time", "generation"]), list(f.keys())
+assert sorted(f.keys()) == sorted(signals + ["robot.state", "tick", "time", "generation", "state_hash"]), list(f.keys())
 # The robot's state: disabled (0) while the drives are enabled, then operational (1) throughout.
 state = f["robot.state"][:]
 assert state.shape == (10000,) and state[-1] == 1.0 and set(np.unique(state)) <= {0.0, 1.0}, np.unique(state)
@@ -85,8 +85,11 @@ tick = f["tick"][:]
 assert (tick == np.arange(10000)).all(), (tick[:3], tick[-3:], len(tick))
 assert np.allclose(f["time"][:], tick * 0.001, rtol=0, atol=1e-12)
 assert f["time"].attrs["unit"] == "s"
-for name in ["tick", "time", "generation"]:
+for name in ["tick", "time", "generation", "state_hash"]:
     assert f[name].shape == (10000,) and f[name].maxshape == (None,), (name, f[name].shape)
+assert f["state_hash"].dtype == np.uint64 and "SipHash-2-4" in f["state_hash"].attrs["hash"]
+# The grid's state changes as the robot moves: its hash is not one number.
+assert len(np.unique(f["state_hash"][:])) > 1000, len(np.unique(f["state_hash"][:]))
 for s in signals:
     d = f[s]
     assert d.shape == (10000, 6) and d.dtype == np.float64, (s, d.shape, d.dtype)
@@ -209,6 +212,134 @@ print(tick[-1])
     );
 }
 
+/// Runs `modbot up FILE --var domain=… --var VAR … --record DIR/NAME.TAG.h5 MORE` to its end
+/// (exit 0) and returns the recording's path.
+fn recorded_run(sut: &mut TestDomain, file: &Path, var: &str, more: &[&str], tag: &str) -> PathBuf {
+    let recording = std::env::temp_dir().join(format!("{}.{tag}.h5", sut.name()));
+    let domain = format!("domain={}", sut.name());
+    let mut args = vec![
+        "up",
+        file.to_str().unwrap(),
+        "--var",
+        &domain,
+        "--var",
+        var,
+        "--record",
+        recording.to_str().unwrap(),
+    ];
+    args.extend(more);
+    let up = sut.spawn_logged("modbot", &args);
+    let status = sut.wait_exit(up, Duration::from_secs(300));
+    assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+    recording
+}
+
+/// `modbot record compare A B`: its exit code and what it printed.
+fn record_compare(sut: &TestDomain, a: &Path, b: &Path) -> (Option<i32>, String) {
+    let out = sut.modbot(&[
+        "record",
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+    ]);
+    let said = String::from_utf8_lossy(&out.stdout).into_owned();
+    (out.status.code(), said)
+}
+
+/// A grid of three components, only the first recorded: a ramp A (period 1) into a gain B
+/// (period 2, gain `vars.k`) into an integrator C (period 5). Run in lockstep twice with k = 2
+/// and once with k = 2.5: the two alike compare identical, signals and state hash; the third
+/// records the same A.y in every row, and only the state hash (B and C are not recorded) says
+/// where the runs part — at the tick LET predicts. Every row's hash is the reference run's:
+/// the hosts and the coordinator hash and combine as the in-process reference does.
+#[test]
+fn two_lockstep_runs_hash_alike_and_a_changed_gain_no_signal_shows_is_found_by_the_state_hash() {
+    let mut sut = TestDomain::new("rechash");
+    let grid = |record: &str| {
+        format!(
+            r#"domain(vars.domain)
+grid {{ base_period = 0.001, clock = "lockstep" }}
+component "A" {{ type = "ramp", host = "h1", period = 1, params = {{ slope = 1 }} }}
+component "B" {{ type = "gain", host = "h2", period = 2, params = {{ k = tonumber(vars.k) }} }}
+component "C" {{ type = "integrator", host = "h1", period = 5 }}
+connect "A.y -> B.u"
+connect "B.y -> C.u"
+{record}"#
+        )
+    };
+    let dir = std::env::temp_dir();
+    let (recorded, bare) = (
+        dir.join(format!("{}.recorded.lua", sut.name())),
+        dir.join(format!("{}.bare.lua", sut.name())),
+    );
+    std::fs::write(&recorded, grid(r#"record { signals = { "A.y" } }"#)).unwrap();
+    std::fs::write(&bare, grid("")).unwrap();
+    let ticks = 20_001u64;
+    let more = ["--ticks", &ticks.to_string()];
+    let mut run =
+        |tag: &str, k: &str| recorded_run(&mut sut, &recorded, &format!("k={k}"), &more, tag);
+    let (a, b, c) = (run("a", "2"), run("b", "2"), run("c", "2.5"));
+    let compare = |x: &Path, y: &Path| record_compare(&sut, x, y);
+    let (code, said) = compare(&a, &b);
+    assert_eq!(
+        (code, said.trim_end()),
+        (
+            Some(0),
+            "identical through tick 20000 (20001 rows, 1 signal and the state hash)"
+        )
+    );
+    // What the reference run of the same grid (without its recorder, which hashes nothing
+    // and comes last) gives for each k.
+    let reference = |k: &str| {
+        let vars = vec![
+            ("domain".to_owned(), sut.name().to_owned()),
+            ("k".to_owned(), k.to_owned()),
+        ];
+        let spec = modbot_system::load_with_vars(
+            &bare,
+            &modbot_system::DefaultResolver::for_file(&bare),
+            &vars,
+        )
+        .unwrap();
+        let mut hashes = Vec::new();
+        modbot_grid::reference::run_hashed(
+            &spec.grid.unwrap(),
+            &modbot_components::builtin(),
+            ticks,
+            modbot_grid::reference::Order::Forward,
+            &modbot_grid::Overruns::default(),
+            &mut |_, _, _| {},
+            &mut |_, hash| hashes.push(hash),
+        )
+        .unwrap();
+        hashes
+    };
+    let (want_a, want_c) = (reference("2"), reference("2.5"));
+    let got = |path: &Path| modbot_record::read::read_state_hash(path).unwrap().unwrap();
+    assert!(got(&a) == want_a, "the recorded hashes are the reference's");
+    assert!(got(&c) == want_c, "the recorded hashes are the reference's");
+    let parted = (0..want_a.len())
+        .find(|&n| want_a[n] != want_c[n])
+        .expect("the runs part");
+    let (code, said) = compare(&a, &c);
+    assert_eq!(code, Some(1), "{said}");
+    assert!(
+        said.starts_with(&format!(
+            "first differs at tick {parted}: the state hash 0x{:016x} in the first, 0x{:016x} in \
+             the second (no recorded signal differs there",
+            want_a[parted], want_c[parted]
+        )),
+        "{said}"
+    );
+    // B's first release reads A's initial 0 (0 × k alike); its second, at 2, reads A = 0.001:
+    // valid at 4.
+    assert_eq!(parted, 4);
+    for f in [&a, &b, &c, &recorded, &bare] {
+        let _ = std::fs::remove_file(f);
+    }
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
+
 /// The rows of the recording at `path` so far, as h5py counts them reading it as a SWMR
 /// reader, while it is written (0 while there is none).
 fn rows(path: &Path) -> u64 {
@@ -232,51 +363,22 @@ fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_
     let _arm = one_arm_at_a_time();
     let mut sut = TestDomain::new("reccmp");
     let arm = arm();
-    let domain = format!("domain={}", sut.name());
+    let more = ["--lockstep", "--ticks", "2500", "--switch", "300:ptp"];
     let mut run = |tag: &str, dwell: &str| {
-        let file = std::env::temp_dir().join(format!("{}.{tag}.h5", sut.name()));
-        let dwell = format!("dwell={dwell}");
-        let args = [
-            "up",
-            arm.to_str().unwrap(),
-            "--var",
-            &domain,
-            "--var",
-            &dwell,
-            "--lockstep",
-            "--ticks",
-            "2500",
-            "--switch",
-            "300:ptp",
-            "--record",
-            file.to_str().unwrap(),
-        ];
-        let up = sut.spawn_logged("modbot", &args);
-        let status = sut.wait_exit(up, Duration::from_secs(300));
-        assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
-        file
+        recorded_run(&mut sut, &arm, &format!("dwell={dwell}"), &more, tag)
     };
     let (a, b, c) = (run("a", "0"), run("b", "0"), run("c", "0.05"));
-    let compare = |x: &PathBuf, y: &PathBuf| {
-        sut.modbot(&[
-            "record",
-            "compare",
-            x.to_str().unwrap(),
-            y.to_str().unwrap(),
-        ])
-    };
-    let same = compare(&a, &b);
-    let said = String::from_utf8_lossy(&same.stdout).into_owned();
-    assert_eq!(same.status.code(), Some(0), "{said}");
+    let compare = |x: &Path, y: &Path| record_compare(&sut, x, y);
+    let (code, said) = compare(&a, &b);
+    assert_eq!(code, Some(0), "{said}");
     assert!(
         said.starts_with("identical through tick 2499 (2500 rows,"),
         "{said}"
     );
-    let other = compare(&a, &c);
-    let said = String::from_utf8_lossy(&other.stdout).into_owned();
-    assert_eq!(other.status.code(), Some(1), "{said}");
+    let (code, said) = compare(&a, &c);
+    assert_eq!(code, Some(1), "{said}");
     assert!(said.starts_with("first differs at tick "), "{said}");
-    let tick: u64 = said["first differs at tick ".len()..]
+    let tick: i64 = said["first differs at tick ".len()..]
         .split(':')
         .next()
         .and_then(|t| t.parse().ok())
@@ -284,6 +386,16 @@ fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_
     assert!(
         tick > 300,
         "the runs are alike until ptp has reached its first point: {said}"
+    );
+    // Every recorded signal is a component's output, which its state hash covers: the grid's
+    // state parts no later than a signal does, and that is the tick named.
+    let hashes = |p: &Path| modbot_record::read::read_state_hash(p).unwrap().unwrap();
+    let (ha, hc) = (hashes(&a), hashes(&c));
+    assert_eq!(ha, hashes(&b));
+    assert_eq!(
+        (0..ha.len()).find(|&r| ha[r] != hc[r]),
+        Some(tick as usize),
+        "{said}"
     );
     // The same recording for Foxglove: one channel per signal, a message per row and signal
     // at its tick's time, the values as recorded.

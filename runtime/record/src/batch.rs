@@ -1,6 +1,6 @@
 //! The batch the writer gathers from rows before it appends them to the file: per dataset,
 //! its words (an f64 as its bits), for the signals the file records — all of the recorder's,
-//! or those a program chose ([`crate::control`]) — then generation, time and tick.
+//! or those a program chose ([`crate::control`]) — then generation, state hash, time and tick.
 
 use modbot_grid::component::PortType;
 
@@ -11,7 +11,7 @@ pub struct Batch {
     /// Per recorded signal: where its words start in a row, and how many there are.
     picks: Vec<(usize, usize)>,
     base_period_s: f64,
-    /// Per dataset: the recorded signals, then generation, time, tick.
+    /// Per dataset: the recorded signals, then generation, state hash, time, tick.
     pub columns: Vec<Vec<u64>>,
     /// Rows gathered.
     pub rows: usize,
@@ -32,14 +32,14 @@ impl Batch {
             .filter_map(|&i| starts.get(i).copied())
             .collect();
         Batch {
-            columns: vec![Vec::new(); picks.len() + 3],
+            columns: vec![Vec::new(); picks.len() + 4],
             picks,
             base_period_s,
             rows: 0,
         }
     }
 
-    /// Adds a row: the tick, the generation, then every signal's words.
+    /// Adds a row: the tick, the generation, the state hash, then every signal's words.
     pub fn add(&mut self, row: &[u64]) {
         let n = self.picks.len();
         for (column, &(at, width)) in self.columns.iter_mut().zip(&self.picks) {
@@ -48,11 +48,12 @@ impl Batch {
                 None => column.resize(column.len() + width, 0),
             }
         }
-        let (tick, generation) = (row[0], row[1]);
+        let (tick, generation, state_hash) = (row[0], row[1], row[2]);
         self.columns[n].push(generation);
+        self.columns[n + 1].push(state_hash);
         let time = tick as f64 * self.base_period_s;
-        self.columns[n + 1].push(time.to_bits());
-        self.columns[n + 2].push(tick);
+        self.columns[n + 2].push(time.to_bits());
+        self.columns[n + 3].push(tick);
         self.rows += 1;
     }
 
@@ -70,8 +71,8 @@ mod tests {
     fn a_batch_of_chosen_signals_takes_their_words_from_each_row() {
         let types = [PortType::F64, PortType::F64s(2), PortType::I64];
         let mut sut = Batch::new(&types, &[1, 2], 0.001);
-        sut.add(&[7, 1, 10, 20, 21, 30]);
-        sut.add(&[8, 1, 11, 22, 23, 31]);
+        sut.add(&[7, 1, 0xa, 10, 20, 21, 30]);
+        sut.add(&[8, 1, 0xb, 11, 22, 23, 31]);
         assert_eq!(
             sut.columns[0],
             [20, 21, 22, 23],
@@ -79,11 +80,15 @@ mod tests {
         );
         assert_eq!(sut.columns[1], [30, 31]);
         assert_eq!(
-            (sut.columns[2].clone(), sut.columns[4].clone()),
-            (vec![1, 1], vec![7, 8])
+            (
+                sut.columns[2].clone(),
+                sut.columns[3].clone(),
+                sut.columns[5].clone()
+            ),
+            (vec![1, 1], vec![0xa, 0xb], vec![7, 8])
         );
         assert_eq!(
-            sut.columns[3],
+            sut.columns[4],
             [(7.0 * 0.001f64).to_bits(), (8.0 * 0.001f64).to_bits()]
         );
         sut.clear();

@@ -1,10 +1,13 @@
 //! Two recordings compared tick by tick, to the last bit (`modbot record compare A B`): two
 //! lockstep runs of the same system give identical files, and where they do not, the first
-//! tick, signal and values that differ say where to look.
+//! tick, signal and values that differ say where to look. Beside the signals the files record,
+//! the grid's state hash per row (`modbot_grid::state_hash`) compares the state of every
+//! component, recorded or not: a difference no recorded signal shows yet is found at the
+//! tick the state first differs.
 
 use std::path::Path;
 
-use super::read::{read_signal, signals, ReadError, Series};
+use super::read::{read_signal, read_state_hash, signals, ReadError, Series};
 
 /// How two recordings compare.
 #[derive(Debug, Clone, PartialEq)]
@@ -19,6 +22,8 @@ pub enum Comparison {
         signals: usize,
         /// Rows one has past the other's end: (which file, 0 or 1, how many).
         longer: Option<(usize, usize)>,
+        /// Whether the grid's state hash was compared too (both files keep it).
+        hashed: bool,
     },
     /// The first row where they differ.
     Differs {
@@ -30,6 +35,14 @@ pub enum Comparison {
         index: usize,
         /// The two values.
         values: (f64, f64),
+    },
+    /// The first row where the grid's state hash differs, before (or without) any recorded
+    /// signal differing: a component's state the recording does not show.
+    StateDiffers {
+        /// Its tick (in the first file).
+        tick: i64,
+        /// The two hashes.
+        hashes: (u64, u64),
     },
 }
 
@@ -108,6 +121,21 @@ pub fn compare(a: &Path, b: &Path) -> Result<Comparison, CompareError> {
             );
         }
     }
+    // Last: at the same row a signal that differs says more.
+    let (hash_a, hash_b) = (read_state_hash(a)?, read_state_hash(b)?);
+    let hashed = hash_a.is_some() && hash_b.is_some();
+    if let (Some(ha), Some(hb)) = (&hash_a, &hash_b) {
+        let common = rows.min(ha.len()).min(hb.len());
+        if let Some(row) = (0..common).find(|&r| ha[r] != hb[r]) {
+            consider(
+                row,
+                Comparison::StateDiffers {
+                    tick: ticks_a.ticks[row],
+                    hashes: (ha[row], hb[row]),
+                },
+            );
+        }
+    }
     if let Some((_, differs)) = first {
         return Ok(differs);
     }
@@ -121,11 +149,13 @@ pub fn compare(a: &Path, b: &Path) -> Result<Comparison, CompareError> {
             std::cmp::Ordering::Less => Some((1, lb - la)),
             std::cmp::Ordering::Equal => None,
         },
+        hashed,
     })
 }
 
 impl std::fmt::Display for Comparison {
-    /// One line: "identical through tick N (R rows, S signals)" or "first differs at tick T: …".
+    /// One line: "identical through tick N (R rows, S signals and the state hash)" or "first
+    /// differs at tick T: …".
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Comparison::Identical {
@@ -133,12 +163,15 @@ impl std::fmt::Display for Comparison {
                 rows,
                 signals,
                 longer,
+                hashed,
             } => {
                 match through {
                     Some(t) => write!(f, "identical through tick {t}")?,
                     None => write!(f, "identical: no rows in common")?,
                 }
-                write!(f, " ({rows} rows, {signals} signals)")?;
+                let hash = if *hashed { " and the state hash" } else { "" };
+                let plural = if *signals == 1 { "" } else { "s" };
+                write!(f, " ({rows} rows, {signals} signal{plural}{hash})")?;
                 if let Some((which, n)) = longer {
                     let which = ["first", "second"][*which];
                     write!(f, "; the {which} has {n} more rows")?;
@@ -154,6 +187,15 @@ impl std::fmt::Display for Comparison {
                 f,
                 "first differs at tick {tick}: {signal}[{index}] {a:?} in the first, {b:?} in the second"
             ),
+            Comparison::StateDiffers {
+                tick,
+                hashes: (a, b),
+            } => write!(
+                f,
+                "first differs at tick {tick}: the state hash {a:#018x} in the first, {b:#018x} \
+                 in the second (no recorded signal differs there: a component's state the \
+                 recording does not show)"
+            ),
         }
     }
 }
@@ -165,8 +207,18 @@ mod tests {
     use modbot_grid::component::PortType;
     use modbot_grid::record_type::Signal;
 
-    /// A recording of `q` (f64[2]) and `n` (i64) at ticks 10.., `q` being `f(tick)`.
+    /// A recording of `q` (f64[2]) and `n` (i64) at ticks 10.., `q` being `f(tick)`, the
+    /// state hash `tick` except at `hash_off`.
     fn recording(path: &Path, rows: u64, f: impl Fn(u64) -> [f64; 2]) {
+        recording_hashed(path, rows, f, None)
+    }
+
+    fn recording_hashed(
+        path: &Path,
+        rows: u64,
+        f: impl Fn(u64) -> [f64; 2],
+        hash_off: Option<u64>,
+    ) {
         let signals = [
             Signal {
                 name: "a.q".into(),
@@ -182,8 +234,12 @@ mod tests {
         let q = ticks.iter().flat_map(|&t| f(t).map(f64::to_bits)).collect();
         let n = ticks.iter().map(|&t| t * 2).collect();
         let generation = vec![0; rows as usize];
+        let hashes = ticks
+            .iter()
+            .map(|&t| if Some(t) == hash_off { !t } else { t })
+            .collect();
         let time = ticks.iter().map(|&t| (t as f64 * 1e-3).to_bits()).collect();
-        file.append(rows as usize, &[q, n, generation, time, ticks])
+        file.append(rows as usize, &[q, n, generation, hashes, time, ticks])
             .unwrap();
         file.close().unwrap();
     }
@@ -210,7 +266,7 @@ mod tests {
         let same = compare(&a, &b).unwrap();
         assert_eq!(
             same.to_string(),
-            "identical through tick 49 (40 rows, 2 signals); the first has 10 more rows"
+            "identical through tick 49 (40 rows, 2 signals and the state hash); the first has 10 more rows"
         );
         let differs = compare(&a, &c).unwrap();
         assert!(
@@ -220,6 +276,29 @@ mod tests {
         assert!(differs
             .to_string()
             .starts_with("first differs at tick 33: a.q[1] -33.0"));
+        // The state differs at 20, where no signal does; at 33 a signal does too.
+        let (d, e) = (dir.join("d.h5"), dir.join("e.h5"));
+        recording_hashed(&d, 50, |t| [t as f64, -(t as f64)], Some(20));
+        let state = compare(&a, &d).unwrap();
+        assert_eq!(
+            state,
+            Comparison::StateDiffers {
+                tick: 20,
+                hashes: (20, !20)
+            }
+        );
+        assert_eq!(
+            state.to_string(),
+            "first differs at tick 20: the state hash 0x0000000000000014 in the first, \
+             0xffffffffffffffeb in the second (no recorded signal differs there: a component's \
+             state the recording does not show)"
+        );
+        recording_hashed(&e, 50, |t| [t as f64, -(t as f64)], Some(33));
+        let both = compare(&c, &e).unwrap();
+        assert!(
+            matches!(&both, Comparison::Differs { tick: 33, signal, .. } if signal == "a.q"),
+            "a signal that differs at the same tick names more: {both}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

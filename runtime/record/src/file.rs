@@ -9,6 +9,8 @@
 //! /tick             i64 (ticks,)     the tick each row was recorded at: the count of complete rows
 //! /time             f64 (ticks,)     tick · base_period, in seconds
 //! /generation       i64 (ticks,)     the assembly generation of the release (0 without assemblies)
+//! /state_hash       u64 (ticks,)     the grid's state hash at the tick (`modbot_grid::state_hash`;
+//!                   attribute hash: how it is computed)
 //! /<comp>.<port>    per signal: f64 or i64 (a bool as 0 or 1) of shape (ticks,) for a
 //!                   scalar port, f64 (ticks, N) for an f64[N] port; attributes: type (the
 //!                   port type, "f64[6]"), unit (where the description says)
@@ -56,6 +58,7 @@ pub struct Header {
 enum Element {
     F64,
     I64,
+    U64,
 }
 
 /// A dataset of the file and its shape per row.
@@ -76,7 +79,8 @@ impl Column {
 pub struct RecordFile {
     path: PathBuf,
     file: hdf5::File,
-    /// Per dataset, in the order a batch is appended: the signals, then generation, time, tick.
+    /// Per dataset, in the order a batch is appended: the signals, then generation, state
+    /// hash, time, tick.
     columns: Vec<Column>,
     /// Complete rows in the file.
     rows: usize,
@@ -101,7 +105,7 @@ impl RecordFile {
             .with_fapl(|p| p.libver_latest())
             .create(path)
             .map_err(failed)?;
-        let mut columns = Vec::with_capacity(signals.len() + 3);
+        let mut columns = Vec::with_capacity(signals.len() + 4);
         let chunk = usize::try_from(chunk_rows.max(1)).unwrap_or(usize::MAX);
         let built = (|| {
             text_attr(&file, "signals", &names(signals))?;
@@ -125,6 +129,9 @@ impl RecordFile {
                 columns.push(column);
             }
             columns.push(empty(&file, "generation", PortType::I64, chunk)?);
+            let hash = empty_u64(&file, STATE_HASH, chunk)?;
+            text_attr(&hash.dataset, "hash", STATE_HASH_HOW)?;
+            columns.push(hash);
             let time = empty(&file, "time", PortType::F64, chunk)?;
             text_attr(&time.dataset, "unit", "s")?;
             columns.push(time);
@@ -148,8 +155,8 @@ impl RecordFile {
         &self.path
     }
 
-    /// Appends one batch of `rows` rows: per dataset (the signals, then generation, time,
-    /// tick), its words row after row (an f64 as its bits), and flushes it to the file.
+    /// Appends one batch of `rows` rows: per dataset (the signals, then generation, state hash,
+    /// time, tick), its words row after row (an f64 as its bits), and flushes it to the file.
     pub fn append(&mut self, rows: usize, columns: &[Vec<u64>]) -> Result<(), FileError> {
         if rows == 0 {
             return Ok(());
@@ -207,6 +214,7 @@ fn write_1d(
             let values: &[i64] = bytemuck::cast_slice(words);
             column.dataset.write_slice(ArrayView1::from(values), at)
         }
+        Element::U64 => column.dataset.write_slice(ArrayView1::from(words), at),
     }
 }
 
@@ -228,7 +236,33 @@ fn write_2d(
             let view = ArrayView2::from_shape(shape, values).map_err(bad)?;
             column.dataset.write_slice(view, at)
         }
+        Element::U64 => {
+            let view = ArrayView2::from_shape(shape, words).map_err(bad)?;
+            column.dataset.write_slice(view, at)
+        }
     }
+}
+
+/// The dataset of the grid's state hash per row.
+pub const STATE_HASH: &str = "state_hash";
+
+/// How the state hash is computed (its dataset's attribute `hash`).
+const STATE_HASH_HOW: &str = "SipHash-2-4 with keys 0, 0 over (component index, component hash) \
+     of the versions valid at the tick, in component order; a component's hash is over its \
+     outputs (tag, little-endian bits) unless it adds more state: modbot_grid::state_hash";
+
+/// Adds the empty, growable u64 dataset `name`.
+fn empty_u64(file: &hdf5::File, name: &str, chunk: usize) -> hdf5::Result<Column> {
+    let dataset = file
+        .new_dataset::<u64>()
+        .chunk(chunk)
+        .shape(0..)
+        .create(name)?;
+    Ok(Column {
+        dataset,
+        element: Element::U64,
+        width: None,
+    })
 }
 
 /// The signals' names, comma-separated.
@@ -246,7 +280,7 @@ fn empty(file: &hdf5::File, name: &str, ty: PortType, chunk: usize) -> hdf5::Res
     };
     let builder = match element {
         Element::F64 => file.new_dataset::<f64>(),
-        Element::I64 => file.new_dataset::<i64>(),
+        Element::I64 | Element::U64 => file.new_dataset::<i64>(),
     };
     let dataset = match width {
         None => builder.chunk(chunk).shape(0..).create(name)?,
@@ -313,7 +347,8 @@ mod tests {
                 .iter()
                 .map(|&t| (t as f64 * 0.001).to_bits())
                 .collect();
-            let columns = [q, ticks.clone(), vec![0; 40], time, ticks];
+            let hashes: Vec<u64> = ticks.iter().map(|&t| u64::MAX - t).collect();
+            let columns = [q, ticks.clone(), vec![0; 40], hashes, time, ticks];
             sut.append(40, &columns).unwrap();
         }
         sut.close().unwrap();
@@ -325,6 +360,8 @@ mod tests {
         let q: ndarray::Array2<f64> = q.read_2d().unwrap();
         assert_eq!((q[[1, 0]], q[[1, 1]], q[[119, 1]]), (1.0, -1.0, -119.0));
         assert_eq!(file.dataset("b.n").unwrap().shape(), vec![120]);
+        let hash: Vec<u64> = file.dataset("state_hash").unwrap().read_raw().unwrap();
+        assert_eq!((hash[0], hash[119]), (u64::MAX, u64::MAX - 119));
         let unit: VarLenUnicode = file
             .dataset("a.q")
             .unwrap()

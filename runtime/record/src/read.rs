@@ -33,7 +33,7 @@ impl Series {
 }
 
 /// The datasets every recording has besides its signals.
-pub const BOOKKEEPING: [&str; 3] = ["tick", "time", "generation"];
+pub const BOOKKEEPING: [&str; 4] = ["tick", "time", "generation", crate::file::STATE_HASH];
 
 /// The signals a recording holds (`comp.port`), sorted: its datasets but the bookkeeping ones.
 pub fn signals(path: &Path) -> Result<Vec<String>, ReadError> {
@@ -103,4 +103,30 @@ pub fn read_signal(path: &Path, signal: &str, from: i64, to: i64) -> Result<Seri
         width,
         values,
     })
+}
+
+/// The grid's state hash of every row (see `modbot_grid::state_hash`), or `None` for a
+/// recording written before recordings kept it.
+pub fn read_state_hash(path: &Path) -> Result<Option<Vec<u64>>, ReadError> {
+    let failed = |why: String| ReadError {
+        path: path.to_path_buf(),
+        why,
+    };
+    let file = hdf5::File::open_as(path, hdf5::OpenMode::ReadSWMR)
+        .map_err(|e| failed(format!("does not open as a recording: {e}")))?;
+    let Ok(dataset) = file.dataset(crate::file::STATE_HASH) else {
+        return Ok(None);
+    };
+    let rows = file
+        .dataset("tick")
+        .map_err(|e| failed(format!("has no ticks: {e}")))?
+        .shape()
+        .first()
+        .copied()
+        .unwrap_or(0);
+    let hashes: Vec<u64> = dataset
+        .read_slice_1d::<u64, _>(s![..rows.min(dataset.shape().first().copied().unwrap_or(0))])
+        .map_err(|e| failed(format!("'{}': {e}", crate::file::STATE_HASH)))?
+        .to_vec();
+    Ok(Some(hashes))
 }

@@ -2,14 +2,15 @@
 //! passed back and forth through two lock-free queues, so that recording a row takes no lock,
 //! allocates nothing and never waits (unless the recorder is told it may: `lossless`).
 //!
-//! A row is the words of one release: the tick, the generation, then every signal's values
+//! A row is the words of one release: the tick, the generation, the grid's state hash at the
+//! tick, then every signal's values
 //! (an f64 as its bits, an i64 as itself, a bool as 0 or 1) in signal order.
 
 use crossbeam::queue::ArrayQueue;
 use modbot_grid::component::PortValue;
 
-/// The words of a row before the signals: the tick and the generation.
-pub const HEAD_WORDS: usize = 2;
+/// The words of a row before the signals: the tick, the generation and the state hash.
+pub const HEAD_WORDS: usize = 3;
 
 /// Rows going to the writer, and empty ones coming back.
 pub struct Rows {
@@ -46,14 +47,16 @@ impl Rows {
         self.full.len()
     }
 
-    /// Records a row: the tick, the generation and `values`, if an empty row is free; `false`
-    /// when every row is full (the writer is behind). Lock-free; no allocation.
-    pub fn push(&self, tick: u64, generation: u16, values: &[PortValue]) -> bool {
+    /// Records a row: the tick, the generation, the grid's state hash at the tick and
+    /// `values`, if an empty row is free; `false` when every row is full (the writer is
+    /// behind). Lock-free; no allocation.
+    pub fn push(&self, tick: u64, generation: u16, state_hash: u64, values: &[PortValue]) -> bool {
         let Some(mut row) = self.free.pop() else {
             return false;
         };
         row[0] = tick;
         row[1] = u64::from(generation);
+        row[2] = state_hash;
         let mut at = HEAD_WORDS;
         for v in values {
             match v {
@@ -99,13 +102,13 @@ mod tests {
             PortValue::Bool(true),
             PortValue::I64(-1),
         ];
-        assert!(sut.push(7, 1, &values));
-        assert!(sut.push(8, 1, &values));
-        assert!(!sut.push(9, 1, &values), "the third row has no room");
+        assert!(sut.push(7, 1, 0xab, &values));
+        assert!(sut.push(8, 1, 0xab, &values));
+        assert!(!sut.push(9, 1, 0xab, &values), "the third row has no room");
         let row = sut.pop().unwrap();
-        assert_eq!(&row[..], &[7, 1, 1.5f64.to_bits(), 1, u64::MAX]);
+        assert_eq!(&row[..], &[7, 1, 0xab, 1.5f64.to_bits(), 1, u64::MAX]);
         sut.give_back(row);
-        assert!(sut.push(9, 2, &values));
+        assert!(sut.push(9, 2, 0xab, &values));
         assert_eq!(sut.pop().unwrap()[0], 8);
         assert_eq!(sut.pop().unwrap()[0], 9);
         assert!(sut.pop().is_none());

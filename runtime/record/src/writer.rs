@@ -318,7 +318,7 @@ mod tests {
                 ty: PortType::F64s(2),
             },
         ];
-        let rows = Arc::new(Rows::new(64, 2 + 3));
+        let rows = Arc::new(Rows::new(64, crate::rows::HEAD_WORDS + 3));
         let recording = Recording {
             signals,
             header: Header::default(),
@@ -332,7 +332,7 @@ mod tests {
         let values = |t: u64| [PortValue::F64(t as f64), PortValue::F64s(vec![1.0, -1.0])];
         // Before a recording starts, rows are given back unwritten.
         for tick in 0..5 {
-            assert!(rows.push(tick, 0, &values(tick)));
+            assert!(rows.push(tick, 0, tick * 7, &values(tick)));
         }
         assert!(
             control::start(dir.join("run.h5"), vec!["nope.x".into()], &mut || ())
@@ -342,7 +342,7 @@ mod tests {
         );
         let path = control::start(dir.join("run.h5"), vec!["b.q".into()], &mut || ()).unwrap();
         for tick in 5..30 {
-            while !rows.push(tick, 0, &values(tick)) {
+            while !rows.push(tick, 0, tick * 7, &values(tick)) {
                 sut.wake();
                 std::thread::sleep(Duration::from_millis(1));
             }
@@ -363,7 +363,7 @@ mod tests {
         let file = hdf5::File::open(&path).unwrap();
         let mut names = file.member_names().unwrap();
         names.sort();
-        assert_eq!(names, ["b.q", "generation", "tick", "time"]);
+        assert_eq!(names, ["b.q", "generation", "state_hash", "tick", "time"]);
         let tick: Vec<i64> = file.dataset("tick").unwrap().read_raw().unwrap();
         assert_eq!(tick, (5..30).collect::<Vec<i64>>());
         assert_eq!(file.dataset("b.q").unwrap().shape(), vec![25, 2]);
@@ -373,6 +373,8 @@ mod tests {
             (&q.ticks[..], q.width, q.row(2)),
             (&[10, 11, 12][..], 2, &[1.0, -1.0][..])
         );
+        let hashes = crate::read::read_state_hash(&path).unwrap().unwrap();
+        assert_eq!(hashes, (5..30).map(|t| t * 7).collect::<Vec<u64>>());
         let t = crate::read::read_signal(&path, "tick", 28, 99).unwrap();
         assert_eq!((t.width, t.values), (1, vec![28.0, 29.0]));
         let missing = crate::read::read_signal(&path, "a.y", 0, 99).unwrap_err();

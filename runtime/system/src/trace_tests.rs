@@ -62,3 +62,42 @@ fn first_difference_names_the_line() {
     let short: String = a.lines().take(2).map(|l| format!("{l}\n")).collect();
     assert_eq!(first_difference(&a, &short).unwrap().0, 3);
 }
+
+#[test]
+fn the_state_hash_is_written_every_n_ticks_after_the_ticks_line_and_after_the_last() {
+    let spec = spec();
+    let lines = |every: u64, ticks: u64| {
+        let mut sut = TraceWriter::new(Vec::new(), &spec).with_state_hash_every(every);
+        for n in 0..ticks {
+            sut.tick(n, 0, &[PortValue::I64(n as i64)]).unwrap();
+            sut.state_hash(n, 0xab00 + n).unwrap();
+        }
+        let text = String::from_utf8(sut.finish().unwrap()).unwrap();
+        text.lines()
+            .filter(|l| l.starts_with("# state_hash"))
+            .map(str::to_owned)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        lines(2, 6),
+        [
+            "# state_hash tick=2 hash=0x000000000000ab02",
+            "# state_hash tick=4 hash=0x000000000000ab04",
+            "# state_hash tick=5 hash=0x000000000000ab05",
+        ]
+    );
+    assert_eq!(
+        lines(5, 6),
+        ["# state_hash tick=5 hash=0x000000000000ab05"],
+        "not at 0 (the initial outputs), once at 5, which is also the last"
+    );
+    assert!(lines(0, 6).is_empty(), "0: never");
+    let mut sut = TraceWriter::new(Vec::new(), &spec).with_state_hash_every(1);
+    sut.tick(1, 0, &[PortValue::I64(1)]).unwrap();
+    sut.state_hash(1, 7).unwrap();
+    let text = String::from_utf8(sut.finish().unwrap()).unwrap();
+    assert!(
+        text.ends_with("1 A.y=1 P.v=? Z.y=?\n# state_hash tick=1 hash=0x0000000000000007\n"),
+        "the tick's line first: {text}"
+    );
+}
