@@ -16,6 +16,8 @@ mod data_cmd;
 mod mcap_export;
 mod program_cmd;
 mod record_cmd;
+mod replay_cmd;
+mod replay_keep;
 mod robot_cmd;
 mod rvmf_cmd;
 mod tool;
@@ -134,6 +136,10 @@ enum Command {
         /// declares none, every output of the system's own components is recorded.
         #[arg(long, value_name = "FILE")]
         record: Option<PathBuf>,
+        /// Make the recording replayable (`modbot replay`): it also holds the bus's every
+        /// output and what the controllers commanded it, and the run's schedule.
+        #[arg(long)]
+        replayable: bool,
         /// Also serve the operator's control station for the system (`modbot station`), on
         /// ADDR:PORT (default 127.0.0.1:8080); it prints its address.
         #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1, default_missing_value = "127.0.0.1:8080")]
@@ -191,6 +197,24 @@ enum Command {
     Data {
         #[command(subcommand)]
         command: data_cmd::DataCommand,
+    },
+    /// Replays a replayable recording (`modbot up --record FILE --replayable`): its
+    /// controllers run again in this process, the bus played back as recorded, and what the
+    /// recorder got is compared with what it recorded, row by row, bit for bit: "replayed N
+    /// ticks: identical" (exit 0) or the first tick, signal and component that differ (exit
+    /// 1); 2: it cannot be replayed. `--param COMP.NAME=VALUE` replays a what-if (to the end,
+    /// writing its own recording, `--out` or FILE.whatif.h5).
+    Replay {
+        file: PathBuf,
+        /// Replay up to this tick.
+        #[arg(long, value_name = "TICK")]
+        until: Option<u64>,
+        /// A controller's param changed for the replay (repeatable).
+        #[arg(long = "param", value_name = "COMP.NAME=VALUE")]
+        params: Vec<String>,
+        /// The what-if's recording (default FILE.whatif.h5).
+        #[arg(long, value_name = "OUT")]
+        out: Option<PathBuf>,
     },
     /// Recordings (HDF5 files of the data recorder): `modbot record compare A.h5 B.h5`,
     /// `modbot record export FILE.h5 --mcap OUT.mcap`.
@@ -258,11 +282,18 @@ fn parse_var(text: &str) -> Result<(String, String), modbot_system::VarError> {
 
 /// `vars` with `--record FILE` as the variable every process of the run loads the description
 /// with ([`modbot_system::RECORD_VAR`]), the file made absolute.
-fn with_record(mut vars: Vec<(String, String)>, record: Option<PathBuf>) -> Vec<(String, String)> {
+fn with_record(
+    mut vars: Vec<(String, String)>,
+    record: Option<PathBuf>,
+    replayable: bool,
+) -> Vec<(String, String)> {
     if let Some(file) = record {
         let file = std::path::absolute(&file).unwrap_or(file);
         let key = modbot_system::RECORD_VAR.to_owned();
         vars.push((key, file.display().to_string()));
+    }
+    if replayable {
+        vars.push((modbot_system::REPLAY_VAR.to_owned(), "true".to_owned()));
     }
     vars
 }
@@ -319,16 +350,18 @@ fn main() -> ExitCode {
             switches,
             gate,
             record,
+            replayable,
             station,
         } => up_cmd::up(
             &file,
             given_domain.as_deref(),
             run_for,
-            &with_record(vars, record),
+            &with_record(vars, record, replayable),
             &modbot_supervisor::processes::GridRun {
                 ticks,
                 trace,
                 state_hash_every,
+                replay_log: None,
                 lockstep,
                 switches,
                 gate,
@@ -357,6 +390,17 @@ fn main() -> ExitCode {
         Command::Program { command } => program_cmd::run(&domain, command),
         Command::Data { command } => data_cmd::run(&domain, command),
         Command::Record { command } => record_cmd::run(command),
+        Command::Replay {
+            file,
+            until,
+            params,
+            out,
+        } => replay_cmd::run(&replay_cmd::ReplayArgs {
+            file,
+            until,
+            params,
+            out,
+        }),
         Command::Down => tool::down(&domain),
         Command::Ls { tsv } => tool::ls(&domain, tsv),
         Command::Call {

@@ -35,10 +35,33 @@ pub fn up(
         );
         spec.domain = given.to_owned();
     }
-    if let Err(e) = processes::add_processes(&mut spec, &resolver, file, grid_run) {
+    let replayable = spec
+        .grid
+        .as_ref()
+        .and_then(crate::replay_keep::Replayable::of);
+    let asked = vars
+        .iter()
+        .any(|(k, v)| k == system::REPLAY_VAR && v == "true");
+    if asked && replayable.is_none() {
+        eprintln!(
+            "modbot up: --replayable: nothing is recorded to a file; give --record FILE (the \
+             description's record {{ }} without a file, or none)"
+        );
+        return Ok(ExitCode::from(2));
+    }
+    let mut grid_run = grid_run.clone();
+    if let Some(r) = &replayable {
+        grid_run.replay_log = Some(r.log.clone());
+    }
+    if let Err(e) = processes::add_processes(&mut spec, &resolver, file, &grid_run) {
         eprintln!("modbot up: {e}");
         return Ok(ExitCode::from(2));
     }
+    // Again, with the clock `--lockstep` set.
+    let replayable = spec
+        .grid
+        .as_ref()
+        .and_then(crate::replay_keep::Replayable::of);
     let run_for = match run_for {
         Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
         Some(s) => anyhow::bail!("--for {s}: expected a number of seconds >= 0"),
@@ -69,6 +92,20 @@ pub fn up(
     if let Some(child) = station {
         stop_station(child);
     }
+    // Before the sweep: the checked grids of the generations are in the domain.
+    let mut kept = true;
+    if let Some(r) = &replayable {
+        match r.keep(&domain) {
+            Ok(()) => println!(
+                "modbot up: {} is replayable (modbot replay)",
+                r.path().display()
+            ),
+            Err(e) => {
+                eprintln!("modbot up: {e:#}");
+                kept = false;
+            }
+        }
+    }
     sweep(&domain);
     println!(
         "modbot up: ran {:.1} s in domain '{}'",
@@ -76,7 +113,7 @@ pub fn up(
         domain.name()
     );
     print!("{}", status::table(&summary.rows));
-    if summary.ok {
+    if summary.ok && kept {
         println!("modbot up: every module stopped cleanly");
         Ok(ExitCode::SUCCESS)
     } else {

@@ -30,6 +30,8 @@
 //!   declarations by [`GridSpec::build`], which says what is wrong with them ([`GridError`]).
 //! - [`reference`](mod@reference): the LET semantics computed in one thread ([`reference_run`],
 //!   [`reference_trace`]).
+//! - [`replay`]: a recorded run computed again in one thread, with its switches, holds,
+//!   faults and overruns as the coordinator's schedule of it says ([`replay::Schedule`]).
 //! - [`trace`]: the text format of a run's outputs, tick by tick ([`TraceWriter`]), which
 //!   the reference run and the real runs write so they can be compared.
 //!
@@ -60,6 +62,7 @@ pub mod outputs_view;
 pub mod record_type;
 pub mod recorder;
 pub mod reference;
+pub mod replay;
 pub mod spec;
 pub mod state_hash;
 pub mod switch;

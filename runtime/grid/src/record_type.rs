@@ -19,7 +19,11 @@
 //!   ended by a NUL character (empty: the recorder reads the files);
 //! - `lossless`: wait for the writer rather than drop a row when it is behind — the lockstep
 //!   clock's choice, where a release may take as long as it needs (default false: a release
-//!   never waits, a row that finds no room is dropped and counted).
+//!   never waits, a row that finds no room is dropped and counted);
+//! - `replay`: for a replayable recording (`record { replay = true }`), the *sources* joined by
+//!   `;`: the components whose outputs a replay plays back (the bus). Their every output is
+//!   recorded, and every input of theirs as `S<input` ([`mirrored`]): what the controllers
+//!   commanded, fed by whichever assembly runs (empty: not replayable).
 //!
 //! Output: `dropped` (i64), the rows dropped so far.
 
@@ -39,6 +43,18 @@ pub const UNITS: &str = "units";
 pub const SOURCES: &str = "sources";
 pub const SOURCE_TEXTS: &str = "source_texts";
 pub const LOSSLESS: &str = "lossless";
+pub const REPLAY: &str = "replay";
+
+/// The name of the recorder's input (and the recording's signal) that mirrors input `input`
+/// of source `source`: `source<input`, fed by what feeds that input.
+pub fn mirrored(source: &str, input: &str) -> String {
+    format!("{source}<{input}")
+}
+
+/// The source and input a mirrored signal's name (`source<input`) stands for.
+pub fn parse_mirrored(name: &str) -> Option<(&str, &str)> {
+    name.split_once('<')
+}
 
 /// The `source_texts` param of `texts`: each ended by a NUL character.
 pub fn texts_param<'a>(texts: impl Iterator<Item = &'a str>) -> String {
@@ -76,7 +92,7 @@ pub fn parse_signals(text: &str) -> Result<Vec<Signal>, ParamError> {
             let parsed = item
                 .rsplit_once(':')
                 .and_then(|(name, ty)| Some((name, PortType::parse(ty)?)))
-                .filter(|(name, _)| name.contains('.'));
+                .filter(|(name, _)| name.contains('.') || parse_mirrored(name).is_some());
             match parsed {
                 Some((name, ty)) => Ok(Signal {
                     name: name.to_owned(),
@@ -127,6 +143,7 @@ pub fn info(p: &Params) -> Result<ComponentInfo, ComponentError> {
             ParamDecl::optional(SOURCES, ParamType::Text, text()),
             ParamDecl::optional(SOURCE_TEXTS, ParamType::Text, text()),
             ParamDecl::optional(LOSSLESS, ParamType::Bool, ParamValue::Bool(false)),
+            ParamDecl::optional(REPLAY, ParamType::Text, text()),
         ],
     })
 }

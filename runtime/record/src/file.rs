@@ -296,7 +296,8 @@ fn empty(file: &hdf5::File, name: &str, ty: PortType, chunk: usize) -> hdf5::Res
     })
 }
 
-fn text_attr(at: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
+/// Adds the text attribute `name` to `at`.
+pub(crate) fn text_attr(at: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
     let value: VarLenUnicode = value
         .parse()
         .map_err(|e: hdf5::types::StringError| hdf5::Error::from(e.to_string()))?;

@@ -19,6 +19,9 @@
 //! - [`mark`]: the writer mark a killed writer leaves, and taking it off.
 //! - [`path`]: which file a recorder writes (a restarted one does not replace its own).
 //! - [`read`]: a signal read back from a recording.
+//! - [`replay`]: the player of a source's recorded outputs and the comparer in the
+//!   recorder's place, for `modbot replay`.
+//! - [`replay_file`]: what a replayable recording keeps beside its rows (`/replay`).
 
 pub mod batch;
 pub mod compare;
@@ -28,6 +31,8 @@ pub mod file;
 pub mod mark;
 pub mod path;
 pub mod read;
+pub mod replay;
+pub mod replay_file;
 pub mod rows;
 pub mod writer;
 

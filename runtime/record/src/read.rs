@@ -35,6 +35,9 @@ impl Series {
 /// The datasets every recording has besides its signals.
 pub const BOOKKEEPING: [&str; 4] = ["tick", "time", "generation", crate::file::STATE_HASH];
 
+/// The group of a replayable recording's schedule and grids (not a signal).
+const GROUP_REPLAY: &str = "replay";
+
 /// The signals a recording holds (`comp.port`), sorted: its datasets but the bookkeeping ones.
 pub fn signals(path: &Path) -> Result<Vec<String>, ReadError> {
     let failed = |why: String| ReadError {
@@ -47,7 +50,7 @@ pub fn signals(path: &Path) -> Result<Vec<String>, ReadError> {
         .member_names()
         .map_err(|e| failed(format!("its datasets cannot be listed: {e}")))?
         .into_iter()
-        .filter(|n| !BOOKKEEPING.contains(&n.as_str()))
+        .filter(|n| !BOOKKEEPING.contains(&n.as_str()) && n != GROUP_REPLAY)
         .collect();
     names.sort();
     Ok(names)

@@ -50,6 +50,8 @@ pub struct GridRun {
     /// Write the grid's state hash into the trace every this many ticks (the coordinator's
     /// default when not given).
     pub state_hash_every: Option<u64>,
+    /// Write the run's schedule for a replay here (`modbot up --replayable`).
+    pub replay_log: Option<std::path::PathBuf>,
     /// Run the grid in lockstep (see [`modbot_grid::GridClock::Lockstep`]).
     pub lockstep: bool,
     /// Assembly switches at given ticks: (tick, assembly).
@@ -224,6 +226,10 @@ pub fn add_processes(
     if let Some(t) = &run.trace {
         let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
         args.extend(["--trace".to_owned(), t.display().to_string()]);
+    }
+    if let Some(log) = &run.replay_log {
+        let log = std::path::absolute(log).unwrap_or_else(|_| log.clone());
+        args.extend(["--replay-log".to_owned(), log.display().to_string()]);
     }
     if let Some(every) = run.state_hash_every {
         args.extend(["--state-hash-every".to_owned(), every.to_string()]);

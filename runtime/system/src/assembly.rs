@@ -144,6 +144,17 @@ pub fn load_assembly(
         c.line += LINE_OFFSET;
         c
     }));
+    // A replayable recorder of the system records what this assembly commands the sources.
+    let mirrored = modbot_grid::spec::mirrored_connections(&components, &connections);
+    connections.extend(mirrored);
+    if let Some(r) = decls.records.iter().find(|r| r.replay.is_some()) {
+        return Err(SystemError::new(
+            &file,
+            Some(r.line),
+            "replay belongs to the system's recorder, which outlives the switches: declare it \
+             in the system description",
+        ));
+    }
     let registry = &fmus::with_fmus(registry)
         .with_declared(&system.declared)
         .map_err(|e| SystemError::new(system_file, Some(e.line), e.to_string()))?;

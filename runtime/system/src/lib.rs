@@ -103,7 +103,7 @@ use modbot_grid::{GridSpec, Registry};
 pub use assembly::{assembly_names, load_assembly};
 pub use error::{DeclError, SystemError, VarError};
 pub use program::{DefaultResolver, ProgramResolver};
-pub use record_decl::RECORD_VAR;
+pub use record_decl::{RECORD_VAR, REPLAY_VAR};
 
 /// A checked system description: everything the supervisor needs to start the robot.
 #[derive(Debug, Clone, PartialEq)]

@@ -11,6 +11,9 @@
 //!                                                    -- program says (record { }, stop_record { })
 //!   units = { ["robot.link_position"] = "rad" },     -- optional: the datasets' unit attributes
 //!   name = "record", host = "record", period = 1,    -- optional: these are the defaults
+//!   replay = true,                                   -- optional: a recording `modbot replay`
+//!                                                    -- replays (the bus played back), or
+//!                                                    -- replay = { "robot", "lidar" }: these
 //! }
 //! ```
 //!
@@ -33,6 +36,9 @@ use modbot_grid::GridSpec;
 /// The variable `modbot up --record FILE` sets: the file every recorder of the run writes.
 pub const RECORD_VAR: &str = "modbot.record";
 
+/// The variable `modbot up --replayable` sets (`true`): the system's recorder is replayable.
+pub const REPLAY_VAR: &str = "modbot.replay";
+
 const FIELDS: &[&str] = &[
     "signals",
     "file",
@@ -42,6 +48,7 @@ const FIELDS: &[&str] = &[
     "period",
     "period_s",
     "on_demand",
+    "replay",
 ];
 /// The recorder's component and host name unless the declaration says.
 const DEFAULT_NAME: &str = "record";
@@ -107,6 +114,15 @@ fn read(lua: &Lua, line: u32, v: &Value) -> Result<RecordDecl, DeclError> {
         Some(v) => units(&v)?,
         None => Vec::new(),
     };
+    let replay = match fields.take("replay") {
+        None | Some(Value::Boolean(false)) => None,
+        Some(Value::Boolean(true)) => Some(Vec::new()),
+        Some(v @ Value::Table(_)) => Some(string_list(lua, what, "replay", &v)?),
+        Some(v) => {
+            let expected = "true, false or a list of the components to play back";
+            return Err(DeclError::field(what, "replay", expected, show(&v)));
+        }
+    };
     Ok(RecordDecl {
         name,
         host,
@@ -116,6 +132,7 @@ fn read(lua: &Lua, line: u32, v: &Value) -> Result<RecordDecl, DeclError> {
         period: period(what, &mut fields)?,
         units,
         sources: Vec::new(),
+        replay,
         line,
     })
 }

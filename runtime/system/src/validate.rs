@@ -185,6 +185,8 @@ pub(super) fn build(
             if !records.is_empty() {
                 let decls = (&mut components, &mut connections);
                 record_decl::add_recorders(&records, &spec, None, decls, refused)?;
+                let mirrored = modbot_grid::spec::mirrored_connections(&components, &connections);
+                connections.extend(mirrored);
                 spec = build(components, connections)?;
             }
             fmus::one_per_host(&spec, 0..spec.components.len(), file)?;
@@ -388,8 +390,26 @@ fn records(
             period: Period::Ticks(1.0),
             units: Vec::new(),
             sources: vec![source],
+            replay: None,
             line: g.line,
         });
+    }
+    let replayable = vars
+        .iter()
+        .rev()
+        .find(|(k, _)| k == record_decl::REPLAY_VAR)
+        .is_some_and(|(_, v)| v == "true");
+    for r in &mut records {
+        if replayable && r.replay.is_none() {
+            r.replay = Some(Vec::new());
+        }
+        if r.replay.is_some() && r.period != Period::Ticks(1.0) {
+            return Err(SystemError::new(
+                file,
+                Some(r.line),
+                "a replayable recording records every tick: leave out period",
+            ));
+        }
     }
     match (records.first(), grid) {
         (Some(r), None) => Err(SystemError::new(

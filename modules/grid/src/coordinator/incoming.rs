@@ -110,6 +110,7 @@ impl<W: Write> Coordinator<W> {
             );
             at = later;
             inc.schedule = Some((from, at));
+            self.replay_log.postpone(n, inc.spec.generation(), at);
         }
         let generation = inc.spec.generation();
         let mut versions = [0u64; MAX_SOURCES];
@@ -118,8 +119,10 @@ impl<W: Write> Coordinator<W> {
             if !n.is_multiple_of(comp.period) {
                 continue;
             }
-            if comp.pending.is_some() {
+            if let Some(m) = comp.pending {
                 inc.comps[c].overruns += 1;
+                let name = &inc.spec.components[c].name;
+                self.replay_log.overrun(n, generation, name, m);
                 continue;
             }
             for (slot, &s) in versions.iter_mut().zip(&comp.sources) {
@@ -194,6 +197,7 @@ impl<W: Write> Coordinator<W> {
             .map_or(String::new(), |a| a.name.clone());
         let generation = self.spec.generation();
         let announced = inc.schedule.map_or(n, |(_, at)| at);
+        self.replay_log.switch(n, generation);
         self.switched
             .record
             .push((generation, name.clone(), announced, n));
@@ -288,6 +292,8 @@ impl<W: Write> Coordinator<W> {
         inc.schedule = Some((from, at));
         inc.first_at = at;
         inc.lead = lead;
+        self.replay_log
+            .announce(self.tick, inc.spec.generation(), from, at);
         Some(at)
     }
 

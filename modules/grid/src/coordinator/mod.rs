@@ -57,6 +57,7 @@ use timing::TickTiming;
 mod gate;
 mod incoming;
 mod links;
+mod replay_log;
 pub mod service;
 mod shared;
 mod switch_job;
@@ -68,6 +69,7 @@ pub use incoming::{BeginSwitchError, SwitchState};
 
 pub use links::{link, HostLink};
 use links::{release, send_release, ReleaseAt};
+use replay_log::ReplayLog;
 
 /// Why the warm-up before tick 0 failed.
 #[derive(Debug, thiserror::Error)]
@@ -128,6 +130,10 @@ struct Comp {
     holding: bool,
     /// Its pending release was one to track because the robot is held (`Release::HELD`).
     held_release: bool,
+    /// Released at every due tick even while a release of it still runs (the data
+    /// recorder: nothing reads its outputs, its host serves the releases in turn, and a row it
+    /// missed would be a tick no replay can play back).
+    queues: bool,
     /// The state hash of the on-time completion in `ready`, and of the valid version (none
     /// for the initial outputs, or a component that contributes none).
     ready_hash: Option<u64>,
@@ -179,6 +185,7 @@ fn comps_of(spec: &GridSpec, host_names: &[String]) -> Vec<Comp> {
             latency: Histogram::new(),
             holding: false,
             held_release: false,
+            queues: cs.type_name == modbot_grid::record_type::TYPE,
             ready_hash: None,
             valid_hash: None,
         })
@@ -221,6 +228,8 @@ pub struct Coordinator<W: Write> {
     tick_hash: u64,
     /// Whether a malformed done sample was reported (once: a host of another build).
     malformed_done: bool,
+    /// The run's schedule for a replay, if it is kept.
+    replay_log: ReplayLog,
 }
 
 /// The hosts' done notices, as the coordinator waits for them.
@@ -290,6 +299,7 @@ impl<W: Write> Coordinator<W> {
             held_before: None,
             tick_hash: 0,
             malformed_done: false,
+            replay_log: ReplayLog::none(),
         })
     }
 
@@ -303,6 +313,12 @@ impl<W: Write> Coordinator<W> {
     /// for them without a limit of time otherwise).
     pub fn with_shutdown(mut self, shutdown: Shutdown) -> Self {
         self.notices.shutdown = shutdown;
+        self
+    }
+
+    /// Writes the run's schedule for a replay to `out` (see [`replay_log`]).
+    pub fn with_replay_log(mut self, out: Box<dyn Write + Send>) -> Self {
+        self.replay_log = ReplayLog::to(out);
         self
     }
 
@@ -536,6 +552,10 @@ impl<W: Write> Coordinator<W> {
         let status = done.status.get();
         if status == Done::STALE {
             comp.stale += 1;
+            if self.replay_log.on() {
+                let name = &spec.components[c].name;
+                self.replay_log.stale(m, spec.generation(), name);
+            }
             // Kept for the trace's end only: without a trace, nothing grows with the misses.
             if !incoming && self.recorder.is_some() && c < recorder::recorded(spec) {
                 self.overrun_log.push((m, c, m, Miss::Stale));
@@ -559,6 +579,7 @@ impl<W: Write> Coordinator<W> {
                 }
             } else if self.fault.is_none() {
                 self.set_fault(why);
+                self.replay_log.fault(n, 0);
             }
         }
     }
@@ -668,17 +689,22 @@ impl<W: Write> Coordinator<W> {
         let held = self.comps[..base.min(self.comps.len())]
             .iter()
             .any(|c| c.holding);
+        self.replay_log.held(n, held);
         for c in 0..self.comps.len() {
             let comp = &self.comps[c];
             if !n.is_multiple_of(comp.period) || (self.fault.is_some() && c >= base) {
                 continue;
             }
-            if let Some(m) = comp.pending {
+            if let Some(m) = comp.pending.filter(|_| !comp.queues) {
                 let comp = &mut self.comps[c];
                 comp.overruns += 1;
                 comp.in_a_row += 1;
                 if self.recorder.is_some() && c < recorder::recorded(&self.spec) {
                     self.overrun_log.push((n, c, m, Miss::Overrun));
+                }
+                if self.replay_log.on() {
+                    let name = &self.spec.components[c].name;
+                    self.replay_log.overrun(n, generation, name, m);
                 }
                 if comp.fault_policy && comp.in_a_row >= FAULT_AFTER && self.fault.is_none() {
                     let name = &self.spec.components[c].name;
@@ -686,6 +712,7 @@ impl<W: Write> Coordinator<W> {
                         "component {name} overran its deadline at tick {n} (released at {m})"
                     );
                     self.set_fault(why);
+                    self.replay_log.fault(n, c);
                     if base == 0 {
                         return;
                     }
@@ -815,8 +842,10 @@ impl<W: Write> Coordinator<W> {
     }
 
     /// Ends the run: the recorder's trace is flushed, with a line per overrun at its end
-    /// (`# overrun tick=T component=C release=M`); returns the versions it could not find.
-    pub fn finish(self) -> std::io::Result<u64> {
+    /// (`# overrun tick=T component=C release=M`), and the replay log; returns the versions
+    /// the trace could not find.
+    pub fn finish(mut self) -> std::io::Result<u64> {
+        self.replay_log.finish();
         match self.recorder {
             Some(rec) => {
                 let missing = rec.missing;

@@ -51,6 +51,10 @@ pub struct Cli {
     /// never).
     #[arg(long, value_name = "N", default_value_t = modbot_grid::trace::STATE_HASH_EVERY)]
     state_hash_every: u64,
+    /// Write the run's schedule for a replay to this file: switches, held ranges, faults,
+    /// overruns and stale releases (`modbot up --replayable`).
+    #[arg(long, value_name = "FILE")]
+    replay_log: Option<PathBuf>,
     /// Switch to assembly NAME at tick TICK (`TICK:NAME`; repeatable). In lockstep the grid
     /// waits at that tick while the assembly is prepared, so the run is reproducible.
     #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
@@ -244,10 +248,15 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     // A due component's done notice may be on its way: wait up to a quarter of a tick for it
     // (no longer: every release of the tick, the bus's among them, waits with it).
     let shutdown = signals::Shutdown::on_signals()?;
-    let coord = Coordinator::new(&*node, grid.clone(), trace)?
+    let mut coord = Coordinator::new(&*node, grid.clone(), trace)?
         .with_grace(period_ns / 4)
         .with_shutdown(shutdown.clone())
         .with_state_hash_every(cli.state_hash_every);
+    if let Some(p) = &cli.replay_log {
+        let file = std::fs::File::create(p)
+            .map_err(|e| anyhow::anyhow!("cannot write the replay log to {}: {e}", p.display()))?;
+        coord = coord.with_replay_log(Box::new(Offload::new(file)?));
+    }
     let lockstep = grid.timing.clock == modbot_grid::GridClock::Lockstep;
     if cli.gate.is_some() && !lockstep {
         anyhow::bail!("--gate holds a grid in lockstep; this grid runs in real time");

@@ -23,7 +23,7 @@ mod error;
 mod image;
 mod record;
 pub use error::{GridError, GridErrorKind, HostNameError, HostPrograms, PeriodError};
-pub use record::{expand as expand_record, RecordDecl, Signals};
+pub use record::{expand as expand_record, mirrored_connections, RecordDecl, Signals, BUS_TYPE};
 
 /// The most components a grid may have (indices are 16 bits on the wire).
 pub const MAX_COMPONENTS: usize = 65535;

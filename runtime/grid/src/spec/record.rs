@@ -36,8 +36,14 @@ pub struct RecordDecl {
     /// from it (path, text): the system's, then an assembly's. The recorder stores this text,
     /// not what the file holds when it starts (a description edited meanwhile changes nothing).
     pub sources: Vec<(String, String)>,
+    /// A replayable recording (`replay = true`, or `replay = { "comp", ... }` naming the
+    /// sources): the components a replay plays back — empty: every component of type `bus`.
+    pub replay: Option<Vec<String>>,
     pub line: u32,
 }
+
+/// The component type a replayable recording plays back unless it names its sources.
+pub const BUS_TYPE: &str = "bus";
 
 /// What a recorder records.
 #[derive(Debug, Clone, PartialEq)]
@@ -60,8 +66,72 @@ fn refused(r: &RecordDecl, signal: &str, why: String) -> GridError {
     }
 }
 
-/// The signals of `r` with their types, read from `spec` (the grid without recorders).
+/// The sources of a replayable recorder `r` in `spec`, or why it has none.
+fn replay_sources(
+    r: &RecordDecl,
+    named: &[String],
+    spec: &GridSpec,
+) -> Result<Vec<usize>, GridError> {
+    let refuse = |what: String| GridError {
+        line: Some(r.line),
+        kind: GridErrorKind::Record {
+            record: r.name.clone(),
+            what,
+        },
+    };
+    if named.is_empty() {
+        let buses: Vec<usize> = (0..spec.components.len())
+            .filter(|&c| spec.components[c].type_name == BUS_TYPE)
+            .collect();
+        if buses.is_empty() {
+            return Err(refuse(
+                "replay = true plays back the bus, and the grid has none: name the sources, \
+                 replay = { \"comp\", ... }"
+                    .into(),
+            ));
+        }
+        return Ok(buses);
+    }
+    named
+        .iter()
+        .map(|name| {
+            spec.component(name).ok_or_else(|| {
+                let known: Vec<&str> = spec.components.iter().map(|c| c.name.as_str()).collect();
+                refuse(format!(
+                    "replay names '{name}', which is no component (components: {})",
+                    known.join(", ")
+                ))
+            })
+        })
+        .collect()
+}
+
+/// The signals of `r` with their types, read from `spec` (the grid without recorders): those
+/// it lists, and for a replayable recorder every output of its sources not listed and every
+/// input of theirs, mirrored.
 fn signals(r: &RecordDecl, spec: &GridSpec) -> Result<Vec<Signal>, GridError> {
+    let mut signals = listed_signals(r, spec)?;
+    let Some(named) = &r.replay else {
+        return Ok(signals);
+    };
+    for c in replay_sources(r, named, spec)? {
+        let c = &spec.components[c];
+        for p in &c.info.outputs {
+            let name = format!("{}.{}", c.name, p.name);
+            if !signals.iter().any(|s| s.name == name) {
+                signals.push(Signal { name, ty: p.ty });
+            }
+        }
+        for p in &c.info.inputs {
+            let name = record_type::mirrored(&c.name, p.name);
+            signals.push(Signal { name, ty: p.ty });
+        }
+    }
+    Ok(signals)
+}
+
+/// The signals `r` lists, with their types.
+fn listed_signals(r: &RecordDecl, spec: &GridSpec) -> Result<Vec<Signal>, GridError> {
     let names: Vec<String> = match &r.signals {
         Signals::Listed(names) => names.clone(),
         Signals::AllOf(components) => components
@@ -152,7 +222,18 @@ pub fn expand(
                 r.sources.iter().map(|(_, t)| t.as_str()),
             )),
         )
-        .with(record_type::LOSSLESS, ParamValue::Bool(lossless));
+        .with(record_type::LOSSLESS, ParamValue::Bool(lossless))
+        .with(
+            record_type::REPLAY,
+            text(match &r.replay {
+                Some(named) => replay_sources(r, named, spec)?
+                    .iter()
+                    .map(|&c| spec.components[c].name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(";"),
+                None => String::new(),
+            }),
+        );
     let connections = signals
         .iter()
         .filter_map(|s| {
@@ -174,4 +255,42 @@ pub fn expand(
         line: r.line,
     };
     Ok((component, connections))
+}
+
+/// The connections that feed a replayable recorder's mirrored inputs (`S<input`, see
+/// [`record_type::mirrored`]) in the grid of `components` and `connections`: from whatever
+/// feeds the source's input there. A grid with assemblies makes them for each assembly, whose
+/// components command the sources.
+pub fn mirrored_connections(
+    components: &[ComponentDecl],
+    connections: &[ConnectDecl],
+) -> Vec<ConnectDecl> {
+    let mut out = Vec::new();
+    for r in components
+        .iter()
+        .filter(|c| c.type_name == record_type::TYPE)
+    {
+        let Some(ParamValue::Text(text)) = r.params.get(record_type::SIGNALS) else {
+            continue;
+        };
+        let Ok(signals) = record_type::parse_signals(text) else {
+            continue;
+        };
+        for s in &signals {
+            let Some((source, input)) = record_type::parse_mirrored(&s.name) else {
+                continue;
+            };
+            let feeding = connections
+                .iter()
+                .find(|c| c.to.0 == source && c.to.1 == input);
+            if let Some(c) = feeding {
+                out.push(ConnectDecl {
+                    from: c.from.clone(),
+                    to: (r.name.clone(), s.name.clone()),
+                    line: c.line,
+                });
+            }
+        }
+    }
+    out
 }

@@ -1,0 +1,250 @@
+//! Replayable recordings and `modbot replay`, each test in a domain of its own: the arm
+//! recorded with `--replayable` (the bus's every output, what the controllers commanded it, the
+//! grids of every generation and the coordinator's schedule) is run again offline against what
+//! the drives did, and compared row by row, bit for bit.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use common::arm::{arm, one_arm_at_a_time};
+use common::python::python;
+use common::TestDomain;
+
+/// The files of a test: removed on drop.
+struct Files(Vec<PathBuf>);
+
+impl Drop for Files {
+    fn drop(&mut self) {
+        for f in &self.0 {
+            let _ = std::fs::remove_file(f);
+            let _ = std::fs::remove_dir_all(f);
+        }
+    }
+}
+
+/// `modbot up DESCRIPTION --var domain=… MORE --record FILE --replayable` to its end (exit 0);
+/// the recording.
+fn replayable_run(sut: &mut TestDomain, description: &Path, more: &[&str], file: &Path) {
+    let domain = format!("domain={}", sut.name());
+    let mut args = vec!["up", description.to_str().unwrap(), "--var", &domain];
+    args.extend(more);
+    args.extend(["--record", file.to_str().unwrap(), "--replayable"]);
+    let up = sut.spawn_logged("modbot", &args);
+    let status = sut.wait_exit(up, Duration::from_secs(300));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert!(output.contains("is replayable (modbot replay)"), "{output}");
+}
+
+/// `modbot replay ARGS`: exit code and what it printed (stdout, then stderr).
+fn replay(sut: &TestDomain, args: &[&str]) -> (Option<i32>, String) {
+    let mut all = vec!["replay"];
+    all.extend(args);
+    let out = sut.modbot(&all);
+    let said =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.code(), said)
+}
+
+/// The tick a "… differs at tick T: …" line names.
+fn differs_at(said: &str) -> u64 {
+    said.split("differs at tick ")
+        .nth(1)
+        .and_then(|rest| rest.split(':').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no 'differs at tick T:' in {said}"))
+}
+
+/// 10 s of the arm in lockstep, swapped from `hold` to `ptp` at tick 300 and back to `hold` at
+/// 6000, recorded replayable: the recording holds the bus's outputs and every input of the bus
+/// as `robot<input`, and the schedule of both switches; `modbot replay` runs the controllers of
+/// all three generations again, the bus played back, and every row is identical — values,
+/// generation and the grid's state hash — through tick 9999; `--until 5000` replays 5001.
+#[test]
+fn a_replayable_recording_of_the_arm_with_swaps_replays_identical() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("replay");
+    let file = std::env::temp_dir().join(format!("{}.h5", sut.name()));
+    let _files = Files(vec![file.clone()]);
+    let more = [
+        "--lockstep",
+        "--ticks",
+        "10000",
+        "--switch",
+        "300:ptp",
+        "--switch",
+        "6000:hold",
+    ];
+    replayable_run(&mut sut, &arm(), &more, &file);
+    let info = modbot_record::replay_file::read(&file).unwrap().unwrap();
+    assert_eq!(
+        (info.recorder.as_str(), info.clock.as_str()),
+        ("record", "lockstep")
+    );
+    assert_eq!(info.sources, ["robot"]);
+    let generations: Vec<u16> = info.specs.iter().map(|(g, _)| *g).collect();
+    assert_eq!(generations, [1, 2, 3]);
+    assert_eq!(
+        info.log
+            .lines()
+            .filter(|l| l.starts_with("switch "))
+            .count(),
+        2,
+        "{}",
+        info.log
+    );
+    let signals = modbot_record::read::signals(&file).unwrap();
+    for s in [
+        "robot<target_position",
+        "robot<controlword",
+        "robot.link_position",
+    ] {
+        assert!(signals.iter().any(|x| x == s), "{s} in {signals:?}");
+    }
+    let (code, said) = replay(&sut, &[file.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{said}");
+    assert_eq!(
+        said.lines().next(),
+        Some("replayed 10000 ticks (0..9999, 2 switch(es), 0 overrun(s) replayed): identical")
+    );
+    let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--until", "5000"]);
+    assert_eq!(code, Some(0), "{said}");
+    assert!(
+        said.starts_with("replayed 5001 ticks (0..5000, 1 switch(es)"),
+        "{said}"
+    );
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
+
+/// The same recording replayed with the trajectory generator's acceleration limit changed
+/// (`--param ptp.a_max=3.9`): the replay names the first tick that differs — after the switch
+/// to `ptp`, once it plans the robot's first move — the input of the bus that differs and the
+/// component output that fed it (`ptp`'s); the what-if runs to the end and writes its own
+/// recording, which `modbot record compare` finds first differing at the same tick. A param
+/// of the played-back bus, or of no component, is refused (exit 2).
+#[test]
+fn a_replay_with_a_changed_gain_names_the_first_divergent_tick_and_component() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("replayif");
+    let file = std::env::temp_dir().join(format!("{}.h5", sut.name()));
+    let what_if = std::env::temp_dir().join(format!("{}.whatif.h5", sut.name()));
+    let _files = Files(vec![file.clone(), what_if.clone()]);
+    let more = ["--lockstep", "--ticks", "3000", "--switch", "300:ptp"];
+    replayable_run(&mut sut, &arm(), &more, &file);
+    let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--param", "ptp.a_max=3.9"]);
+    assert_eq!(code, Some(1), "{said}");
+    let tick = differs_at(&said);
+    assert!(tick > 300, "alike until ptp runs: {said}");
+    assert!(
+        said.starts_with("replayed to tick 2999: differs at tick "),
+        "{said}"
+    );
+    let first = said.lines().next().unwrap();
+    assert!(
+        first.contains(" from ptp."),
+        "the component that fed it: {first}"
+    );
+    assert!(
+        said.contains(&format!("what-if recording: {}", what_if.display())),
+        "{said}"
+    );
+    let compared = sut.modbot(&[
+        "record",
+        "compare",
+        file.to_str().unwrap(),
+        what_if.to_str().unwrap(),
+    ]);
+    let line = String::from_utf8_lossy(&compared.stdout).into_owned();
+    assert_eq!(compared.status.code(), Some(1), "{line}");
+    assert_eq!(differs_at(&line), tick, "{line}");
+    let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--param", "robot.axes=3"]);
+    assert_eq!(code, Some(2), "{said}");
+    assert!(
+        said.contains("'robot' is played back or compared, not run"),
+        "{said}"
+    );
+    let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--param", "nobody.k=1"]);
+    assert_eq!(code, Some(2), "{said}");
+    assert!(said.contains("no component 'nobody' ran"), "{said}");
+    let plain = std::env::temp_dir().join(format!("{}.plain.h5", sut.name()));
+    let _plain = Files(vec![plain.clone()]);
+    python(
+        "import h5py, sys\nh5py.File(sys.argv[1], 'w').create_dataset('tick', data=[0])\n",
+        &[plain.to_str().unwrap()],
+    );
+    let (code, said) = replay(&sut, &[plain.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{said}");
+    assert!(said.contains("not replayable"), "{said}");
+}
+
+/// The arm on the real-time clock, swapped at tick 300 to an assembly whose controllers' host
+/// is held up 3 ms every 50 ms (a `sleeper`): their releases overrun under the hold policy,
+/// and the coordinator logs each. The replay applies them as they happened and is identical;
+/// the same recording with the overruns of that assembly taken out of its schedule (h5py)
+/// differs — at a tick after the first of them.
+#[test]
+fn a_real_time_recording_with_injected_overruns_replays_identical() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("replayrt");
+    let dir = std::env::temp_dir().join(format!("{}.d", sut.name()));
+    let file = dir.join("run.h5");
+    let _files = Files(vec![dir.clone()]);
+    std::fs::create_dir_all(dir.join("arm")).unwrap();
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let description = dir.join("arm.lua");
+    std::fs::copy(examples.join("arm.lua"), &description).unwrap();
+    std::fs::copy(examples.join("arm/hold.lua"), dir.join("arm/hold.lua")).unwrap();
+    let ptp = std::fs::read_to_string(examples.join("arm/ptp.lua")).unwrap();
+    let slow = ptp.replace("policy = \"fault\"", "policy = \"hold\"")
+        + r#"
+component "slow" { type = "sleeper", host = "ctrl", period = 50,
+                   params = { sleep_ms = 3, sleep_live = true } }
+connect "robot.state -> slow.u"
+"#;
+    std::fs::write(dir.join("arm/ptp_slow.lua"), slow).unwrap();
+    let more = ["--ticks", "3000", "--switch", "300:ptp_slow"];
+    replayable_run(&mut sut, &description, &more, &file);
+    let info = modbot_record::replay_file::read(&file).unwrap().unwrap();
+    assert_eq!(info.clock, "real_time");
+    let injected: Vec<&str> = info
+        .log
+        .lines()
+        .filter(|l| l.starts_with("overrun ") && l.contains(" generation=2 "))
+        .collect();
+    assert!(
+        !injected.is_empty(),
+        "the sleeper made overruns: {}",
+        info.log
+    );
+    let (code, said) = replay(&sut, &[file.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{said}");
+    assert!(
+        said.starts_with("replayed 3000 ticks (0..2999, 1 switch(es), "),
+        "{said}"
+    );
+    assert!(said.contains("identical"), "{said}");
+    let first: u64 = injected[0]
+        .split_whitespace()
+        .find_map(|w| w.strip_prefix("tick="))
+        .and_then(|t| t.parse().ok())
+        .unwrap();
+    python(
+        r#"
+import h5py, sys, numpy as np
+f = h5py.File(sys.argv[1], "r+")
+g = f["replay"]
+log = bytes(g["log"][:]).decode()
+kept = "".join(l + "\n" for l in log.splitlines()
+               if not (l.startswith("overrun ") and " generation=2 " in l))
+del g["log"]
+g.create_dataset("log", data=np.frombuffer(kept.encode(), dtype=np.uint8))
+"#,
+        &[file.to_str().unwrap()],
+    );
+    let (code, said) = replay(&sut, &[file.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "without the overruns it differs: {said}");
+    assert!(differs_at(&said) >= first, "{said}");
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}
