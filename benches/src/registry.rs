@@ -7,7 +7,7 @@ use modbot_bench_kit::opts::Opts;
 use modbot_bench_kit::report::Report;
 use modbot_bench_kit::targets::TargetsFn;
 use modbot_bench_soak as soak;
-use modbot_bench_system::{arm, ethercat, faults, fmu, grid, scale, station, swaps};
+use modbot_bench_system::{arm, ethercat, faults, fmu, grid, replay, scale, station, swaps};
 
 type RunFn = fn(&Opts, &mut Report) -> anyhow::Result<()>;
 
@@ -19,7 +19,7 @@ pub struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-pub const BENCHES: [Bench; 10] = [
+pub const BENCHES: [Bench; 11] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -69,6 +69,11 @@ pub const BENCHES: [Bench; 10] = [
     Bench {
         name: "station",
         run: station::run,
+        needs_binaries: true,
+    },
+    Bench {
+        name: "replay",
+        run: replay::run,
         needs_binaries: true,
     },
 ];

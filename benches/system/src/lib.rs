@@ -19,6 +19,8 @@
 //!   targets.
 //! - [`station`] (11): the grid and a busy call with the control station and two browsers
 //!   attached against none, and the station's looks at 253 modules; its targets.
+//! - [`replay`] (12): `modbot replay` of a recorded arm against the lockstep run that
+//!   recorded it.
 //!
 //! The systems they start, the report and the samples are `modbot-bench-kit`'s; the call paths
 //! the lockstep run and the station use are `modbot-bench-ipc`'s.
@@ -29,6 +31,7 @@ pub mod faults;
 pub mod fmu;
 pub mod grid;
 pub mod lockstep;
+pub mod replay;
 pub mod scale;
 pub mod station;
 pub mod swaps;
