@@ -142,6 +142,7 @@ fn replay(args: &ReplayArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
+    println!("recorded in run {}", info.run_id);
     if let Some(t) = verdict.gap {
         println!(
             "note: the recording has no row for tick {t} (its recorder overran in real time): \

@@ -22,6 +22,9 @@ pub struct Replayable {
     pub log: PathBuf,
     clock: &'static str,
     first_generation: u16,
+    /// Where the assembly files are (a grid with assemblies).
+    assemblies: Option<PathBuf>,
+    run_id: String,
 }
 
 impl Replayable {
@@ -49,8 +52,20 @@ impl Replayable {
                     modbot_grid::GridClock::RealTime => "real_time",
                 },
                 first_generation: grid.generation().0,
+                assemblies: grid
+                    .assembly
+                    .as_ref()
+                    .and_then(|a| a.source.as_ref())
+                    .map(|s| s.dir.clone()),
+                run_id: String::new(),
             })
         })
+    }
+
+    /// The same, for the run `run_id`.
+    pub fn of_run(mut self, run_id: String) -> Replayable {
+        self.run_id = run_id;
+        self
     }
 
     /// Puts the log and the checked grids of the generations that ran (from `domain`) into the
@@ -65,18 +80,33 @@ impl Replayable {
         let mut generations = vec![self.first_generation];
         generations.extend(log.lines().filter_map(switched_to));
         let mut specs = Vec::new();
+        let mut files: Vec<(String, String)> = Vec::new();
         for g in generations {
             let image = domain.read_spec_image(g).map_err(|e| {
                 anyhow::anyhow!("the checked grid of generation {g} is gone ({e}): not replayable")
             })?;
+            let assembly = modbot_grid::GridSpec::from_image(&image)
+                .ok()
+                .and_then(|s| s.assembly.map(|a| a.name));
+            if let (Some(name), Some(dir)) = (assembly, &self.assemblies) {
+                if !files.iter().any(|(n, _)| *n == name) {
+                    let path = dir.join(format!("{name}.lua"));
+                    match std::fs::read_to_string(&path) {
+                        Ok(text) => files.push((name, text)),
+                        Err(e) => tracing::warn!("{} is not kept: {e}", path.display()),
+                    }
+                }
+            }
             specs.push((g, image));
         }
         let info = ReplayInfo {
+            run_id: self.run_id.clone(),
             recorder: self.recorder.clone(),
             sources: self.sources.clone(),
             clock: self.clock.to_owned(),
             specs,
             log,
+            files,
         };
         replay_file::write(&self.file, &info)?;
         let _ = std::fs::remove_file(&self.log);

@@ -58,10 +58,19 @@ pub fn up(
         return Ok(ExitCode::from(2));
     }
     // Again, with the clock `--lockstep` set.
+    let run_id = format!(
+        "{}-{}-{}",
+        spec.domain,
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos()),
+        std::process::id()
+    );
     let replayable = spec
         .grid
         .as_ref()
-        .and_then(crate::replay_keep::Replayable::of);
+        .and_then(crate::replay_keep::Replayable::of)
+        .map(|r| r.of_run(run_id));
     let run_for = match run_for {
         Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
         Some(s) => anyhow::bail!("--for {s}: expected a number of seconds >= 0"),

@@ -444,12 +444,12 @@ fn a_lockstep_arm_run_with_a_swap_gives_the_same_trace_twice() {
     let mut sut = TestDomain::new("armlock");
     let first = lockstep_arm_trace(&mut sut, 1500, "a");
     let second = lockstep_arm_trace(&mut sut, 1500, "b");
-    assert_eq!(first.lines().count(), 1501, "a header and a line per tick");
+    let ticks: Vec<&str> = first.lines().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(ticks.len(), 1500, "a line per tick");
     assert!(first == second, "two lockstep runs give the same trace");
     let position = |tick: usize| {
-        first
-            .lines()
-            .nth(tick + 1)
+        ticks
+            .get(tick)
             .and_then(|l| {
                 l.split_whitespace()
                     .find(|w| w.starts_with("robot.link_position="))

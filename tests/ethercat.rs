@@ -30,12 +30,13 @@ fn arm() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/arm.lua")
 }
 
-/// The values of output `signal` in a trace, one per tick.
+/// The values of output `signal` in a trace, one per tick (its `#` lines left out: the
+/// header, the state hash).
 fn column(trace: &str, signal: &str) -> Vec<Vec<f64>> {
     let key = format!("{signal}=");
     trace
         .lines()
-        .skip(1)
+        .filter(|line| !line.starts_with('#'))
         .map(|line| {
             let word = line
                 .split_whitespace()

@@ -84,6 +84,13 @@ fn a_replayable_recording_of_the_arm_with_swaps_replays_identical() {
         ("record", "lockstep")
     );
     assert_eq!(info.sources, ["robot"]);
+    assert!(
+        info.run_id.starts_with(&format!("{}-", sut.name())),
+        "{}",
+        info.run_id
+    );
+    let files: Vec<&str> = info.files.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(files, ["hold", "ptp"], "the assembly files that ran");
     let generations: Vec<u16> = info.specs.iter().map(|(g, _)| *g).collect();
     assert_eq!(generations, [1, 2, 3]);
     assert_eq!(
@@ -109,6 +116,10 @@ fn a_replayable_recording_of_the_arm_with_swaps_replays_identical() {
         said.lines().next(),
         Some("replayed 10000 ticks (0..9999, 2 switch(es), 0 overrun(s) replayed): identical")
     );
+    assert!(
+        said.contains(&format!("recorded in run {}", info.run_id)),
+        "{said}"
+    );
     let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--until", "5000"]);
     assert_eq!(code, Some(0), "{said}");
     assert!(
@@ -118,12 +129,13 @@ fn a_replayable_recording_of_the_arm_with_swaps_replays_identical() {
     assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
 }
 
-/// The same recording replayed with the trajectory generator's acceleration limit changed
-/// (`--param ptp.a_max=3.9`): the replay names the first tick that differs — after the switch
-/// to `ptp`, once it plans the robot's first move — the input of the bus that differs and the
-/// component output that fed it (`ptp`'s); the what-if runs to the end and writes its own
-/// recording, which `modbot record compare` finds first differing at the same tick. A param
-/// of the played-back bus, or of no component, is refused (exit 2).
+/// The arm recorded as above (3 s, one swap), replayed with one controller gain changed: the
+/// feed-forward's inertia of axis 1 (`--param ff.inertia=[2.5,2,1,0.2,0.2,0.1]`, 2.5 for 2).
+/// The replay names the first tick that differs — after the switch to `ptp`, once the robot
+/// accelerates — the input of the bus that differs and the component output that fed it
+/// (`ff`'s); the what-if runs to the end and writes its own recording, which `modbot record
+/// compare` finds first differing at the same tick. A param of the played-back bus, or of no
+/// component, is refused (exit 2).
 #[test]
 fn a_replay_with_a_changed_gain_names_the_first_divergent_tick_and_component() {
     let _arm = one_arm_at_a_time();
@@ -133,7 +145,8 @@ fn a_replay_with_a_changed_gain_names_the_first_divergent_tick_and_component() {
     let _files = Files(vec![file.clone(), what_if.clone()]);
     let more = ["--lockstep", "--ticks", "3000", "--switch", "300:ptp"];
     replayable_run(&mut sut, &arm(), &more, &file);
-    let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--param", "ptp.a_max=3.9"]);
+    let gain = "ff.inertia=[2.5,2,1,0.2,0.2,0.1]";
+    let (code, said) = replay(&sut, &[file.to_str().unwrap(), "--param", gain]);
     assert_eq!(code, Some(1), "{said}");
     let tick = differs_at(&said);
     assert!(tick > 300, "alike until ptp runs: {said}");
@@ -143,7 +156,7 @@ fn a_replay_with_a_changed_gain_names_the_first_divergent_tick_and_component() {
     );
     let first = said.lines().next().unwrap();
     assert!(
-        first.contains(" from ptp."),
+        first.contains(" from ff.tau_ff "),
         "the component that fed it: {first}"
     );
     assert!(

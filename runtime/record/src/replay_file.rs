@@ -3,12 +3,16 @@
 //! `/replay`, written by `modbot up` once the run has ended and the recorder closed the file.
 //!
 //! ```text
-//! /replay                attributes: format ("modbot-replay 1"), recorder (the recorder
-//!                        component's name), sources (the played-back components, `;`-joined),
-//!                        clock ("lockstep" or "real_time")
+//! /replay                attributes: format ("modbot-replay 1"), run_id (the run's:
+//!                        `<domain>-<start, unix ns>-<pid of modbot up>`), recorder (the
+//!                        recorder component's name), sources (the played-back components,
+//!                        `;`-joined), clock ("lockstep" or "real_time")
 //! /replay/spec.<g>       u8 (len,)  the checked grid of assembly generation g, as the
 //!                        supervisor gave it to the grid's processes (`GridSpec::to_image`):
 //!                        parameters, assembly data and all, exactly as they ran
+//! /replay/file.<name>    u8 (len,)  the text of each assembly file that ran (`<name>.lua`), as
+//!                        it was when the run ended (the system description's is the root
+//!                        attribute `description`)
 //! /replay/log            u8 (len,)  the coordinator's schedule of the run, UTF-8 text
 //!                        (switches, held ranges, faults, overruns, stale releases: see
 //!                        `modbot_grid_processes`' replay log)
@@ -28,6 +32,8 @@ pub const FORMAT: &str = "modbot-replay 1";
 /// What a replay needs beside the rows.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ReplayInfo {
+    /// The run's id.
+    pub run_id: String,
     /// The recorder component's name.
     pub recorder: String,
     /// The components played back.
@@ -38,6 +44,8 @@ pub struct ReplayInfo {
     pub specs: Vec<(u16, Vec<u8>)>,
     /// The coordinator's schedule of the run.
     pub log: String,
+    /// The assembly files that ran: (name, text).
+    pub files: Vec<(String, String)>,
 }
 
 /// Why the replay part of a recording cannot be written or read.
@@ -59,11 +67,15 @@ pub fn write(path: &Path, info: &ReplayInfo) -> Result<(), ReplayFileError> {
     let written = (|| -> hdf5::Result<()> {
         let group = file.create_group("replay")?;
         text_attr(&group, "format", FORMAT)?;
+        text_attr(&group, "run_id", &info.run_id)?;
         text_attr(&group, "recorder", &info.recorder)?;
         text_attr(&group, "sources", &info.sources.join(";"))?;
         text_attr(&group, "clock", &info.clock)?;
         for (g, image) in &info.specs {
             bytes_dataset(&group, &format!("spec.{g}"), image)?;
+        }
+        for (name, text) in &info.files {
+            bytes_dataset(&group, &format!("file.{name}"), text.as_bytes())?;
         }
         bytes_dataset(&group, "log", info.log.as_bytes())?;
         file.flush()
@@ -105,6 +117,7 @@ pub fn read(path: &Path) -> Result<Option<ReplayInfo>, ReplayFileError> {
             .map_err(|e| failed(format!("/replay/{name}: {e}")))
     };
     let mut specs = Vec::new();
+    let mut files = Vec::new();
     let names = group
         .member_names()
         .map_err(|e| failed(format!("/replay cannot be listed: {e}")))?;
@@ -114,12 +127,17 @@ pub fn read(path: &Path) -> Result<Option<ReplayInfo>, ReplayFileError> {
             .and_then(|g| g.parse::<u16>().ok())
         {
             specs.push((g, bytes(&name)?));
+        } else if let Some(file) = name.strip_prefix("file.") {
+            let text = String::from_utf8_lossy(&bytes(&name)?).into_owned();
+            files.push((file.to_owned(), text));
         }
     }
     specs.sort_by_key(|(g, _)| *g);
     let log = String::from_utf8(bytes("log")?)
         .map_err(|_| failed("/replay/log is not UTF-8 text".into()))?;
+    files.sort();
     Ok(Some(ReplayInfo {
+        run_id: text("run_id")?,
         recorder: text("recorder")?,
         sources: text("sources")?
             .split(';')
@@ -129,6 +147,7 @@ pub fn read(path: &Path) -> Result<Option<ReplayInfo>, ReplayFileError> {
         clock: text("clock")?,
         specs,
         log,
+        files,
     }))
 }
 
@@ -156,11 +175,13 @@ mod tests {
             .unwrap();
         assert_eq!(read(&path).unwrap(), None);
         let info = ReplayInfo {
+            run_id: "arm-1-2".into(),
             recorder: "record".into(),
             sources: vec!["robot".into()],
             clock: "lockstep".into(),
             specs: vec![(1, vec![1, 2, 3]), (2, vec![])],
             log: "switch tick=300 generation=2\n".into(),
+            files: vec![("hold".into(), "component \"hold\" {}\n".into())],
         };
         write(&path, &info).unwrap();
         assert_eq!(read(&path).unwrap(), Some(info));

@@ -44,21 +44,35 @@ pub(super) fn any_exists(config: &Config) -> bool {
     })
 }
 
-/// Opens slot `i` through `node`; `Ok(None)` if it does not exist.
+/// How long a slot another process is creating (or removing) this moment is waited for.
+const UNSETTLED_WAIT: std::time::Duration = std::time::Duration::from_millis(500);
+
+/// Opens slot `i` through `node`; `Ok(None)` if it does not exist. A slot another process is
+/// creating this moment (two `modbot up` of one domain at once: its resources are not all
+/// there yet) or removing is waited for, up to half a second.
 pub(super) fn open_slot(
     node: &Node<ipc::Service>,
     i: usize,
 ) -> Result<Option<PortFactory<ipc::Service, u8>>, TransportError> {
-    match node
-        .service_builder(&slot_name(i)?)
-        .blackboard_opener::<u8>()
-        .max_readers(MAX_NODES)
-        .max_nodes(MAX_NODES)
-        .open()
-    {
-        Ok(s) => Ok(Some(s)),
-        Err(BlackboardOpenError::DoesNotExist) => Ok(None),
-        Err(e) => Err(TransportError::ipc("open the directory", e)),
+    let started = std::time::Instant::now();
+    loop {
+        match node
+            .service_builder(&slot_name(i)?)
+            .blackboard_opener::<u8>()
+            .max_readers(MAX_NODES)
+            .max_nodes(MAX_NODES)
+            .open()
+        {
+            Ok(s) => return Ok(Some(s)),
+            Err(BlackboardOpenError::DoesNotExist) => return Ok(None),
+            Err(
+                BlackboardOpenError::ServiceInCorruptedState
+                | BlackboardOpenError::IsMarkedForDestruction,
+            ) if started.elapsed() < UNSETTLED_WAIT => {
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
+            Err(e) => return Err(TransportError::ipc("open the directory", e)),
+        }
     }
 }
 
