@@ -84,7 +84,23 @@ fn replay(args: &ReplayArgs) -> anyhow::Result<ExitCode> {
     let Some(last) = recording.last_tick() else {
         anyhow::bail!("{}: the recording has no rows", file.display());
     };
-    let ticks = args.until.map_or(last, |u| u.min(last)) + 1;
+    if schedule.ended.is_none() {
+        anyhow::bail!(
+            "{}: the run's schedule is incomplete (its coordinator did not end cleanly): a \
+             replay could not tell what it missed",
+            file.display()
+        );
+    }
+    let mut ticks = args.until.map_or(last, |u| u.min(last)) + 1;
+    // A host restarted: its components began anew, from nothing a replay has.
+    let restart = schedule
+        .restarts
+        .first()
+        .filter(|(t, _)| *t < ticks)
+        .cloned();
+    if let Some((t, _)) = &restart {
+        ticks = *t;
+    }
     let verdict = Arc::new(Mutex::new(Verdict::default()));
     let base_period_s = first.base_period.as_secs_f64();
     let out = (!what_if.is_empty()).then(|| {
@@ -105,17 +121,10 @@ fn replay(args: &ReplayArgs) -> anyhow::Result<ExitCode> {
     let seen = verdict.clone();
     // A what-if runs to the end; a replay stops at its first difference, and each before a
     // tick whose source outputs the recording lacks.
-    replay::run(
-        &specs,
-        &schedule,
-        &mut make,
-        &info.sources,
-        ticks,
-        &mut |n, _| {
-            seen.lock()
-                .is_ok_and(|v| v.gap.is_none_or(|g| n < g) && (!stop_at_first || v.first.is_none()))
-        },
-    )?;
+    replay::run(&specs, &schedule, &mut make, ticks, &mut |n, _| {
+        seen.lock()
+            .is_ok_and(|v| v.gap.is_none_or(|g| n < g) && (!stop_at_first || v.first.is_none()))
+    })?;
     let verdict = verdict
         .lock()
         .map_err(|_| anyhow::anyhow!("the comparer failed"))?
@@ -143,6 +152,12 @@ fn replay(args: &ReplayArgs) -> anyhow::Result<ExitCode> {
         }
     }
     println!("recorded in run {}", info.run_id);
+    if let Some((t, host)) = &restart {
+        println!(
+            "note: host {host} was restarted at tick {t} (its components began anew): the \
+             replay ends there"
+        );
+    }
     if let Some(t) = verdict.gap {
         println!(
             "note: the recording has no row for tick {t} (its recorder overran in real time): \

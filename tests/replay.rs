@@ -261,3 +261,77 @@ g.create_dataset("log", data=np.frombuffer(kept.encode(), dtype=np.uint8))
     assert!(differs_at(&said) >= first, "{said}");
     assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
 }
+
+/// The arm on the real-time clock, moving under `ptp`, through a drive fault and an operator's
+/// reset: while the robot is held (the fault, the reset) the running assembly tracks (TRACK |
+/// HELD), which the coordinator logs as held ranges; the replay applies them and is identical.
+#[test]
+fn a_recording_through_a_drive_fault_and_a_reset_replays_identical() {
+    let _arm = one_arm_at_a_time();
+    let mut sut = TestDomain::new("replayheld");
+    let file = std::env::temp_dir().join(format!("{}.h5", sut.name()));
+    let _files = Files(vec![file.clone()]);
+    let domain = format!("domain={}", sut.name());
+    let description = arm();
+    let file_arg = file.to_str().unwrap().to_owned();
+    let args = [
+        "up",
+        description.to_str().unwrap(),
+        "--var",
+        &domain,
+        "--switch",
+        "300:ptp",
+        "--record",
+        &file_arg,
+        "--replayable",
+    ];
+    let up = sut.spawn_logged("modbot", &args);
+    common::arm::wait_enabled(&sut, up);
+    sut.wait_for("the switch to ptp", Duration::from_secs(60), || {
+        sut.output_of(up).contains("took over")
+    });
+    // Into the first move (ptp waits 0.2 s at A first); the outcome does not depend on it.
+    std::thread::sleep(Duration::from_millis(800));
+    let robot = |sut: &TestDomain| sut.modbot_ok(&["robot"]);
+    sut.modbot_ok(&["bus", "inject", "--axis", "2", "--fault", "following"]);
+    sut.wait_for("the robot in fault", Duration::from_secs(30), || {
+        robot(&sut).starts_with("fault since tick")
+    });
+    let reset = sut.modbot(&["robot", "reset"]);
+    assert_eq!(
+        reset.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&reset.stderr)
+    );
+    sut.wait_for(
+        "the robot operational again",
+        Duration::from_secs(30),
+        || robot(&sut).starts_with("operational since tick"),
+    );
+    sut.modbot_ok(&["down"]);
+    let status = sut.wait_exit(up, Duration::from_secs(60));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert!(output.contains("is replayable (modbot replay)"), "{output}");
+    let info = modbot_record::replay_file::read(&file).unwrap().unwrap();
+    let held: Vec<&str> = info
+        .log
+        .lines()
+        .filter(|l| l.starts_with("held "))
+        .collect();
+    assert!(
+        held.iter().any(|l| l.ends_with(" on")) && held.iter().any(|l| l.ends_with(" off")),
+        "held while in fault and reset, then not: {held:?}"
+    );
+    let (code, said) = replay(&sut, &[file.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{said}");
+    assert!(
+        said.lines()
+            .next()
+            .unwrap_or_default()
+            .ends_with(": identical"),
+        "{said}"
+    );
+    assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+}

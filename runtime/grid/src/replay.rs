@@ -43,6 +43,10 @@ pub struct Schedule {
     /// (generation, component name, tick) of due ticks not released (still running) or
     /// releases not executed (stale).
     pub skipped: BTreeSet<(u16, String, u64)>,
+    /// (tick, host) of host processes restarted: their components began anew.
+    pub restarts: Vec<(u64, String)>,
+    /// The ticks the run ended after, if it ended cleanly (its log is complete).
+    pub ended: Option<u64>,
 }
 
 /// One switch of a recorded run.
@@ -138,6 +142,8 @@ impl Schedule {
                     };
                     if kind == "switch" {
                         sw.took_over = Some(tick);
+                        // A fault taken at this tick before the switch ended with it.
+                        s.faults.retain(|(t, _)| *t != tick);
                     } else {
                         sw.at.push((tick, number("at")?));
                     }
@@ -149,9 +155,17 @@ impl Schedule {
                     s.late.insert((g, c.clone(), number("release")?));
                     s.skipped.insert((g, c, tick));
                 }
+                "late" => {
+                    s.late.insert((generation()?, name()?, tick));
+                }
                 "stale" => {
                     s.skipped.insert((generation()?, name()?, tick));
                 }
+                "restart" => {
+                    let host = field("host").ok_or_else(|| bad("no host="))?;
+                    s.restarts.push((tick, host.to_owned()));
+                }
+                "end" => s.ended = Some(tick),
                 _ => return Err(bad("unknown line")),
             }
         }
@@ -172,6 +186,8 @@ impl Schedule {
 struct Slot {
     component: Box<dyn Component>,
     period: u64,
+    /// What its steps write into, as a host's buffer: the outputs of its last step.
+    outputs: Vec<PortValue>,
     valid: Vec<PortValue>,
     pending: Vec<PortValue>,
     pending_from: Option<u64>,
@@ -196,6 +212,7 @@ impl Slot {
         Ok(Slot {
             component,
             period: cs.period.max(1),
+            outputs: initial.clone(),
             valid: initial.clone(),
             pending: initial,
             pending_from: None,
@@ -219,12 +236,15 @@ impl Slot {
     /// n + period unless the release finished late.
     fn release(&mut self, rel: &Released, late: bool) {
         if rel.flags & Release::TRACK != 0 {
-            self.component.track(rel, &self.inputs, &mut self.pending);
+            self.component.track(rel, &self.inputs, &mut self.outputs);
         } else {
-            self.component.step(rel, &self.inputs, &mut self.pending);
+            self.component.step(rel, &self.inputs, &mut self.outputs);
+        }
+        for (p, o) in self.pending.iter_mut().zip(&self.outputs) {
+            p.assign(o);
         }
         let mut hasher = StateHasher::new();
-        self.component.state_hash(&self.pending, &mut hasher);
+        self.component.state_hash(&self.outputs, &mut hasher);
         (self.pending_from, self.pending_hash) = match late {
             true => (None, None),
             false => (Some(rel.tick.0 + self.period), hasher.finish()),
@@ -277,15 +297,16 @@ struct Incoming<'a> {
 }
 
 /// Replays `first` (the grid of the first generation) and the generations `specs` the
-/// schedule switches to, for `ticks` ticks, making components with `make`; `played` names the
-/// components whose events are not applied (they are played back as they were recorded).
+/// schedule switches to, for `ticks` ticks, making components with `make`. Events name the
+/// system's own components (index below the assembly's base) with generation 0. Played
+/// components (a source's player) take their events as the rest: the rows they play hold
+/// what was valid at each tick, which their skipped and late releases keep valid.
 /// `on_tick(n, hash)` sees the grid's state hash at every tick, and ends the replay there by
 /// answering false.
 pub fn run(
     specs: &[GridSpec],
     schedule: &Schedule,
     make: &mut dyn Make,
-    played: &[String],
     ticks: u64,
     on_tick: &mut dyn FnMut(u64, u64) -> bool,
 ) -> Result<(), ReplayError> {
@@ -309,7 +330,7 @@ pub fn run(
     let mut fault: Option<(u64, usize)> = None;
     let mut faults = schedule.faults.iter().peekable();
     let event = |set: &BTreeSet<(u16, String, u64)>, g: Generation, slot: &Slot, t: u64| {
-        !played.contains(&slot.name) && set.contains(&(g.0, slot.name.clone(), t))
+        set.contains(&(g.0, slot.name.clone(), t))
     };
     for n in 0..ticks {
         // The incoming assembly's components are made when it begins to track.
@@ -375,9 +396,14 @@ pub fn run(
         let held = schedule.held_at(n);
         for c in 0..cur.len() {
             let faulted = fault.is_some_and(|(t, from)| t < n || c >= from);
+            let logged = if c < base {
+                Generation::SYSTEM
+            } else {
+                generation
+            };
             if !n.is_multiple_of(cur[c].period)
                 || (faulted && c >= base)
-                || event(&schedule.skipped, generation, &cur[c], n)
+                || event(&schedule.skipped, logged, &cur[c], n)
             {
                 continue;
             }
@@ -401,7 +427,7 @@ pub fn run(
                 now_ns: n.saturating_mul(base_ns),
                 state_hash: tick_hash,
             };
-            let late = event(&schedule.late, generation, slot, n);
+            let late = event(&schedule.late, logged, slot, n);
             slot.release(&rel, late);
         }
         // The incoming assembly's, tracking until the switch.
@@ -454,7 +480,11 @@ mod tests {
     fn the_coordinators_log_reads_as_switches_holds_faults_and_events_by_name() {
         let log = "announce tick=300 generation=2 from=301 at=356\n\
                    postpone tick=350 generation=2 at=360\n\
+                   fault tick=360 from=0\n\
                    switch tick=360 generation=2\n\
+                   late tick=359 generation=1 component=hold\n\
+                   restart tick=700 host=ctrl\n\
+                   end tick=800\n\
                    held tick=400 on\n\
                    held tick=420 off\n\
                    fault tick=500 from=3\n\
@@ -465,7 +495,14 @@ mod tests {
         assert_eq!((sw.generation, sw.from, sw.took_over), (2, 301, Some(360)));
         assert_eq!((sw.at_as_of(349), sw.at_as_of(350)), (356, 360));
         assert!(!sut.held_at(399) && sut.held_at(400) && sut.held_at(419) && !sut.held_at(420));
-        assert_eq!(sut.faults, [(500, 3)]);
+        assert_eq!(
+            sut.faults,
+            [(500, 3)],
+            "the fault at 360 ended with the switch"
+        );
+        assert!(sut.late.contains(&(1, "hold".into(), 359)));
+        assert_eq!(sut.restarts, [(700, "ctrl".to_owned())]);
+        assert_eq!(sut.ended, Some(800));
         assert!(sut.late.contains(&(2, "ptp".into(), 450)));
         assert!(sut.skipped.contains(&(2, "ptp".into(), 451)));
         assert!(sut.skipped.contains(&(2, "ff".into(), 460)));

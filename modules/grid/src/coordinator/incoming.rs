@@ -177,6 +177,15 @@ impl<W: Write> Coordinator<W> {
         self.switched.retired_links.extend(old_links);
         let offset = self.hosts.len();
         self.hosts.extend(inc.hosts);
+        // What the replaced assembly still had running never becomes valid.
+        if self.replay_log.on() {
+            for (c, comp) in self.comps.iter().enumerate().skip(base) {
+                if let Some(m) = comp.pending {
+                    let name = &self.spec.components[c].name;
+                    self.replay_log.late(m, self.spec.generation(), name);
+                }
+            }
+        }
         self.comps.truncate(base);
         for (c, comp) in self.comps.iter_mut().enumerate() {
             comp.sources = inc.spec.sources(c);

@@ -150,6 +150,15 @@ impl Comp {
     }
 }
 
+/// The generation a replay log names component `c` of `spec` with: 0 for the system's own
+/// components (they run in every generation), else the grid's.
+fn log_generation(spec: &GridSpec, c: usize) -> Generation {
+    match &spec.assembly {
+        Some(a) if c < a.base => Generation::SYSTEM,
+        _ => spec.generation(),
+    }
+}
+
 /// The grid's state hash over `comps` as their versions are valid now: each one's hash with
 /// its index, in component order (as the reference run combines them).
 fn tick_hash(comps: &[Comp]) -> u64 {
@@ -379,12 +388,20 @@ impl<W: Write> Coordinator<W> {
             return 0;
         };
         let mut dropped = 0;
-        for comp in self.comps.iter_mut().filter(|c| c.host == h) {
-            if comp.pending.take().is_some() {
+        for (c, comp) in self
+            .comps
+            .iter_mut()
+            .enumerate()
+            .filter(|(_, c)| c.host == h)
+        {
+            if let Some(m) = comp.pending.take() {
                 comp.failed += 1;
                 dropped += 1;
+                let name = &self.spec.components[c].name;
+                self.replay_log.late(m, log_generation(&self.spec, c), name);
             }
         }
+        self.replay_log.restart(self.tick, host);
         if dropped > 0 {
             tracing::warn!("host {host} restarted: {dropped} release(s) lost with it");
         }
@@ -554,7 +571,7 @@ impl<W: Write> Coordinator<W> {
             comp.stale += 1;
             if self.replay_log.on() {
                 let name = &spec.components[c].name;
-                self.replay_log.stale(m, spec.generation(), name);
+                self.replay_log.stale(m, log_generation(spec, c), name);
             }
             // Kept for the trace's end only: without a trace, nothing grows with the misses.
             if !incoming && self.recorder.is_some() && c < recorder::recorded(spec) {
@@ -562,11 +579,19 @@ impl<W: Write> Coordinator<W> {
             }
         } else if status != Done::OK && status != Done::UNSAFE {
             comp.failed += 1;
+            if self.replay_log.on() {
+                let name = &spec.components[c].name;
+                self.replay_log.late(m, log_generation(spec, c), name);
+            }
         } else if n <= m + comp.period {
             comp.ready = Some(m + comp.period);
             comp.ready_hash = done.hash();
         } else {
             comp.late += 1;
+            if self.replay_log.on() {
+                let name = &spec.components[c].name;
+                self.replay_log.late(m, log_generation(spec, c), name);
+            }
         }
         // A component that tracked while the robot was held does not fault its assembly:
         // the robot is stopped already, and what it saw was not the assembly's doing.
@@ -704,7 +729,8 @@ impl<W: Write> Coordinator<W> {
                 }
                 if self.replay_log.on() {
                     let name = &self.spec.components[c].name;
-                    self.replay_log.overrun(n, generation, name, m);
+                    let g = log_generation(&self.spec, c);
+                    self.replay_log.overrun(n, g, name, m);
                 }
                 if comp.fault_policy && comp.in_a_row >= FAULT_AFTER && self.fault.is_none() {
                     let name = &self.spec.components[c].name;
@@ -845,6 +871,7 @@ impl<W: Write> Coordinator<W> {
     /// (`# overrun tick=T component=C release=M`), and the replay log; returns the versions
     /// the trace could not find.
     pub fn finish(mut self) -> std::io::Result<u64> {
+        self.replay_log.end(self.tick);
         self.replay_log.finish();
         match self.recorder {
             Some(rec) => {

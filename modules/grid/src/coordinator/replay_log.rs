@@ -11,11 +11,17 @@
 //! switch tick=N generation=G                   G took over at N
 //! held tick=N on|off                           from N the running assembly tracks (or not)
 //! fault tick=N from=C                          from component index C at tick N: faulted
-//! overrun tick=T generation=G component=NAME release=M   M finished late; not released at T
+//! overrun tick=T generation=G component=NAME release=M   M still ran at T; not released at T
+//! late tick=M generation=G component=NAME      release M's outputs never became valid
+//!                                              (finished late, failed, or dropped at a switch)
 //! stale tick=M generation=G component=NAME     release M was not executed
+//! restart tick=N host=H                        host H was restarted (its components anew)
+//! end tick=N                                   the run ended cleanly after N ticks
 //! ```
-//! Components are named with the generation whose grid they belong to, never by an index
-//! that a switch changes (a fault's `from` is an index of the grid running at N).
+//! Components are named with the generation whose grid they belong to (0 for the system's own
+//! components, which run in every generation), never by an index that a switch changes (a
+//! fault's `from` is an index of the grid running at N). A fault logged at a tick before that
+//! tick's switch was ended by the switch.
 
 use std::io::Write;
 
@@ -89,6 +95,20 @@ impl ReplayLog {
         self.line(format_args!(
             "overrun tick={n} generation={g} component={name} release={release}"
         ));
+    }
+
+    pub(super) fn late(&mut self, m: u64, g: Generation, name: &str) {
+        self.line(format_args!(
+            "late tick={m} generation={g} component={name}"
+        ));
+    }
+
+    pub(super) fn restart(&mut self, n: u64, host: &str) {
+        self.line(format_args!("restart tick={n} host={host}"));
+    }
+
+    pub(super) fn end(&mut self, n: u64) {
+        self.line(format_args!("end tick={n}"));
     }
 
     pub(super) fn stale(&mut self, m: u64, g: Generation, name: &str) {
