@@ -199,7 +199,7 @@ impl DirectoryWriter {
                 Err(BlackboardCreateError::AlreadyExists) => {}
                 Err(e) => return Err(TransportError::ipc("create the directory", e)),
             }
-            let Some(service) = slots::open_slot(node, slot)? else {
+            let Some(service) = slots::open_slot_settled(node, slot)? else {
                 vanished += 1;
                 if vanished > 3 {
                     return Err(TransportError::Contended {

@@ -47,32 +47,51 @@ pub(super) fn any_exists(config: &Config) -> bool {
 /// How long a slot another process is creating (or removing) this moment is waited for.
 const UNSETTLED_WAIT: std::time::Duration = std::time::Duration::from_millis(500);
 
-/// Opens slot `i` through `node`; `Ok(None)` if it does not exist. A slot another process is
-/// creating this moment (two `modbot up` of one domain at once: its resources are not all
-/// there yet) or removing is waited for, up to half a second.
+/// Opens slot `i` through `node`; `Ok(None)` if it does not exist.
 pub(super) fn open_slot(
     node: &Node<ipc::Service>,
     i: usize,
 ) -> Result<Option<PortFactory<ipc::Service, u8>>, TransportError> {
+    let name = slot_name(i)?;
+    open_slot_once(node, &name).map_err(|e| TransportError::ipc("open the directory", e))
+}
+
+/// [`open_slot`] for a supervisor creating the directory: a slot another process is creating
+/// this moment (two `modbot up` of one domain at once: its resources are not all there yet) or
+/// removing is waited for, up to half a second. Readers do not wait: they look again later.
+pub(super) fn open_slot_settled(
+    node: &Node<ipc::Service>,
+    i: usize,
+) -> Result<Option<PortFactory<ipc::Service, u8>>, TransportError> {
+    let name = slot_name(i)?;
     let started = std::time::Instant::now();
     loop {
-        match node
-            .service_builder(&slot_name(i)?)
-            .blackboard_opener::<u8>()
-            .max_readers(MAX_NODES)
-            .max_nodes(MAX_NODES)
-            .open()
-        {
-            Ok(s) => return Ok(Some(s)),
-            Err(BlackboardOpenError::DoesNotExist) => return Ok(None),
+        match open_slot_once(node, &name) {
             Err(
                 BlackboardOpenError::ServiceInCorruptedState
                 | BlackboardOpenError::IsMarkedForDestruction,
             ) if started.elapsed() < UNSETTLED_WAIT => {
                 std::thread::sleep(std::time::Duration::from_millis(2));
             }
-            Err(e) => return Err(TransportError::ipc("open the directory", e)),
+            other => return other.map_err(|e| TransportError::ipc("open the directory", e)),
         }
+    }
+}
+
+fn open_slot_once(
+    node: &Node<ipc::Service>,
+    name: &ServiceName,
+) -> Result<Option<PortFactory<ipc::Service, u8>>, BlackboardOpenError> {
+    match node
+        .service_builder(name)
+        .blackboard_opener::<u8>()
+        .max_readers(MAX_NODES)
+        .max_nodes(MAX_NODES)
+        .open()
+    {
+        Ok(s) => Ok(Some(s)),
+        Err(BlackboardOpenError::DoesNotExist) => Ok(None),
+        Err(e) => Err(e),
     }
 }
 
