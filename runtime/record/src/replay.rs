@@ -14,7 +14,7 @@ use modbot_grid::record_type::Signal;
 use super::batch::Batch;
 use super::file::{Header, RecordFile};
 use super::read::{read_signal, read_state_hash, ReadError, Series};
-use super::rows::HEAD_WORDS;
+use super::rows::{put_values, HEAD_WORDS};
 
 /// A recording's rows, read into memory for a replay.
 pub struct Recording {
@@ -275,21 +275,7 @@ impl Comparer {
         w.row[0] = rel.tick.0;
         w.row[1] = u64::from(rel.generation.0);
         w.row[2] = rel.state_hash;
-        let mut at = HEAD_WORDS;
-        for v in inputs {
-            let words: &mut dyn Iterator<Item = u64> = match v {
-                PortValue::F64(x) => &mut std::iter::once(x.to_bits()),
-                PortValue::I64(i) => &mut std::iter::once(*i as u64),
-                PortValue::Bool(b) => &mut std::iter::once(u64::from(*b)),
-                PortValue::F64s(xs) => &mut xs.iter().map(|x| x.to_bits()),
-            };
-            for word in words {
-                if let Some(slot) = w.row.get_mut(at) {
-                    *slot = word;
-                }
-                at += 1;
-            }
-        }
+        put_values(&mut w.row, inputs);
         w.batch.add(&w.row);
         if w.batch.rows >= 1000 {
             flush(w);

@@ -57,15 +57,7 @@ impl Rows {
         row[0] = tick;
         row[1] = u64::from(generation);
         row[2] = state_hash;
-        let mut at = HEAD_WORDS;
-        for v in values {
-            match v {
-                PortValue::F64(x) => put(&mut row, &mut at, x.to_bits()),
-                PortValue::I64(i) => put(&mut row, &mut at, *i as u64),
-                PortValue::Bool(b) => put(&mut row, &mut at, u64::from(*b)),
-                PortValue::F64s(xs) => xs.iter().for_each(|x| put(&mut row, &mut at, x.to_bits())),
-            }
-        }
+        put_values(&mut row, values);
         // Both queues hold every row at most once, so there is room.
         let _ = self.full.push(row);
         true
@@ -79,6 +71,20 @@ impl Rows {
     /// Gives an emptied row back.
     pub fn give_back(&self, row: Box<[u64]>) {
         let _ = self.free.push(row);
+    }
+}
+
+/// Writes `values` into a row after its head words (an f64 as its bits, an i64 as itself, a
+/// bool as 0 or 1; a value wider than the row has room for is cut).
+pub fn put_values(row: &mut [u64], values: &[PortValue]) {
+    let mut at = HEAD_WORDS;
+    for v in values {
+        match v {
+            PortValue::F64(x) => put(row, &mut at, x.to_bits()),
+            PortValue::I64(i) => put(row, &mut at, *i as u64),
+            PortValue::Bool(b) => put(row, &mut at, u64::from(*b)),
+            PortValue::F64s(xs) => xs.iter().for_each(|x| put(row, &mut at, x.to_bits())),
+        }
     }
 }
 
