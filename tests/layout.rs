@@ -20,6 +20,7 @@ const LAYERS: &[(&str, &str, u8)] = &[
     ("modbot-ethercat", "runtime/ethercat", 6),
     ("modbot-ecat-sim", "runtime/ecat-sim", 6),
     ("modbot-station", "station", 6),
+    ("modbot-zenoh", "bridge/zenoh", 3),
     ("modbot-record", "runtime/record", 4),
     ("modbot-fmu", "runtime/fmu", 4),
     ("modbot-system", "runtime/system", 7),

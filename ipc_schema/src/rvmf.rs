@@ -152,6 +152,8 @@ impl NakCode {
     pub const TOO_LARGE: NakCode = NakCode(7);
     pub const NOT_READY: NakCode = NakCode(8);
     pub const DUPLICATE: NakCode = NakCode(9);
+    /// The module is on another host and the link to it is down (a bridge's answer).
+    pub const UNREACHABLE: NakCode = NakCode(10);
 
     pub fn name(self) -> &'static str {
         match self {
@@ -164,6 +166,7 @@ impl NakCode {
             Self::TOO_LARGE => "result too large",
             Self::NOT_READY => "not ready",
             Self::DUPLICATE => "duplicate request: already executed",
+            Self::UNREACHABLE => "remote module unreachable",
             _ => "unknown error code",
         }
     }

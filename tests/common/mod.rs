@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod arm;
+pub mod hosts;
 pub mod python;
 pub mod segment;
 

@@ -555,6 +555,22 @@ impl Ctx {
         Ok(out)
     }
 
+    /// Fails every call waiting for the method table of `addr` with `err`.
+    pub(crate) fn fail_pending(&mut self, addr: Addr, err: &CallError) {
+        let mut i = 0;
+        while i < self.out.pending.len() {
+            if self.out.pending[i].addr != addr {
+                i += 1;
+                continue;
+            }
+            let p = self.out.pending.swap_remove(i);
+            if self.out.calls.is_waiting(p.handle) {
+                self.out.calls.cancel(p.handle);
+                self.out.failures.push((p.handle, err.clone()));
+            }
+        }
+    }
+
     /// Sends the calls that wait for a method table or for their peer, where they now can go.
     pub(crate) fn flush_pending(&mut self) {
         if self.out.pending.is_empty() {

@@ -100,6 +100,10 @@ pub(crate) fn dispatch<S>(
                             }
                             ctx.flush_pending();
                         }
+                        // A refusal is an answer: the calls waiting for the table fail
+                        // with it (a bridge's module whose link is down says why) rather
+                        // than describe again and again until their deadline.
+                        Err(e @ CallError::Nak { .. }) => ctx.fail_pending(src, e),
                         Err(e) => tracing::warn!("describe of {src} failed: {e}"),
                     }
                 }

@@ -1,0 +1,182 @@
+//! Two domains on two "hosts" — network namespaces of the test's own with a veth pair between
+//! them — bridged by `modbot-zenoh`: a remote module is called as a local one, a method the
+//! description does not export is refused, and a link cut during a stream of calls loses no
+//! call silently and runs none twice.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use common::hosts::{TwoHosts, A_IP};
+use common::TestDomain;
+
+const FAST: &str = r#"
+supervision { heartbeat_timeout = 5, heartbeat_period = 0.05, start_timeout = 20, stop_grace = 10 }
+"#;
+
+/// The robot's domain on host A: a `target` (modbot-faulty, journaling its `record` calls)
+/// and its bridge exporting `target`'s ping and record; the station's domain on host B:
+/// only its bridge, importing `target` as `target` at address 40.
+struct Remote {
+    hosts: TwoHosts,
+    robot: TestDomain,
+    station: TestDomain,
+    journal: PathBuf,
+    ups: (u32, u32),
+}
+
+impl Remote {
+    fn new(test: &str) -> Remote {
+        let hosts = TwoHosts::new();
+        let mut robot = TestDomain::new(&format!("{test}r"));
+        let mut station = TestDomain::new(&format!("{test}s"));
+        robot.run_in_netns(&hosts.a.0);
+        station.run_in_netns(&hosts.b.0);
+        let journal = std::env::temp_dir().join(format!("{}.journal", robot.name()));
+        let _ = std::fs::remove_file(&journal);
+        let robot_body = format!(
+            r#"{FAST}
+module "target" {{ addr = 5, program = "modbot-faulty", args = {{ "--journal", "{}" }} }}
+module "bridge" {{ addr = 200, program = "modbot-zenoh",
+                  args = {{ "--listen", "tcp/{A_IP}:7447", "--export", "target:ping,record" }} }}
+"#,
+            journal.display()
+        );
+        let station_body = format!(
+            r#"{FAST}
+module "bridge" {{ addr = 200, program = "modbot-zenoh",
+                  args = {{ "--connect", "tcp/{A_IP}:7447", "--import", "target@40={}/target" }} }}
+"#,
+            robot.name()
+        );
+        let robot_file = robot.write_system(&robot_body);
+        let station_file = station.write_system(&station_body);
+        let up_robot = robot.spawn_logged("modbot", &["up", robot_file.to_str().unwrap()]);
+        let up_station = station.spawn_logged("modbot", &["up", station_file.to_str().unwrap()]);
+        let r = Remote {
+            hosts,
+            robot,
+            station,
+            journal,
+            ups: (up_robot, up_station),
+        };
+        r.station
+            .wait_for("the remote target answers", Duration::from_secs(60), || {
+                r.station
+                    .modbot(&["call", "target.ping", "--timeout-ms", "5000"])
+                    .status
+                    .success()
+            });
+        r
+    }
+
+    fn stop(mut self) {
+        for (sut, up) in [
+            (&mut self.station, self.ups.1),
+            (&mut self.robot, self.ups.0),
+        ] {
+            sut.modbot_ok(&["down"]);
+            let status = sut.wait_exit(up, Duration::from_secs(60));
+            assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+        }
+        let _ = std::fs::remove_file(&self.journal);
+        assert_eq!(self.robot.leftover_files(), Vec::<PathBuf>::new());
+        assert_eq!(self.station.leftover_files(), Vec::<PathBuf>::new());
+    }
+}
+
+/// What `modbot call` said: exit code, stdout, stderr.
+fn call(sut: &TestDomain, args: &[&str]) -> (Option<i32>, String, String) {
+    let mut all = vec!["call"];
+    all.extend(args);
+    let out = sut.modbot(&all);
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).trim().to_owned(),
+        String::from_utf8_lossy(&out.stderr).trim().to_owned(),
+    )
+}
+
+#[test]
+fn a_remote_method_is_called_as_a_local_one_and_a_method_not_exported_is_refused() {
+    let r = Remote::new("rcall");
+    // The station's phone book lists the imported module beside its own.
+    let ls = r.station.modbot_ok(&["ls"]);
+    assert!(ls.contains("target") && ls.contains("ping"), "{ls}");
+    let (code, out, err) = call(&r.station, &["target.record", "41"]);
+    assert_eq!((code, out.as_str()), (Some(0), "41"), "{err}");
+    assert_eq!(std::fs::read_to_string(&r.journal).unwrap(), "41\n");
+    // Exported only ping and record: exit is refused by the robot's bridge, never run.
+    let (code, _, err) = call(&r.station, &["target.exit", "3"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("method 'exit' of 'target' is not exported by domain")
+            && err.contains("(exported: ping, record)"),
+        "{err}"
+    );
+    let (code, out, _) = call(&r.robot, &["target.ping"]);
+    assert_eq!(code, Some(0), "the target still runs: {out}");
+    r.stop();
+}
+
+/// A stream of `record(n)` calls from the station while the link is cut for a few seconds
+/// and restored: every call is answered once (its n in the journal once) or fails with the
+/// link's error; none is answered twice, none is lost without an error; after the link is
+/// back, calls are answered again without a restart.
+#[test]
+fn a_link_cut_during_a_stream_of_calls_loses_none_silently_and_runs_none_twice() {
+    let r = Remote::new("rlink");
+    let mut ledger: BTreeMap<u32, Result<(), String>> = BTreeMap::new();
+    let mut n = 0u32;
+    let mut stream = |until: &dyn Fn(&BTreeMap<u32, Result<(), String>>) -> bool| {
+        let start = Instant::now();
+        while !until(&ledger) {
+            assert!(start.elapsed() < Duration::from_secs(120), "{ledger:?}");
+            n += 1;
+            let (code, out, err) = call(
+                &r.station,
+                &["target.record", &n.to_string(), "--timeout-ms", "10000"],
+            );
+            let outcome = match code {
+                Some(0) => {
+                    assert_eq!(out, n.to_string(), "call {n} answered with another's answer");
+                    Ok(())
+                }
+                Some(1) if err.contains("remote module unreachable (10)") => Err(err),
+                _ => panic!("call {n} neither answered nor failed with the link's error: {code:?} {out} {err}"),
+            };
+            ledger.insert(n, outcome);
+        }
+    };
+    stream(&|l| l.len() >= 10);
+    r.hosts.link(false);
+    stream(&|l| l.values().rev().take(5).all(|o| o.is_err()) && l.len() >= 15);
+    r.hosts.link(true);
+    stream(&|l| l.values().rev().take(10).all(|o| o.is_ok()));
+    let journal = std::fs::read_to_string(&r.journal).unwrap();
+    let mut runs: BTreeMap<u32, u32> = BTreeMap::new();
+    for line in journal.lines() {
+        *runs.entry(line.parse().unwrap()).or_default() += 1;
+    }
+    for (seq, outcome) in &ledger {
+        let ran = runs.get(seq).copied().unwrap_or(0);
+        assert!(ran <= 1, "call {seq} ran {ran} times");
+        if outcome.is_ok() {
+            assert_eq!(ran, 1, "call {seq} answered but never ran");
+        }
+    }
+    let failed: Vec<&String> = ledger.values().filter_map(|o| o.as_ref().err()).collect();
+    assert!(
+        failed.iter().any(|e| e.contains("unreachable since")),
+        "the link's error says since when: {failed:?}"
+    );
+    println!(
+        "{} calls: {} answered, {} failed with the link's error",
+        ledger.len(),
+        ledger.values().filter(|o| o.is_ok()).count(),
+        failed.len()
+    );
+    r.stop();
+}
