@@ -39,15 +39,15 @@ impl Remote {
         let robot_body = format!(
             r#"{FAST}
 module "target" {{ addr = 5, program = "modbot-faulty", args = {{ "--journal", "{}" }} }}
-module "bridge" {{ addr = 200, program = "modbot-zenoh",
-                  args = {{ "--listen", "tcp/{A_IP}:7447", "--export", "target:ping,record" }} }}
+bridge {{ addr = 200, listen = {{ "tcp/{A_IP}:7447" }},
+          exports = {{ target = {{ "ping", "record" }} }} }}
 "#,
             journal.display()
         );
         let station_body = format!(
             r#"{FAST}
-module "bridge" {{ addr = 200, program = "modbot-zenoh",
-                  args = {{ "--connect", "tcp/{A_IP}:7447", "--import", "target@40={}/target" }} }}
+bridge {{ addr = 200, connect = {{ "tcp/{A_IP}:7447" }},
+          imports = {{ target = {{ addr = 40, domain = "{}" }} }} }}
 "#,
             robot.name()
         );

@@ -251,7 +251,10 @@ impl Supervisor {
         let domain = Domain::new(&spec.domain)?;
         let (epoch, system) = (
             Instant::now(),
-            SystemEnv::new(MonotonicClock.now_ns(), spec.modules.len()),
+            SystemEnv::new(
+                MonotonicClock.now_ns(),
+                spec.modules.len() + spec.imported.len(),
+            ),
         );
         // The supervisor's own inbox is sized like its modules'.
         let transport =

@@ -143,7 +143,10 @@ pub fn add_processes(
         let file = file.to_path_buf();
         return Err(GridProcessError::GateNeedsLockstep { file });
     }
-    let mut used: Vec<u8> = spec.modules.iter().map(|m| m.addr).collect();
+    // The bridge's imports hold their addresses too (its process opens them).
+    let mut used: Vec<u8> = (spec.modules.iter().map(|m| m.addr))
+        .chain(spec.imported.iter().map(|i| i.addr))
+        .collect();
     let mut next_addr = || {
         let a = (1..=253u8).rev().find(|a| !used.contains(a));
         if let Some(a) = a {
@@ -186,7 +189,9 @@ pub fn add_processes(
     let mut added = Vec::new();
     for host in grid.hosts() {
         let name = grid.host_module(&host);
-        if spec.modules.iter().any(|m| m.name == name) {
+        if spec.modules.iter().any(|m| m.name == name)
+            || spec.imported.iter().any(|i| i.name == name)
+        {
             return Err(GridProcessError::NameTaken {
                 file: spec.file.clone(),
                 line: grid.line,

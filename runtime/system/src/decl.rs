@@ -21,6 +21,8 @@ use modbot_core::transport::{check_name, ReceiveMode};
 use modbot_grid::component::DeclaredType;
 use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl, RecordDecl};
 
+use super::bridge_decl::ImportedName;
+
 /// Everything the description declared, in order, before the cross-checks.
 #[derive(Debug, Default)]
 pub(super) struct Declarations {
@@ -42,6 +44,10 @@ pub(super) struct Declarations {
     pub connections: Vec<ConnectDecl>,
     /// The `record` declaration (at most one).
     pub records: Vec<RecordDecl>,
+    /// The line of the `bridge` declaration (at most one), which added its module.
+    pub bridge: Option<u32>,
+    /// The names and addresses the bridge's imports hold.
+    pub imported: Vec<ImportedName>,
 }
 
 /// A `module` declaration: its program as the description wrote it, not looked up yet, and
@@ -130,6 +136,17 @@ pub(super) fn name(what: &'static str, v: &Value) -> Result<String, DeclError> {
         return Err(DeclError::Name { what, name });
     }
     Ok(name)
+}
+
+/// `name`, checked as a name of a `what`.
+pub(super) fn name_text(what: &'static str, name: &str) -> Result<String, DeclError> {
+    if check_name(name).is_err() {
+        return Err(DeclError::Name {
+            what,
+            name: name.to_owned(),
+        });
+    }
+    Ok(name.to_owned())
 }
 
 /// The table of `supervision { ... }`.

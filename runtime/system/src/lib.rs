@@ -60,6 +60,7 @@
 //! - [`program`]: how a program name becomes an executable path ([`DefaultResolver`]).
 
 pub mod assembly;
+mod bridge_decl;
 mod data_fn;
 mod decl;
 mod error;
@@ -74,6 +75,8 @@ mod record_decl;
 pub mod sandbox;
 mod validate;
 
+#[cfg(test)]
+mod bridge_tests;
 #[cfg(test)]
 mod control_tests;
 #[cfg(test)]
@@ -101,6 +104,7 @@ use modbot_core::transport::ReceiveMode;
 use modbot_grid::{GridSpec, Registry};
 
 pub use assembly::{assembly_names, load_assembly};
+pub use bridge_decl::ImportedName;
 pub use error::{DeclError, SystemError, VarError};
 pub use program::{DefaultResolver, ProgramResolver};
 pub use record_decl::{RECORD_VAR, REPLAY_VAR};
@@ -127,6 +131,9 @@ pub struct SystemSpec {
     /// The host programs of the component types the description declares
     /// (`component_type`), found when the description is loaded: (name, path).
     pub host_programs: Vec<(String, PathBuf)>,
+    /// The names and addresses the bridge's imports hold in the domain (`bridge { imports }`):
+    /// the bridge's process opens them; nothing else may take them.
+    pub imported: Vec<ImportedName>,
 }
 
 /// The supervisor's timings.

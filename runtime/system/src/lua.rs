@@ -105,6 +105,7 @@ fn sandbox(record: &Shared, vars: &[(String, String)], data: Option<&Path>) -> m
     globals.raw_set("group", group_fn(&lua, record)?)?;
     grid_decl::register(&lua, &globals, record)?;
     record_decl::register(&lua, &globals, record)?;
+    super::bridge_decl::register(&lua, &globals, record)?;
     globals.raw_set("data", super::data_fn::data_fn(&lua, record, data)?)?;
     let given = lua.create_table()?;
     for (key, value) in vars {

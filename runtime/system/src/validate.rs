@@ -75,6 +75,27 @@ pub(super) fn build(
             ));
         }
     }
+    for i in &decls.imported {
+        if let Some(first) = names.insert(&i.name, i.line) {
+            return Err(error(
+                i.line,
+                format!(
+                    "the bridge's import '{}' has the name of a module declared at line {first}",
+                    i.name
+                ),
+            ));
+        }
+        if let Some((other, first)) = addrs.insert(i.addr, (&i.name, i.line)) {
+            return Err(error(
+                i.line,
+                format!(
+                    "the bridge's import '{}': address {} is already used by '{other}' (line \
+                     {first})",
+                    i.name, i.addr
+                ),
+            ));
+        }
+    }
     if decls.modules.is_empty() && decls.grid.is_none() {
         return Err(SystemError::new(
             file,
@@ -225,6 +246,7 @@ pub(super) fn build(
         grid,
         host_template: None,
         host_programs,
+        imported: decls.imported,
     })
 }
 
