@@ -121,6 +121,9 @@ fn a_remote_method_is_called_as_a_local_one_and_a_method_not_exported_is_refused
     r.stop();
 }
 
+/// Each call's number and how it ended: answered, or failed with the link's error.
+type Ledger = BTreeMap<u32, Result<(), String>>;
+
 /// A stream of `record(n)` calls from the station while the link is cut for a few seconds
 /// and restored: every call is answered once (its n in the journal once) or fails with the
 /// link's error; none is answered twice, none is lost without an error; after the link is
@@ -128,9 +131,9 @@ fn a_remote_method_is_called_as_a_local_one_and_a_method_not_exported_is_refused
 #[test]
 fn a_link_cut_during_a_stream_of_calls_loses_none_silently_and_runs_none_twice() {
     let r = Remote::new("rlink");
-    let mut ledger: BTreeMap<u32, Result<(), String>> = BTreeMap::new();
+    let mut ledger: Ledger = BTreeMap::new();
     let mut n = 0u32;
-    let mut stream = |until: &dyn Fn(&BTreeMap<u32, Result<(), String>>) -> bool| {
+    let mut stream = |until: &dyn Fn(&Ledger) -> bool| {
         let start = Instant::now();
         while !until(&ledger) {
             assert!(start.elapsed() < Duration::from_secs(120), "{ledger:?}");
@@ -179,4 +182,87 @@ fn a_link_cut_during_a_stream_of_calls_loses_none_silently_and_runs_none_twice()
         failed.len()
     );
     r.stop();
+}
+
+/// MOSER with the robot's modules on one host and the control station on the other
+/// (`examples/moser_remote/`): the station sends the patrol through the bridges, the robot's
+/// reports come back through them, and the scenario runs to its alert and summary as on one
+/// host.
+#[test]
+fn moser_split_over_two_hosts_patrols_to_its_alert_and_summary() {
+    let hosts = TwoHosts::new();
+    let mut robot = TestDomain::new("rmoserr");
+    let mut station = TestDomain::new("rmosers");
+    robot.run_in_netns(&hosts.a.0);
+    station.run_in_netns(&hosts.b.0);
+    let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/moser_remote");
+    let vars = |file: &str| {
+        vec![
+            "up".to_owned(),
+            format!("{examples}/{file}"),
+            "--var".into(),
+            format!(
+                "domain={}",
+                if file == "robot.lua" {
+                    robot.name()
+                } else {
+                    station.name()
+                }
+            ),
+            "--var".into(),
+            format!("robot_domain={}", robot.name()),
+            "--var".into(),
+            format!("station_domain={}", station.name()),
+            "--var".into(),
+            format!("robot_ip={A_IP}"),
+            "--var".into(),
+            "speed=2".into(),
+        ]
+    };
+    let robot_args = vars("robot.lua");
+    let station_args = vars("station.lua");
+    let up_robot = robot.spawn_logged(
+        "modbot",
+        &robot_args.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    let up_station = station.spawn_logged(
+        "modbot",
+        &station_args.iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = station.exited(up_station) {
+            break status;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "the station did not end:\n{}\n--- the robot's host:\n{}",
+            station.output_of(up_station),
+            robot.output_of(up_robot)
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let output = station.output_of(up_station);
+    assert_eq!(
+        status.code(),
+        Some(0),
+        "{output}\n--- the robot's host:\n{}",
+        robot.output_of(up_robot)
+    );
+    assert!(output.contains("*** ALERT: intruder at"), "{output}");
+    assert!(output.contains("==== MOSER summary ===="), "{output}");
+    let driven: f64 = output
+        .lines()
+        .find_map(|l| {
+            l.split_once("distance patrolled ")
+                .map(|(_, r)| r.trim().to_owned())
+        })
+        .and_then(|r| r.split_whitespace().next()?.parse().ok())
+        .unwrap_or_else(|| panic!("no distance in:\n{output}"));
+    assert!(driven > 10.0, "patrolled only {driven} m:\n{output}");
+    robot.modbot_ok(&["down"]);
+    let status = robot.wait_exit(up_robot, Duration::from_secs(60));
+    assert_eq!(status.code(), Some(0), "{}", robot.output_of(up_robot));
+    assert_eq!(robot.leftover_files(), Vec::<PathBuf>::new());
+    assert_eq!(station.leftover_files(), Vec::<PathBuf>::new());
 }

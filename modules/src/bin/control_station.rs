@@ -68,6 +68,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         start_patrol(&mut module, &cli.high_level, wing)?;
     }
     let mut ended = false;
+    let mut alert_heard_s = None;
     while !signals::termination_requested() {
         let mut served = 0;
         while served < 64 && module.poll_once()? {
@@ -76,10 +77,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         module.housekeeping();
         let now_s = sim.seconds(module.ctx().now_ns());
         control_station::progress_line(module.state_mut(), now_s);
-        let alert_done = module
-            .state()
-            .alert
-            .is_some_and(|a| now_s >= a.time_s + cli.end_after_alert);
+        // When the alert came, by this host's clock (a robot on another host has another).
+        if module.state().alert.is_some() && alert_heard_s.is_none() {
+            alert_heard_s = Some(now_s);
+        }
+        let alert_done = alert_heard_s.is_some_and(|t| now_s >= t + cli.end_after_alert);
         if !ended && (alert_done || now_s >= cli.max_duration) {
             ended = true;
             let summary = finish(&mut module, &cli, &sim, started.elapsed())?;
@@ -98,7 +100,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Sends the robot on patrol, waiting (up to 20 s) until the high-level module is ready.
+/// Sends the robot on patrol, waiting (up to 20 s) until the high-level module is ready (and,
+/// for a robot on another host, the link to it is up).
 fn start_patrol(module: &mut Module<Station>, high_level: &str, wing: i64) -> anyhow::Result<()> {
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
@@ -109,9 +112,15 @@ fn start_patrol(module: &mut Module<Station>, high_level: &str, wing: i64) -> an
                 module.state_mut().mission = Some(wing);
                 return Ok(());
             }
+            // Not ready yet, or (a robot on another host) its link not up yet.
             Err(CallError::Nak { code, .. })
-                if code == NakCode::NOT_READY && Instant::now() < deadline =>
+                if (code == NakCode::NOT_READY || code == NakCode::UNREACHABLE)
+                    && Instant::now() < deadline =>
             {
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            // Not in the phone book yet (a robot on another host: its bridge's import).
+            Err(CallError::UnknownModule(_)) if Instant::now() < deadline => {
                 std::thread::sleep(Duration::from_millis(50));
             }
             Err(e) => anyhow::bail!("cannot send the robot on patrol: {e}"),
