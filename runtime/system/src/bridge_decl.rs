@@ -29,7 +29,7 @@ use mlua::{Lua, MultiValue, Table, Value};
 use super::decl::{self, ModuleDecl};
 use super::read::{integer_in, lua_failed, show, string, string_list, text, Fields};
 use super::record::{caller_line, fail, one_arg, Shared};
-use super::DeclError;
+use super::{DeclError, ImportedName};
 
 /// The program a bridge runs.
 pub const PROGRAM: &str = "modbot-zenoh";
@@ -47,15 +47,6 @@ const FIELDS: &[&str] = &[
     "lease_ms",
     "restart",
 ];
-
-/// A name and an address a bridge's import holds in the domain.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ImportedName {
-    pub name: String,
-    pub addr: u8,
-    /// The `bridge` declaration's line.
-    pub line: u32,
-}
 
 /// Adds `bridge` to `globals`.
 pub(super) fn register(lua: &Lua, globals: &Table, record: &Shared) -> mlua::Result<()> {

@@ -21,7 +21,7 @@ use modbot_core::transport::{check_name, ReceiveMode};
 use modbot_grid::component::DeclaredType;
 use modbot_grid::spec::{ComponentDecl, ConnectDecl, GridDecl, RecordDecl};
 
-use super::bridge_decl::ImportedName;
+use super::ImportedName;
 
 /// Everything the description declared, in order, before the cross-checks.
 #[derive(Debug, Default)]

@@ -104,7 +104,6 @@ use modbot_core::transport::ReceiveMode;
 use modbot_grid::{GridSpec, Registry};
 
 pub use assembly::{assembly_names, load_assembly};
-pub use bridge_decl::ImportedName;
 pub use error::{DeclError, SystemError, VarError};
 pub use program::{DefaultResolver, ProgramResolver};
 pub use record_decl::{RECORD_VAR, REPLAY_VAR};
@@ -134,6 +133,15 @@ pub struct SystemSpec {
     /// The names and addresses the bridge's imports hold in the domain (`bridge { imports }`):
     /// the bridge's process opens them; nothing else may take them.
     pub imported: Vec<ImportedName>,
+}
+
+/// A name and an address a bridge's import holds in the domain.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ImportedName {
+    pub name: String,
+    pub addr: u8,
+    /// The `bridge` declaration's line.
+    pub line: u32,
 }
 
 /// The supervisor's timings.
