@@ -3,13 +3,13 @@
 //!
 //! # Commands
 //! - `modbot-benches all [--quick] [--pin] [--fifo] [--out DIR]`: every benchmark in order
-//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu, ethercat, station, replay; ethercat only as
+//!   (calls, snapshots, grid, scale, faults, swaps, arm, fmu, ethercat, station, replay, remote; ethercat only as
 //!   root, station only with chromium, else a note says it was skipped). A benchmark that fails leaves a note in
 //!   the report and the run goes on. Writes `report.md`, `report.json` and the SVG plots into
 //!   `target/bench-report/` (next to the `release` directory this executable is in) or `DIR`,
 //!   and prints `report.md`. `--quick` finishes in under 3 minutes.
 //!   From a checkout: `cargo run --release -p modbot-benches -- all --quick`.
-//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu|ethercat|station|replay [options]`: one
+//! - `modbot-benches calls|snapshots|grid|scale|faults|swaps|arm|fmu|ethercat|station|replay|remote [options]`: one
 //!   benchmark, with the same report. `ethercat` needs root (a network namespace, raw sockets)
 //!   and `modbot-ecat-sim` built next to this executable; without root it exits with one line.
 //! - `modbot-benches soak [--minutes N] [--seed S] [options]`: MOSER and the arm under a fault a
@@ -28,7 +28,7 @@
 //! - `modbot-bench-ipc` (`benches/ipc/`): 1, calls (with the CPU work of a call), and 2,
 //!   snapshots; their paths, the echo module and the baselines, raw iceoryx2 and Unix sockets.
 //! - `modbot-bench-system` (`benches/system/`): 3, grid (with its lockstep runs), 4, scale, 5,
-//!   faults, 6, swaps, 7, arm, 9, fmu, 10, ethercat, 11, station, 12, replay.
+//!   faults, 6, swaps, 7, arm, 9, fmu, 10, ethercat, 11, station, 12, replay, 13, remote.
 //! - `modbot-bench-soak` (`benches/soak/`): 8, the soak (a fault a second for minutes: calls
 //!   exactly once, memory, files, the robot reset after each stop, no motion ok across one).
 //!
@@ -121,6 +121,8 @@ enum Cmd {
     Station(RunArgs),
     /// 12: `modbot replay` of a recorded arm against the lockstep run that recorded it.
     Replay(RunArgs),
+    /// 13: a call through two Zenoh bridges over a veth link against a raw Zenoh query.
+    Remote(RunArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -184,6 +186,7 @@ fn run() -> anyhow::Result<()> {
         Cmd::Fmu(args) => run_benches(&args, &[bench("fmu")]),
         Cmd::Station(args) => run_benches(&args, &[bench("station")]),
         Cmd::Replay(args) => run_benches(&args, &[bench("replay")]),
+        Cmd::Remote(args) => run_benches(&args, &[bench("remote")]),
         Cmd::Ethercat(args) => {
             ethercat::require_root()?;
             run_benches(&args, &[bench("ethercat")])

@@ -7,7 +7,9 @@ use modbot_bench_kit::opts::Opts;
 use modbot_bench_kit::report::Report;
 use modbot_bench_kit::targets::TargetsFn;
 use modbot_bench_soak as soak;
-use modbot_bench_system::{arm, ethercat, faults, fmu, grid, replay, scale, station, swaps};
+use modbot_bench_system::{
+    arm, ethercat, faults, fmu, grid, remote, replay, scale, station, swaps,
+};
 
 type RunFn = fn(&Opts, &mut Report) -> anyhow::Result<()>;
 
@@ -19,7 +21,7 @@ pub struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-pub const BENCHES: [Bench; 11] = [
+pub const BENCHES: [Bench; 12] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -74,6 +76,12 @@ pub const BENCHES: [Bench; 11] = [
     Bench {
         name: "replay",
         run: replay::run,
+        needs_binaries: true,
+    },
+    // Needs root (network namespaces).
+    Bench {
+        name: "remote",
+        run: remote::run,
         needs_binaries: true,
     },
 ];

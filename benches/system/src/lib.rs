@@ -31,6 +31,7 @@ pub mod faults;
 pub mod fmu;
 pub mod grid;
 pub mod lockstep;
+pub mod remote;
 pub mod replay;
 pub mod scale;
 pub mod station;

@@ -31,7 +31,7 @@
 //! - [`segment`]: the namespace and its veth pairs (deleted on drop), the processes in it.
 //! - [`sides`]: the child roles (the master's measurements, the echo).
 
-mod segment;
+pub(crate) mod segment;
 mod sides;
 
 use std::path::Path;

@@ -32,7 +32,7 @@ pub struct Segment {
 }
 
 /// Runs `ip ARGS`: an error with what `ip` said.
-fn ip(args: &[&str]) -> anyhow::Result<()> {
+pub(crate) fn ip(args: &[&str]) -> anyhow::Result<()> {
     let out = Command::new("ip")
         .args(args)
         .output()
