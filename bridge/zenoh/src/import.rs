@@ -80,7 +80,6 @@ pub fn serve(import: Import, cx: ProxyContext, ready: std::sync::mpsc::Sender<Re
         table: None,
         beats: 0,
         frame: Vec::new(),
-        scratch: Vec::new(),
         out: Vec::new(),
         cx,
     };
@@ -96,7 +95,6 @@ struct Proxy {
     beats: u64,
     /// The frame being served (copied out of the inbox: serving it waits on the network).
     frame: Vec<u8>,
-    scratch: Vec<u8>,
     out: Vec<u8>,
     cx: ProxyContext,
 }
@@ -196,7 +194,6 @@ impl Proxy {
                     &name,
                     frame.payload(),
                     self.cx.call_timeout,
-                    &mut self.scratch,
                     &self.cx.link,
                 );
                 if method == sysmethod::DESCRIBE {
@@ -235,7 +232,6 @@ impl Proxy {
                 "describe",
                 &[],
                 self.cx.call_timeout,
-                &mut self.scratch,
                 &self.cx.link,
             );
             if !matches!(a.kind, FrameKind::Reply) {

@@ -42,15 +42,15 @@ pub fn call(
     method: &str,
     args: &[u8],
     timeout: Duration,
-    scratch: &mut Vec<u8>,
     link: &Link,
 ) -> Answer {
-    if let Err(e) = wire::put_call(method, args, scratch) {
+    let mut request = Vec::with_capacity(2 + method.len() + args.len());
+    if let Err(e) = wire::put_call(method, args, &mut request) {
         return Answer::nak(NakCode::BAD_ARGUMENTS, &e.to_string());
     }
     let replies = match session
         .get(key)
-        .payload(scratch.clone())
+        .payload(request)
         .consolidation(ConsolidationMode::None)
         .timeout(timeout)
         .wait()

@@ -55,44 +55,35 @@ pub(super) fn build(
 
     let mut names: HashMap<&str, u32> = HashMap::new();
     let mut addrs: HashMap<u8, (&str, u32)> = HashMap::new();
-    for m in &decls.modules {
-        if let Some(first) = names.insert(&m.name, m.line) {
-            return Err(error(
-                m.line,
-                format!(
-                    "module name '{}' is already declared at line {first}",
-                    m.name
-                ),
-            ));
+    // The modules, then the names and addresses the bridge's imports hold: one of each.
+    let holders = (decls
+        .modules
+        .iter()
+        .map(|m| (m.name.as_str(), m.addr, m.line, false)))
+    .chain(
+        decls
+            .imported
+            .iter()
+            .map(|i| (i.name.as_str(), i.addr, i.line, true)),
+    );
+    for (name, addr, line, imported) in holders {
+        if let Some(first) = names.insert(name, line) {
+            let why = if imported {
+                format!("the bridge's import '{name}' has the name of a module declared at line {first}")
+            } else {
+                format!("module name '{name}' is already declared at line {first}")
+            };
+            return Err(error(line, why));
         }
-        if let Some((other, first)) = addrs.insert(m.addr, (&m.name, m.line)) {
+        if let Some((other, first)) = addrs.insert(addr, (name, line)) {
+            let who = if imported {
+                format!("the bridge's import '{name}': ")
+            } else {
+                String::new()
+            };
             return Err(error(
-                m.line,
-                format!(
-                    "address {} is already used by '{other}' (line {first})",
-                    m.addr
-                ),
-            ));
-        }
-    }
-    for i in &decls.imported {
-        if let Some(first) = names.insert(&i.name, i.line) {
-            return Err(error(
-                i.line,
-                format!(
-                    "the bridge's import '{}' has the name of a module declared at line {first}",
-                    i.name
-                ),
-            ));
-        }
-        if let Some((other, first)) = addrs.insert(i.addr, (&i.name, i.line)) {
-            return Err(error(
-                i.line,
-                format!(
-                    "the bridge's import '{}': address {} is already used by '{other}' (line \
-                     {first})",
-                    i.name, i.addr
-                ),
+                line,
+                format!("{who}address {addr} is already used by '{other}' (line {first})"),
             ));
         }
     }
