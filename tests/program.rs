@@ -399,6 +399,11 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
             String::from_utf8_lossy(&ran.stderr).into_owned(),
         );
         assert_eq!(ran.status.code(), Some(0), "run {n}: {out}{err}");
+        // The grid was the program's to step throughout: never lifted under it.
+        assert!(
+            !err.contains("not the same as another"),
+            "run {n}: the program lost the gate: {err}"
+        );
         let at = std::path::absolute(dir.path())
             .unwrap()
             .display()
@@ -412,9 +417,15 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
             .collect();
         let svg = std::fs::read(dir.path().join("kr16_ff.svg")).expect("the plot");
         down(&mut sut, up);
-        runs.push((out.replace(&at, "DIR"), data.replace(&at, "DIR"), svg, dir));
+        runs.push((
+            out.replace(&at, "DIR"),
+            data.replace(&at, "DIR"),
+            svg,
+            dir,
+            err,
+        ));
     }
-    let (first, data, svg, dir) = &runs[0];
+    let (first, data, svg, dir, _) = &runs[0];
     assert!(first.contains("run 2: move (ptp_ff)"), "{first}");
     let start: u64 = first
         .lines()
@@ -428,8 +439,14 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
         "the first move starts after the gate: {first}"
     );
     let h5 = dir.path().join("kr16_ff.h5");
-    for (n, (out, d, s, other)) in runs.iter().enumerate().skip(1) {
-        assert_eq!(out, first, "run {} printed other numbers", n + 1);
+    for (n, (out, d, s, other, err)) in runs.iter().enumerate().skip(1) {
+        assert_eq!(
+            out,
+            first,
+            "run {} printed other numbers; its stderr: {err}\nrun 1's: {}",
+            n + 1,
+            runs[0].4
+        );
         assert_eq!(d, data, "run {} kept other data", n + 1);
         assert!(s == svg, "run {} plotted another SVG", n + 1);
         let compared = std::process::Command::new(env!("CARGO_BIN_EXE_modbot"))

@@ -403,7 +403,9 @@ impl Ctx {
 
     /// The directory entry of the caller being served (its name and pid), the directory read
     /// again if the caller is new to this module's phone book; `None` for a caller the
-    /// directory does not have alive.
+    /// directory does not have alive. A caller that took the address of one that ended since
+    /// the book was last read is seen as that one until it is read again: what must be sure of
+    /// the caller's process asks the caller (the coordinator's gate takes the pid it is given).
     pub fn caller_entry(&mut self) -> Option<&crate::phonebook::Entry> {
         let caller = self.caller();
         if !self.book.get(caller).is_some_and(|e| e.alive) {

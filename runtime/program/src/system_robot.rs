@@ -497,8 +497,8 @@ fn run_to(tool: &mut Tool, tick: u64) -> Result<u64, RobotError> {
         GateSays::Refused(why) => match take_gate(tool)? {
             Some(held) => {
                 eprintln!(
-                    "modbot program: the grid ran on by itself ({why}); it is held again before \
-                     tick {held}: from here this run is not the same as another"
+                    "modbot program: {why}; it is held again before tick {held}: from here \
+                     this run is not the same as another"
                 );
                 Ok(held)
             }

@@ -54,6 +54,10 @@ pub enum GateRefused {
     /// The grid follows real time.
     #[error("a real-time grid keeps its own time: the gate is for a grid in lockstep")]
     RealTime,
+    /// The caller owned the gate, lost it (`why`), and moves it as if it still stepped the
+    /// grid: it is told once, so that it says its run is not the same as another.
+    #[error("the gate was taken from this caller: {why}")]
+    Lost { why: String },
 }
 
 /// A change the tick thread must be told of: hold before `until` (`None`: run free), answered
@@ -76,6 +80,8 @@ pub struct Gate {
     held: Option<u64>,
     /// Why the gate was lifted by itself last, for its next caller.
     lifted: Option<String>,
+    /// The owner it was lifted from, and why: told when it next moves the gate.
+    lost: Option<(Addr, String)>,
 }
 
 impl Gate {
@@ -150,6 +156,12 @@ impl Gate {
                 return Err(GateRefused::Owned { name });
             }
         }
+        // Whoever calls next, the one that lost the gate is told only until then.
+        if let Some((lost_by, why)) = self.lost.take() {
+            if until.is_some() && lost_by == caller.addr && self.owner.is_none() {
+                return Err(GateRefused::Lost { why });
+            }
+        }
         self.owner = Some(caller);
         self.touched_ns = now_ns;
         let at = self.held.unwrap_or(ticks);
@@ -198,7 +210,7 @@ impl Gate {
             "the gate was lifted at tick {} ({why}): the grid ran on by itself",
             self.held.unwrap_or(ticks)
         );
-        self.owner = None;
+        self.lost = self.owner.take().map(|o| (o.addr, why.clone()));
         self.lifted = Some(why.clone());
         Some((self.set(None), why))
     }
@@ -327,7 +339,13 @@ mod tests {
             why.contains("its owner (address 7, pid 100) is gone"),
             "{why}"
         );
-        assert_eq!(sut.take_lifted(), Some(why));
+        assert_eq!(sut.take_lifted(), Some(why.clone()));
+        // Its owner, stepping on as if it still held it, is told once; then takes it again.
+        assert_eq!(
+            sut.call(A, Some(110), 150, 3_000, alive).unwrap_err(),
+            GateRefused::Lost { why }
+        );
+        assert!(sut.call(A, None, 150, 3_001, alive).is_ok());
         // Unowned, from the start: the lease.
         let (mut sut, _) = Gate::initial(Some(100), 0);
         assert_eq!(sut.look(LEASE_NS - 1, 100, alive), None);

@@ -163,11 +163,14 @@ fn ungate_method(
     Ok(())
 }
 
-/// The caller as an owner of the gate: its address, and its process as the directory has it,
-/// else as the caller said (`declared`).
+/// The caller as an owner of the gate: its address, and its process as it said (`declared`),
+/// else as the directory has it. The caller's word comes first: this module's copy of the
+/// directory may still hold a tool that had the address before the caller (a `modbot` command
+/// that ended a moment ago), whose process is gone — the gate would be lifted under a live
+/// program as soon as that was seen.
 fn caller_of(ctx: &mut Ctx, declared: Option<u32>) -> Owner {
     let addr = ctx.caller();
-    let pid = ctx.caller_entry().map(|e| e.pid).or(declared);
+    let pid = declared.or_else(|| ctx.caller_entry().map(|e| e.pid));
     Owner { addr, pid }
 }
 
