@@ -272,6 +272,11 @@ enum Command {
         item: Option<String>,
         #[arg(allow_hyphen_values = true)]
         value: Option<String>,
+        /// Read the snapshot the module publishes in shared memory instead of asking it (it
+        /// is not disturbed; an imported module's is the one its bridge mirrors). Waits up to
+        /// 2 s for one.
+        #[arg(long, conflicts_with = "value")]
+        shared: bool,
     },
 }
 
@@ -419,7 +424,14 @@ fn main() -> ExitCode {
             module,
             item,
             value,
+            shared: false,
         } => tool::bb(&domain, &module, item.as_deref(), value.as_deref()),
+        Command::Bb {
+            module,
+            item,
+            shared: true,
+            ..
+        } => tool::bb_shared(&domain, &module, item.as_deref()),
     };
     match result {
         Ok(code) => code,

@@ -345,28 +345,7 @@ pub fn bb(
             let args = r.map_err(|e| anyhow!("{e}"))?;
             let bytes = args.bytes(0).map_err(|e| anyhow!("{e}"))?;
             let view = SnapshotView::parse(bytes).map_err(|e| anyhow!("{e}"))?;
-            println!(
-                "# {module} (address {}), snapshot {}",
-                view.addr(),
-                view.seq()
-            );
-            for it in view.iter() {
-                let value = match it.value {
-                    // Images, scans, point clouds: their size and first bytes.
-                    Value::Bytes(b) if it.bulk => format!(
-                        "bulk, {} bytes: 0x{}{}",
-                        b.len(),
-                        modbot_ipc_schema::hex::encode(&b[..b.len().min(16)]),
-                        if b.len() > 16 { "…" } else { "" }
-                    ),
-                    v => v.to_string(),
-                };
-                println!(
-                    "{}: {value}{}",
-                    it.name,
-                    if it.writable { "  (writable)" } else { "" }
-                );
-            }
+            print_snapshot(module, &view, "");
             Ok(())
         }),
         (Some(name), None) => {
@@ -399,6 +378,80 @@ pub fn bb(
         Err(e) => {
             eprintln!("modbot bb {module}: {e}");
             Ok(ExitCode::from(1))
+        }
+    }
+}
+
+/// Prints a snapshot: a header line, then one line per item.
+fn print_snapshot(module: &str, view: &SnapshotView<'_>, source: &str) {
+    println!(
+        "# {module} (address {}), snapshot {}{source}",
+        view.addr(),
+        view.seq()
+    );
+    for it in view.iter() {
+        let value = match it.value {
+            // Images, scans, point clouds: their size and first bytes.
+            Value::Bytes(b) if it.bulk => format!(
+                "bulk, {} bytes: 0x{}{}",
+                b.len(),
+                modbot_ipc_schema::hex::encode(&b[..b.len().min(16)]),
+                if b.len() > 16 { "…" } else { "" }
+            ),
+            v => v.to_string(),
+        };
+        println!(
+            "{}: {value}{}",
+            it.name,
+            if it.writable { "  (writable)" } else { "" }
+        );
+    }
+}
+
+/// `modbot bb MODULE [ITEM] --shared`: the snapshot the module publishes in shared memory
+/// (waiting up to 2 s for one), without a call.
+pub fn bb_shared(domain: &str, module: &str, item: Option<&str>) -> anyhow::Result<ExitCode> {
+    let mut tool = open(domain)?;
+    let Tool::Endpoint(endpoint) = &mut tool else {
+        eprintln!(
+            "modbot bb {module} --shared: every address of the domain is taken, and a tool \
+             without one reads no shared memory; leave out --shared"
+        );
+        return Ok(ExitCode::from(1));
+    };
+    let deadline = std::time::Instant::now() + Duration::from_secs(2);
+    loop {
+        let shown = endpoint.ctx().snapshot_of(module, |view| match item {
+            None => {
+                print_snapshot(module, &view, " (shared memory)");
+                Ok(())
+            }
+            Some(name) => view
+                .value(name)
+                .map(|v| println!("{v}"))
+                .map_err(|e| e.to_string()),
+        });
+        match shown {
+            Ok(Some(Ok(()))) => return Ok(ExitCode::SUCCESS),
+            Ok(Some(Err(why))) => {
+                eprintln!("modbot bb {module}: {why}");
+                return Ok(ExitCode::from(1));
+            }
+            Ok(None) if std::time::Instant::now() < deadline => {
+                std::thread::sleep(Duration::from_millis(20))
+            }
+            Ok(None) => {
+                eprintln!(
+                    "modbot bb {module}: it published no snapshot within 2 s (a module without \
+                     a blackboard never does; an imported one's comes as often as its bridge's \
+                     snapshot_hz)"
+                );
+                return Ok(ExitCode::from(1));
+            }
+            Err(e) => {
+                eprintln!("modbot bb {module}: {e}");
+                return Ok(ExitCode::from(1));
+            }
         }
     }
 }

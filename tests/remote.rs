@@ -17,8 +17,10 @@ supervision { heartbeat_timeout = 5, heartbeat_period = 0.05, start_timeout = 20
 "#;
 
 /// The robot's domain on host A: a `target` (modbot-faulty, journaling its `record` calls)
-/// and its bridge exporting `target`'s ping and record; the station's domain on host B:
-/// only its bridge, importing `target` as `target` at address 40.
+/// and its bridge exporting `target`'s ping, record and spam, importing the station's `sink`
+/// at address 41; the station's domain on host B: a `sink` (modbot-faulty, counting the
+/// reports it gets on its blackboard) and its bridge, exporting `sink` and importing `target`
+/// as `target` at address 40.
 struct Remote {
     hosts: TwoHosts,
     robot: TestDomain,
@@ -40,13 +42,16 @@ impl Remote {
             r#"{FAST}
 module "target" {{ addr = 5, program = "modbot-faulty", args = {{ "--journal", "{}" }} }}
 bridge {{ addr = 200, listen = {{ "tcp/{A_IP}:7447" }},
-          exports = {{ target = {{ "ping", "record" }} }} }}
+          exports = {{ target = {{ "ping", "record", "spam" }} }},
+          imports = {{ sink = {{ addr = 41, domain = "{}" }} }} }}
 "#,
-            journal.display()
+            journal.display(),
+            station.name()
         );
         let station_body = format!(
             r#"{FAST}
-bridge {{ addr = 200, connect = {{ "tcp/{A_IP}:7447" }},
+module "sink" {{ addr = 5, program = "modbot-faulty" }}
+bridge {{ addr = 200, connect = {{ "tcp/{A_IP}:7447" }}, exports = {{ "sink" }},
           imports = {{ target = {{ addr = 40, domain = "{}" }} }} }}
 "#,
             robot.name()
@@ -108,17 +113,52 @@ fn a_remote_method_is_called_as_a_local_one_and_a_method_not_exported_is_refused
     let (code, out, err) = call(&r.station, &["target.record", "41"]);
     assert_eq!((code, out.as_str()), (Some(0), "41"), "{err}");
     assert_eq!(std::fs::read_to_string(&r.journal).unwrap(), "41\n");
+    // Its blackboard comes across too: the robot's bridge puts target's snapshots (10 a
+    // second), and the station's publishes them in shared memory as the import's own.
+    assert_eq!(mirrored(&r.station, "target", "recorded"), "41");
+    let shown = r.station.modbot_ok(&["bb", "target", "--shared"]);
+    assert!(
+        shown.starts_with("# target (address 40), snapshot ") && shown.contains("recorded: 41"),
+        "{shown}"
+    );
     // Exported only ping and record: exit is refused by the robot's bridge, never run.
     let (code, _, err) = call(&r.station, &["target.exit", "3"]);
     assert_eq!(code, Some(1), "{err}");
     assert!(
         err.contains("method 'exit' of 'target' is not exported by domain")
-            && err.contains("(exported: ping, record)"),
+            && err.contains("(exported: ping, record, spam)"),
         "{err}"
     );
     let (code, out, _) = call(&r.robot, &["target.ping"]);
     assert_eq!(code, Some(0), "the target still runs: {out}");
     r.stop();
+}
+
+/// Item `item` of the snapshot of `module` in shared memory (`modbot bb --shared`), once one
+/// has come (a module's first snapshot, or the first one its bridge mirrors, may take a moment).
+fn mirrored(sut: &TestDomain, module: &str, item: &str) -> String {
+    let mut last = String::new();
+    sut.wait_for(
+        &format!("a snapshot of {module} in shared memory"),
+        Duration::from_secs(30),
+        || {
+            let out = sut.modbot(&["bb", module, item, "--shared"]);
+            last = String::from_utf8_lossy(&out.stdout).trim().to_owned();
+            out.status.success()
+        },
+    );
+    last
+}
+
+/// The body of a GET of `url` from inside network namespace `ns` (empty if it failed).
+fn get_in(ns: &str, url: &str) -> String {
+    let out = std::process::Command::new("ip")
+        .args(["netns", "exec", ns, "python3", "-c"])
+        .arg("import sys, urllib.request; print(urllib.request.urlopen(sys.argv[1], timeout=10).read().decode())")
+        .arg(url)
+        .output()
+        .expect("ip netns exec runs");
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 /// Each call's number and how it ended: answered, or failed with the link's error.
@@ -127,7 +167,7 @@ type Ledger = BTreeMap<u32, Result<(), String>>;
 /// A stream of `record(n)` calls from the station while the link is cut for a few seconds
 /// and restored: every call is answered once (its n in the journal once) or fails with the
 /// link's error; none is answered twice, none is lost without an error; after the link is
-/// back, calls are answered again without a restart.
+/// back, calls are answered again without a restart, and reports and snapshots flow again.
 #[test]
 fn a_link_cut_during_a_stream_of_calls_loses_none_silently_and_runs_none_twice() {
     let r = Remote::new("rlink");
@@ -181,6 +221,34 @@ fn a_link_cut_during_a_stream_of_calls_loses_none_silently_and_runs_none_twice()
         ledger.values().filter(|o| o.is_ok()).count(),
         failed.len()
     );
+    // The last call's n reaches the station in target's snapshot.
+    let last = ledger.keys().next_back().unwrap().to_string();
+    r.station.wait_for(
+        "the last n in the mirrored snapshot",
+        Duration::from_secs(30),
+        || mirrored(&r.station, "target", "recorded") == last,
+    );
+    // Reports: target sends 20 to the station's sink (through its import here and the
+    // station's bridge there), and every one it sent arrives.
+    let (code, out, err) = call(&r.robot, &["target.spam", "sink", "20"]);
+    assert_eq!(code, Some(0), "{err}");
+    let sent: u32 = out
+        .split_whitespace()
+        .next()
+        .and_then(|s| s.trim_matches(|c: char| !c.is_ascii_digit()).parse().ok())
+        .unwrap_or_else(|| panic!("spam answered {out}"));
+    assert!(sent > 0, "spam sent none: {out}");
+    let mut got = String::new();
+    r.station
+        .wait_for("the reports at the sink", Duration::from_secs(30), || {
+            got = r
+                .station
+                .modbot_ok(&["bb", "sink", "reports"])
+                .trim()
+                .to_owned();
+            got == sent.to_string()
+        });
+    println!("reports after the link came back: {sent} sent, {got} received");
     r.stop();
 }
 
@@ -229,6 +297,38 @@ fn moser_split_over_two_hosts_patrols_to_its_alert_and_summary() {
         "modbot",
         &station_args.iter().map(String::as_str).collect::<Vec<_>>(),
     );
+    // The operator's web station on the station's host shows the robot's modules, imported
+    // through the bridge, with their blackboards (read through the link).
+    let web = station.spawn_logged("modbot", &["station", "--listen", "127.0.0.1:0"]);
+    let mut url = String::new();
+    station.wait_for("the station's address", Duration::from_secs(60), || {
+        let out = station.output_of(web);
+        let Some((_, rest)) = out.split_once(" at http://") else {
+            return false;
+        };
+        let end = rest
+            .find(|c: char| c.is_whitespace() || c == '?')
+            .unwrap_or(rest.len());
+        url = format!("http://{}/api/state", rest[..end].trim_end_matches('/'));
+        true
+    });
+    station.wait_until(
+        "the robot's mobility and its blackboard on the station's page",
+        Duration::from_secs(120),
+        || {
+            let page = get_in(&hosts.b.0, &url);
+            let shown = page.contains(r#""name":"mobility""#)
+                && page.contains(r#""state":"imported""#)
+                && page.contains(r#""mobility":{"#);
+            if shown {
+                Ok(())
+            } else {
+                Err(format!("{url}: {page}"))
+            }
+        },
+    );
+    station.signal(web, nix::sys::signal::Signal::SIGTERM);
+    station.reap(web);
     let start = Instant::now();
     let status = loop {
         if let Some(status) = station.exited(up_station) {

@@ -42,6 +42,8 @@ pub struct Faulty {
     pub slow_ms: u64,
     /// REPORTs received.
     pub reports: u64,
+    /// `reports` as the blackboard last showed it.
+    pub reports_shown: u64,
     /// Where `record` appends, opened for appending (`--journal PATH`); `None`: `record` fails.
     pub journal: Option<std::fs::File>,
 }
@@ -176,7 +178,7 @@ fn blast(
 /// means the call was executed twice.
 pub fn record(
     f: &mut Faulty,
-    _: &mut Ctx,
+    ctx: &mut Ctx,
     args: &Args<'_>,
     reply: &mut Reply,
 ) -> Result<(), MethodError> {
@@ -195,6 +197,8 @@ pub fn record(
         }
         Err(e) => return Err(MethodError::Failed(format!("journal: {e}"))),
     }
+    // A module started without the item (a test's own builder) records all the same.
+    let _ = ctx.bb.write("recorded", Value::I64(seq));
     reply.push(Value::I64(seq));
     Ok(())
 }
@@ -209,8 +213,17 @@ pub fn on_report(f: &mut Faulty, _: &mut Ctx, r: &Report<'_>) {
     }
 }
 
-/// Periodic: carries out the fault asked for, after its call was answered.
-pub fn tick(f: &mut Faulty, _: &mut Ctx) {
+/// Periodic: shows the reports received on the blackboard (item `reports`, if the module has
+/// it: a count, not one snapshot per report), and carries out the fault asked for, after its
+/// call was answered.
+pub fn tick(f: &mut Faulty, ctx: &mut Ctx) {
+    if f.reports != f.reports_shown {
+        f.reports_shown = f.reports;
+        let _ = ctx.bb.write(
+            "reports",
+            Value::I64(i64::try_from(f.reports).unwrap_or(i64::MAX)),
+        );
+    }
     match f.next {
         Fault::None => {}
         Fault::Panic => panic!("panic requested by a call to `panic`"),

@@ -230,6 +230,7 @@ impl Watcher {
             Ok(Some(rows)) => {
                 state.supervised = true;
                 state.modules = rows.into_iter().map(Module::from_row).collect();
+                self.imports(state);
             }
             Ok(None) => match self.tool.list_modules() {
                 Ok(peers) => {
@@ -254,6 +255,37 @@ impl Watcher {
                 Err(e) => state.problems.push(format!("the domain's directory: {e}")),
             },
             Err(e) => state.problems.push(format!("supervisor status: {e}")),
+        }
+    }
+
+    /// The modules a bridge imports from other hosts (`bridge { imports = ... }`): the
+    /// directory lists them alive under the pid of a module the supervisor runs (the bridge's
+    /// process holds their addresses), and the supervisor does not. Shown with the state
+    /// `imported`; their blackboards are read through the bridge as any module's.
+    fn imports(&mut self, state: &mut State) {
+        let Ok(peers) = self.tool.list_modules() else {
+            return;
+        };
+        let supervised: Vec<u32> = state
+            .modules
+            .iter()
+            .filter(|m| m.runs())
+            .map(|m| m.row.pid)
+            .collect();
+        for p in peers {
+            let listed = state.modules.iter().any(|m| m.name() == p.name);
+            if p.alive && !listed && supervised.contains(&p.pid) {
+                state.modules.push(Module::from_row(Row {
+                    name: p.name,
+                    addr: p.addr.0,
+                    state: "imported".into(),
+                    pid: p.pid,
+                    restarts: 0,
+                    last_exit: String::new(),
+                    counters: Default::default(),
+                    heartbeat_age_ms: None,
+                }));
+            }
         }
     }
 

@@ -9,6 +9,12 @@
 //! same link with a payload of the call's size (the call's request is 6 bytes on the wire, its
 //! answer 3), one query at a time. The two alternate in blocks, so that a quiet or busy spell
 //! of the machine falls on both.
+//!
+//! Then the snapshot delivery: a caller on the first host changes `target`'s blackboard once a
+//! millisecond (`record(i)`: item `recorded` = i) while this process reads the import's
+//! snapshot in the second domain's shared memory (the copy its bridge mirrors, `snapshot_hz`
+//! = 50): how many new snapshots arrive a second, and how old each is when it arrives (from
+//! the answer of the `record(i)` it shows; both times are this process's clock).
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -19,7 +25,8 @@ use modbot_bench_kit::opts::Opts;
 use modbot_bench_kit::procs::{self, Proc, Scratch};
 use modbot_bench_kit::report::{Report, Row};
 use modbot_core::tool::{Calls, Tool};
-use modbot_core::CallOptions;
+use modbot_core::{CallOptions, Domain};
+use modbot_ipc_schema::Value;
 
 use super::ethercat::segment::ip;
 
@@ -99,6 +106,82 @@ impl Drop for Hosts {
     }
 }
 
+/// The rate of snapshot mirroring the benchmark's bridge is given.
+const SNAPSHOT_HZ: u32 = 50;
+/// How long snapshots are watched.
+const WATCH: Duration = Duration::from_secs(5);
+
+/// What the snapshot watch saw: new snapshots a second, and each one's age when it arrived (ns).
+struct Delivery {
+    per_s: f64,
+    changes_per_s: f64,
+    age: Histogram<u64>,
+}
+
+/// Changes `target`'s blackboard once a millisecond from the robot's domain while reading the
+/// import's mirrored snapshot in the station's, for [`WATCH`].
+fn watch_snapshots(robot: &Domain, station: &mut Tool) -> anyhow::Result<Delivery> {
+    let Tool::Endpoint(reader) = station else {
+        bail!("remote: the benchmark's tool got no address of its own");
+    };
+    let answered = std::sync::Arc::new(std::sync::Mutex::new(Vec::<Instant>::new()));
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let writer = {
+        let (robot, answered, stop) = (robot.clone(), answered.clone(), stop.clone());
+        std::thread::spawn(move || -> anyhow::Result<()> {
+            let mut tool = Tool::open(&robot, "bench-remote-writer")?;
+            let opts = CallOptions::timeout(Duration::from_secs(5));
+            let mut i = 0i64;
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                i += 1;
+                tool.call_owned("target", "record", &[Value::I64(i)], opts)
+                    .context("remote: record on the robot's host")?;
+                answered.lock().expect("not poisoned").push(Instant::now());
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            Ok(())
+        })
+    };
+    let mut age = Histogram::<u64>::new(3)?;
+    let (mut last, mut seen) = (0i64, 0u64);
+    let started = Instant::now();
+    while started.elapsed() < WATCH {
+        let shown = reader
+            .ctx()
+            .snapshot_of("target", |v| match v.value("recorded") {
+                Ok(Value::I64(i)) => i,
+                _ => 0,
+            });
+        let arrived = Instant::now();
+        if let Ok(Some(i)) = shown {
+            if i > last {
+                last = i;
+                let at = answered
+                    .lock()
+                    .expect("not poisoned")
+                    .get(usize::try_from(i - 1).unwrap_or(usize::MAX))
+                    .copied();
+                if let Some(at) = at {
+                    seen += 1;
+                    age.record(arrived.saturating_duration_since(at).as_nanos() as u64)?;
+                }
+            }
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    writer
+        .join()
+        .map_err(|_| anyhow::anyhow!("remote: the writer thread panicked"))??;
+    let secs = started.elapsed().as_secs_f64();
+    let changes = answered.lock().expect("not poisoned").len();
+    Ok(Delivery {
+        per_s: seen as f64 / secs,
+        changes_per_s: changes as f64 / secs,
+        age,
+    })
+}
+
 /// A description of `body` in domain `domain`, written to `path`.
 fn write(path: &std::path::Path, domain: &str, body: &str) -> anyhow::Result<()> {
     let text = format!(
@@ -117,13 +200,16 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let probe = procs::binary(opts, "modbot-zenoh-probe")?;
     let robot_file = robot.path("robot.lua");
     let station_file = station.path("station.lua");
+    let journal = robot.path("journal");
     write(
         &robot_file,
         robot.domain.name(),
         &format!(
-            "module \"target\" {{ addr = 5, program = \"modbot-faulty\" }}\n\
+            "module \"target\" {{ addr = 5, program = \"modbot-faulty\", \
+             args = {{ \"--journal\", \"{}\" }} }}\n\
              bridge {{ addr = 200, listen = {{ \"tcp/{A_IP}:7447\" }}, \
-             exports = {{ target = {{ \"ping\" }} }} }}\n"
+             snapshot_hz = {SNAPSHOT_HZ}, exports = {{ target = {{ \"ping\" }} }} }}\n",
+            journal.display()
         ),
     )?;
     write(
@@ -202,6 +288,7 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
             raw.record(ns.parse().context("modbot-zenoh-probe printed no number")?)?;
         }
     }
+    let delivery = watch_snapshots(&robot.domain, &mut tool)?;
     drop(tool);
     drop(server);
     let _ = Command::new(&modbot)
@@ -214,6 +301,7 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let _ = up_robot.stop();
     report.push(Row::from_histogram("remote.raw_zenoh_query", &raw).is_baseline());
     report.push(Row::from_histogram("remote.call", &call).against("remote.raw_zenoh_query", &[]));
+    report.push(Row::from_histogram("remote.snapshot_age", &delivery.age));
     let p = |h: &Histogram<u64>, q: f64| h.value_at_quantile(q) as f64 / 1e3;
     report.note(format!(
         "remote: a call through two Zenoh bridges over a veth link between two network \
@@ -227,6 +315,17 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         p(&raw, 0.99),
         p(&call, 0.5) / p(&raw, 0.5).max(1e-9),
         p(&call, 0.99) / p(&raw, 0.99).max(1e-9),
+    ));
+    report.note(format!(
+        "remote: blackboard snapshots across the link at snapshot_hz {SNAPSHOT_HZ}, the \
+         blackboard changing {:.0} times a second: {:.1} new snapshots a second arrived in the \
+         importing domain's shared memory, {:.1} ms old at p50, {:.1} ms at p99 (from the \
+         change they show; {} s)",
+        delivery.changes_per_s,
+        delivery.per_s,
+        p(&delivery.age, 0.5) / 1e3,
+        p(&delivery.age, 0.99) / 1e3,
+        WATCH.as_secs()
     ));
     drop(hosts);
     Ok(())

@@ -5,7 +5,8 @@
 //! of a module or method the description does not export is refused without reaching it.
 //!
 //! Zenoh hands queries and reports over on its own threads; they come here through a channel,
-//! and one thread serves them in order, beside the bridge module's own inbox.
+//! and one thread serves them in order, beside the bridge module's own inbox and the exported
+//! modules' snapshots ([`super::mirror`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
@@ -16,10 +17,11 @@ use modbot_core::{CallError, CallOptions, Module};
 use modbot_ipc_schema::value::Values;
 use modbot_ipc_schema::{Args, FrameKind, FrameSpec, NakCode, Seq};
 use zenoh::query::Query;
-use zenoh::Wait;
+use zenoh::{Session, Wait};
 
 use super::config::{Export, Import};
 use super::keys;
+use super::mirror;
 use super::remote::Answer;
 use super::wire;
 
@@ -44,20 +46,26 @@ pub struct Exporter {
     pub imports: Vec<Import>,
     /// How long a call of a local module may take.
     pub call_timeout: Duration,
+    /// How often the exported modules' blackboard snapshots are put (0: never).
+    pub snapshot_hz: f64,
 }
 
 impl Exporter {
-    /// Serves `work` and the bridge module's own inbox until `stop` (or SIGTERM).
+    /// Serves `work` and the bridge module's own inbox, and puts the exported modules'
+    /// snapshots on `session`, until `stop` (or SIGTERM).
     pub fn run(
         &self,
         module: &mut Module<()>,
         work: &Receiver<Work>,
+        session: &Session,
         stop: &AtomicBool,
     ) -> Result<(), modbot_core::transport::TransportError> {
         let mut out = Vec::new();
+        let mut snapshots = mirror::Publisher::new(self.snapshot_hz);
         while !stop.load(Ordering::Relaxed) && !modbot_core::signals::termination_requested() {
             while module.poll_once()? {}
             module.housekeeping();
+            snapshots.publish_due(module, session, &self.domain, &self.exports);
             match work.recv_timeout(Duration::from_millis(5)) {
                 Ok(Work::Call(query)) => self.call(module, &query, &mut out),
                 Ok(Work::Report {

@@ -4,6 +4,8 @@
 //! with what came back — or, when nothing can come back, with a NAK `UNREACHABLE` that says
 //! since when the link is down. A retransmitted request it answered already is answered again
 //! from its log, never forwarded twice; reports to the module are forwarded as they come.
+//! The remote module's blackboard snapshots, as its bridge puts them, are published here as
+//! the proxy's own ([`super::mirror`]).
 //!
 //! The remote module's method ids are those of its own table (learned with a `describe`
 //! through the link, again after each time the link came back), so a request's method id maps
@@ -26,6 +28,7 @@ use zerocopy::IntoBytes;
 use super::config::Import;
 use super::keys;
 use super::link::Link;
+use super::mirror::{self, Received};
 use super::remote::{self, Answer};
 
 /// What a proxy needs besides its import.
@@ -71,8 +74,22 @@ pub fn serve(import: Import, cx: ProxyContext, ready: std::sync::mpsc::Sender<Re
             return;
         }
     };
+    let snapshots = Arc::new(Received::default());
+    let _subscriber = match mirror::subscribe(
+        &cx.session,
+        &import.domain,
+        &import.module,
+        snapshots.clone(),
+    ) {
+        Ok(s) => s,
+        Err(why) => {
+            let _ = ready.send(Err(format!("import '{}': {why}", import.local)));
+            return;
+        }
+    };
     let _ = ready.send(Ok(()));
     let mut proxy = Proxy {
+        snapshots,
         key: keys::call(&import.domain, &import.module),
         import,
         ep: endpoint,
@@ -88,6 +105,8 @@ pub fn serve(import: Import, cx: ProxyContext, ready: std::sync::mpsc::Sender<Re
 
 struct Proxy {
     import: Import,
+    /// The remote module's newest snapshot, until published here.
+    snapshots: Arc<Received>,
     key: String,
     ep: Endpoint,
     served: ServedLog,
@@ -107,6 +126,7 @@ impl Proxy {
                 self.beat(ModuleState::Running);
                 next_beat = Instant::now() + self.cx.heartbeat;
             }
+            self.publish_snapshot();
             let mut frame = std::mem::take(&mut self.frame);
             let got = self.ep.rx.try_receive(&mut |bytes| {
                 frame.clear();
@@ -125,12 +145,28 @@ impl Proxy {
                 }
             }
             let until_beat = next_beat.saturating_duration_since(Instant::now());
-            if let Err(e) = self.ep.rx.wait(until_beat.min(Duration::from_millis(50))) {
+            // Woken by frames; snapshots are looked for at least every 20 ms.
+            if let Err(e) = self.ep.rx.wait(until_beat.min(Duration::from_millis(20))) {
                 tracing::warn!("import '{}': wait: {e}", self.import.local);
                 std::thread::sleep(Duration::from_millis(10));
             }
         }
         self.beat(ModuleState::Stopping);
+    }
+
+    /// Publishes the remote module's snapshot received since, as this proxy's.
+    fn publish_snapshot(&mut self) {
+        let local = &self.import.local;
+        let Some(bytes) = self.snapshots.take_for(self.import.addr, local) else {
+            return;
+        };
+        if let Err(e) = self
+            .ep
+            .snapshots
+            .publish(bytes.len(), &mut |buf| buf.copy_from_slice(&bytes))
+        {
+            tracing::debug!("import '{local}': snapshot not published: {e}");
+        }
     }
 
     fn beat(&mut self, state: ModuleState) {

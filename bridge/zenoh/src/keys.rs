@@ -3,6 +3,7 @@
 //! ```text
 //! modbot/D/M/call          query: call a method of module M (exported by D's bridge)
 //! modbot/D/M/report/E/F    put: a report to module M of D, from module F of domain E
+//! modbot/D/M/bb            put: the newest blackboard snapshot of module M (exported by D)
 //! modbot/D/_bridge         liveliness token: D's bridge is there (the link is up)
 //! ```
 //! Domain and module names are `[A-Za-z0-9_-]`, which key expressions take as they are.
@@ -26,6 +27,11 @@ pub fn report(domain: &str, to: &str, from_domain: &str, from: &str) -> String {
 /// Every report to a module of `domain`.
 pub fn reports(domain: &str) -> String {
     format!("modbot/{domain}/*/report/*/*")
+}
+
+/// The key of the blackboard snapshots of module `module` of domain `domain`.
+pub fn snapshot(domain: &str, module: &str) -> String {
+    format!("modbot/{domain}/{module}/bb")
 }
 
 /// The liveliness token of `domain`'s bridge.
@@ -68,5 +74,6 @@ mod tests {
             Some(("control_station", "robot", "intrusion"))
         );
         assert_eq!(alive("robot"), "modbot/robot/_bridge");
+        assert_eq!(snapshot("robot", "mobility"), "modbot/robot/mobility/bb");
     }
 }

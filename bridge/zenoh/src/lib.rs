@@ -18,6 +18,8 @@
 //! - [`import`]: an imported module's proxy (a thread with an address and inbox here);
 //! - [`export`]: the exported side (the bridge module calling local modules for remote
 //!   callers, delivering remote reports);
+//! - [`mirror`]: blackboard snapshots across hosts (put at a rate by the exporting side,
+//!   published as the proxy's own by the importing side);
 //! - `main.rs`: the program.
 //!
 //! Zenoh is heavy to build: only this crate links it, never a module or the runtime.
@@ -27,5 +29,6 @@ pub mod export;
 pub mod import;
 pub mod keys;
 pub mod link;
+pub mod mirror;
 pub mod remote;
 pub mod wire;

@@ -55,6 +55,10 @@ struct Cli {
     /// How long a silent link lasts before it counts as down (Zenoh's lease, ms).
     #[arg(long, default_value_t = 2000)]
     lease_ms: u64,
+    /// How often the exported modules' blackboard snapshots go to the remote domains that
+    /// import them (per second; 0: never). Only a snapshot newer than the last one goes.
+    #[arg(long, default_value_t = 10.0)]
+    snapshot_hz: f64,
 }
 
 fn main() -> std::process::ExitCode {
@@ -80,6 +84,13 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|i| Import::parse(i))
         .collect::<Result<Vec<_>, _>>()?;
+    if !(cli.snapshot_hz >= 0.0 && cli.snapshot_hz <= 1000.0) {
+        return Err(format!(
+            "--snapshot-hz {}: expected 0 (never) to 1000 snapshots a second",
+            cli.snapshot_hz
+        )
+        .into());
+    }
     let joining = Joining {
         mode: cli.zenoh_mode.clone(),
         listen: cli.listen.clone(),
@@ -200,8 +211,9 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         call_timeout: call_timeout
             .saturating_sub(Duration::from_millis(500))
             .max(Duration::from_millis(100)),
+        snapshot_hz: cli.snapshot_hz,
     };
-    let served = exporter.run(&mut module, &work, &stop);
+    let served = exporter.run(&mut module, &work, &session, &stop);
     stop.store(true, Ordering::Relaxed);
     for p in proxies {
         let _ = p.join();

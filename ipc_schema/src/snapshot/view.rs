@@ -237,6 +237,11 @@ impl<'a> SnapshotView<'a> {
         Addr(self.header.addr)
     }
 
+    /// The whole snapshot as it was parsed (to pass it on: a bridge mirrors it elsewhere).
+    pub fn as_bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+
     pub fn layout(&self) -> u64 {
         self.header.layout.get()
     }

@@ -4,13 +4,16 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
+use modbot_core::Blackboard;
+use modbot_ipc_schema::OwnedValue;
 use modbot_modules::common::ModuleArgs;
 use modbot_modules::faulty::{self, Faulty};
 
 /// A module that panics, exits, hangs, floods or spams when called to; see `modbot_modules::faulty`.
 ///
 /// Methods: `ping()`, `panic()`, `exit(code)`, `hang()`, `work(ms)`, `flood(module, n)`, `spam(module, n)`,
-/// `record(seq)`.
+/// `record(seq)`. Blackboard: `recorded`, the last `seq` recorded (0: none yet), and
+/// `reports`, the SPAM reports received (as of the last 10 ms tick).
 #[derive(Debug, Parser)]
 #[command(name = "modbot-faulty", version)]
 struct Cli {
@@ -55,6 +58,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         .method("flood", faulty::flood)
         .method("spam", faulty::spam)
         .method("record", faulty::record)
+        .blackboard(
+            Blackboard::builder()
+                .item("recorded", OwnedValue::I64(0))
+                .item("reports", OwnedValue::I64(0))
+                .build()?,
+        )
         .on_report(faulty::on_report)
         .every(Duration::from_millis(10), faulty::tick);
     Ok(cli.module.serve(module, state)?)

@@ -16,6 +16,8 @@
 //!   imports = { control_station = { addr = 20, domain = "station" },
 //!               base_mobility = { addr = 41, domain = "base", module = "mobility" } },
 //!   call_timeout_ms = 1500, lease_ms = 2000,     -- optional (these are the defaults)
+//!   snapshot_hz = 10,                            -- optional: how often the exported modules'
+//!                                                -- blackboard snapshots go (0: never)
 //!   name = "bridge", restart = "on-failure",     -- optional
 //! }
 //! ```
@@ -45,6 +47,7 @@ const FIELDS: &[&str] = &[
     "imports",
     "call_timeout_ms",
     "lease_ms",
+    "snapshot_hz",
     "restart",
 ];
 
@@ -122,6 +125,18 @@ fn read(lua: &Lua, line: u32, v: &Value) -> Result<(ModuleDecl, Vec<ImportedName
         if let Some(v) = fields.take(field) {
             option(flag, integer_in(what, field, &v, 100, 600_000)?.to_string());
         }
+    }
+    if let Some(v) = fields.take("snapshot_hz") {
+        let hz = match v {
+            Value::Integer(i) => i as f64,
+            Value::Number(n) => n,
+            _ => f64::NAN,
+        };
+        if !(0.0..=1000.0).contains(&hz) {
+            let expected = "a number of snapshots a second from 0 (never) to 1000";
+            return Err(DeclError::field(what, "snapshot_hz", expected, show(&v)));
+        }
+        option("--snapshot-hz", hz.to_string());
     }
     if let Some(v) = fields.take("exports") {
         for export in exports(lua, &v)? {

@@ -19,6 +19,7 @@ fn a_bridge_becomes_a_module_running_modbot_zenoh_with_its_exports_and_imports()
         r#"domain "robot"
 module "sonar" { addr = 3, program = "modbot-sonar" }
 bridge { addr = 200, listen = { "tcp/10.0.0.1:7447" }, mode = "peer", lease_ms = 1000,
+         snapshot_hz = 2.5,
          exports = { "sonar", high_level = { "patrol", "stop" } },
          imports = { control_station = { addr = 20, domain = "station" },
                      base_mobility = { addr = 41, domain = "base", module = "mobility" } } }
@@ -38,6 +39,8 @@ bridge { addr = 200, listen = { "tcp/10.0.0.1:7447" }, mode = "peer", lease_ms =
             "tcp/10.0.0.1:7447",
             "--lease-ms",
             "1000",
+            "--snapshot-hz",
+            "2.5",
             "--export",
             "high_level:patrol,stop",
             "--export",
@@ -87,4 +90,9 @@ fn an_import_on_a_modules_name_or_address_and_a_second_bridge_are_refused_with_t
     assert!(e.message.contains("is no Zenoh endpoint"), "{e}");
     let e = load_text("domain \"robot\"\nbridge { listen = { \"tcp/1.2.3.4:1\" } }\n").unwrap_err();
     assert!(e.message.contains("addr"), "{e}");
+    let e = load_text("domain \"robot\"\nbridge { addr = 200, snapshot_hz = -1 }\n").unwrap_err();
+    assert!(
+        e.message.contains("snapshot_hz") && e.message.contains("from 0 (never) to 1000"),
+        "{e}"
+    );
 }
