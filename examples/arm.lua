@@ -8,6 +8,7 @@
 --   modbot top --domain arm                        -- the grid's ledger
 --   modbot up examples/arm.lua --record arm.h5     -- records the bus (below) to HDF5
 --   python3 examples/plot_recording.py arm.h5     -- link position and following error
+--   modbot up examples/arm.lua --var bridge=tcp/10.0.0.1:7447   -- watched from another host
 --
 -- The assemblies are the files in examples/arm/: hold.lua, ptp.lua (trajectory generator,
 -- rigid-body feed-forward, monitor) and ptp_smooth.lua (the same with a Bessel filter and a
@@ -46,3 +47,11 @@ record {
             ["robot.motor_position"] = "rad", ["robot.motor_velocity"] = "rad/s",
             ["robot.motor_torque"] = "N m" },
 }
+
+-- `--var bridge=ENDPOINT`: a Zenoh bridge listening there exports the grid's ledger and the
+-- robot's state, so that `modbot top` in another host's domain that imports `coordinator` and
+-- `host_bus` shows this grid and robot (docs/remote.md). It reads; it commands nothing.
+if vars.bridge then
+  bridge { addr = 200, listen = { vars.bridge },
+           exports = { coordinator = { "ledger", "status" }, host_bus = { "robot", "bus" } } }
+end

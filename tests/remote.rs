@@ -366,3 +366,73 @@ fn moser_split_over_two_hosts_patrols_to_its_alert_and_summary() {
     assert_eq!(robot.leftover_files(), Vec::<PathBuf>::new());
     assert_eq!(station.leftover_files(), Vec::<PathBuf>::new());
 }
+
+/// The arm (`examples/arm.lua --var bridge=...`) on one host exports its grid's ledger and its
+/// robot's state; on the other, a domain that imports `coordinator` and `host_bus` under those
+/// names runs `modbot top` and sees the arm's grid and robot as the arm's own host does.
+#[test]
+fn modbot_top_on_another_host_shows_the_arms_grid_and_robot_through_the_bridge() {
+    let _arm = common::arm::one_arm_at_a_time();
+    let hosts = TwoHosts::new();
+    let mut robot = TestDomain::new("rtopr");
+    let mut station = TestDomain::new("rtops");
+    robot.run_in_netns(&hosts.a.0);
+    station.run_in_netns(&hosts.b.0);
+    let domain = format!("domain={}", robot.name());
+    let endpoint = format!("bridge=tcp/{A_IP}:7447");
+    let arm = common::arm::arm();
+    let up_robot = robot.spawn_logged(
+        "modbot",
+        &[
+            "up",
+            arm.to_str().unwrap(),
+            "--var",
+            &domain,
+            "--var",
+            &endpoint,
+        ],
+    );
+    common::arm::wait_enabled(&robot, up_robot);
+    let station_file = station.write_system(&format!(
+        r#"{FAST}
+bridge {{ addr = 200, connect = {{ "tcp/{A_IP}:7447" }},
+          imports = {{ coordinator = {{ addr = 60, domain = "{0}" }},
+                       host_bus = {{ addr = 61, domain = "{0}" }} }} }}
+"#,
+        robot.name()
+    ));
+    let up_station = station.spawn_logged("modbot", &["up", station_file.to_str().unwrap()]);
+    let mut remote = String::new();
+    station.wait_until(
+        "the arm's grid and robot in modbot top on the other host",
+        Duration::from_secs(60),
+        || {
+            let out = station.modbot(&["top", "--once"]);
+            remote = String::from_utf8_lossy(&out.stdout).into_owned();
+            if out.status.success() && remote.contains("robot operational") {
+                Ok(())
+            } else {
+                Err(format!("{remote}{}", String::from_utf8_lossy(&out.stderr)))
+            }
+        },
+    );
+    let local = robot.modbot_ok(&["top", "--once"]);
+    // The same table: the same lines, each starting with the same name (the numbers move on).
+    let names = |t: &str| -> Vec<String> {
+        t.lines()
+            .map(|l| l.split_whitespace().next().unwrap_or("").to_owned())
+            .collect()
+    };
+    assert!(local.lines().count() >= 3, "{local}");
+    assert_eq!(
+        names(&remote),
+        names(&local),
+        "{remote}\n--- on the arm's host:\n{local}"
+    );
+    for (sut, up) in [(&mut station, up_station), (&mut robot, up_robot)] {
+        sut.modbot_ok(&["down"]);
+        let status = sut.wait_exit(up, Duration::from_secs(60));
+        assert_eq!(status.code(), Some(0), "{}", sut.output_of(up));
+        assert_eq!(sut.leftover_files(), Vec::<PathBuf>::new());
+    }
+}

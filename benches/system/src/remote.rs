@@ -301,7 +301,6 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let _ = up_robot.stop();
     report.push(Row::from_histogram("remote.raw_zenoh_query", &raw).is_baseline());
     report.push(Row::from_histogram("remote.call", &call).against("remote.raw_zenoh_query", &[]));
-    report.push(Row::from_histogram("remote.snapshot_age", &delivery.age));
     let p = |h: &Histogram<u64>, q: f64| h.value_at_quantile(q) as f64 / 1e3;
     report.note(format!(
         "remote: a call through two Zenoh bridges over a veth link between two network \
