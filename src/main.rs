@@ -22,6 +22,7 @@ mod robot_cmd;
 mod rvmf_cmd;
 mod tool;
 mod up_cmd;
+mod upgrade_cmd;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -259,6 +260,22 @@ enum Command {
         #[arg(long)]
         wait: bool,
     },
+    /// Upgrade a running module live: a new process of PROGRAM (default: the module's own
+    /// program, rebuilt in place) takes over its address, blackboard, state and the calls on
+    /// their way; callers see a delay, never an error. Refused, the running process serving on,
+    /// when the new program fails to start or its methods differ (unless --force).
+    Upgrade {
+        module: String,
+        /// The new program.
+        #[arg(long)]
+        program: Option<PathBuf>,
+        /// Take a program whose method table differs from the running one's.
+        #[arg(long)]
+        force: bool,
+        /// How long to wait for the outcome, in seconds.
+        #[arg(long, default_value_t = 60)]
+        timeout_s: u64,
+    },
     /// Activate a module the operator deactivated: it serves its methods and runs its tasks
     /// again (`modbot call MODULE.activate`).
     Activate { module: String },
@@ -414,6 +431,20 @@ fn main() -> ExitCode {
             timeout_ms,
             wait,
         } => tool::call(&domain, &target, &args, timeout_ms, wait),
+        Command::Upgrade {
+            module,
+            program,
+            force,
+            timeout_s,
+        } => upgrade_cmd::run(
+            &domain,
+            &upgrade_cmd::UpgradeArgs {
+                module: &module,
+                program: program.as_deref(),
+                force,
+                timeout: std::time::Duration::from_secs(timeout_s),
+            },
+        ),
         Command::Activate { module } => {
             tool::call(&domain, &format!("{module}.activate"), &[], 2000, false)
         }

@@ -24,6 +24,8 @@ struct LsLine {
     state: String,
     mode: &'static str,
     restarts: String,
+    /// How often a live upgrade replaced its process.
+    upgrades: String,
     last_exit: String,
     counters: [String; 3],
     methods: String,
@@ -91,6 +93,7 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
             state: if m.alive { "alive" } else { "dead" }.to_owned(),
             mode: m.mode.name(),
             restarts: "-".into(),
+            upgrades: "-".into(),
             last_exit: "-".into(),
             counters: ["-".into(), "-".into(), "-".into()],
             methods: String::new(),
@@ -102,6 +105,7 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
                 "dead".into()
             };
             line.restarts = r.restarts.to_string();
+            line.upgrades = r.upgrades.to_string();
             if !r.last_exit.is_empty() {
                 line.last_exit = r.last_exit.clone();
             }
@@ -134,6 +138,7 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
                 state: r.state.clone(),
                 mode: "-",
                 restarts: r.restarts.to_string(),
+                upgrades: r.upgrades.to_string(),
                 last_exit: if r.last_exit.is_empty() {
                     "-".into()
                 } else {
@@ -157,6 +162,7 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
         state: "STATE".into(),
         mode: "MODE",
         restarts: "RESTARTS".into(),
+        upgrades: "UPGRADES".into(),
         last_exit: "LAST EXIT".into(),
         counters: ["DROPPED".into(), "REJECT".into(), "REPLAY".into()],
         methods: "METHODS".into(),
@@ -171,6 +177,7 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
                 &l.state,
                 l.mode,
                 &l.restarts,
+                &l.upgrades,
                 &l.last_exit,
                 d,
                 r,
@@ -181,11 +188,12 @@ pub fn ls(domain: &str, tsv: bool) -> anyhow::Result<ExitCode> {
             return;
         }
         println!(
-            "{addr:>4}  {:<width$}  {pid:>8}  {:<10} {:<9} {:>8}  {:<30} {:>7} {:>7} {:>7}  {}",
+            "{addr:>4}  {:<width$}  {pid:>8}  {:<10} {:<9} {:>8} {:>8}  {:<30} {:>7} {:>7} {:>7}  {}",
             l.name,
             l.state,
             l.mode,
             l.restarts,
+            l.upgrades,
             l.last_exit,
             l.counters[0],
             l.counters[1],

@@ -17,7 +17,8 @@
 //!  3     1    name length, 1..=48
 //!  4     4    pid, u32 LE
 //!  8     4    methods digest, u32 LE (see the heartbeat; 0: not known)
-//! 12     4    reserved, 0
+//! 12     2    upgrades, u16 LE: how often the module's process was replaced by a live upgrade
+//! 14     2    reserved, 0
 //! 16    48    name: a-z A-Z 0-9 _ -, zero-padded
 //! ```
 //!
@@ -25,7 +26,7 @@
 //! entry are written zero and not read. A module that is not in the image is not running.
 
 use thiserror::Error;
-use zerocopy::byteorder::little_endian::{U32, U64};
+use zerocopy::byteorder::little_endian::{U16, U32, U64};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout, Unaligned};
 
 use crate::addr::Addr;
@@ -75,7 +76,8 @@ pub struct Entry {
     name_len: u8,
     pid: U32,
     methods_digest: U32,
-    reserved: U32,
+    upgrades: U16,
+    reserved: U16,
     name: [u8; NAME_MAX],
 }
 
@@ -88,6 +90,9 @@ pub struct Listing {
     pub state: ModuleState,
     pub pid: u32,
     pub methods_digest: u32,
+    /// How often a live upgrade replaced the module's process (`modbot upgrade`): a new pid with
+    /// a higher count is the same module, not a restart.
+    pub upgrades: u16,
     pub name: String,
 }
 
@@ -154,6 +159,11 @@ impl Entry {
         self.methods_digest.get()
     }
 
+    /// How often a live upgrade replaced the module's process.
+    pub fn upgrades(&self) -> u16 {
+        self.upgrades.get()
+    }
+
     /// The name (checked by [`View::parse`]: ASCII).
     pub fn name(&self) -> &str {
         let len = usize::from(self.name_len).min(NAME_MAX);
@@ -168,6 +178,7 @@ impl Entry {
             state: self.state(),
             pid: self.pid(),
             methods_digest: self.methods_digest(),
+            upgrades: self.upgrades(),
             name: self.name().to_owned(),
         }
     }
@@ -295,7 +306,8 @@ pub fn write(
             name_len: n as u8,
             pid: U32::new(l.pid),
             methods_digest: U32::new(l.methods_digest),
-            reserved: U32::new(0),
+            upgrades: U16::new(l.upgrades),
+            reserved: U16::new(0),
             name,
         };
         entry
@@ -338,6 +350,7 @@ mod tests {
             state: ModuleState::Running,
             pid: 0x1234,
             methods_digest: 0xaabbccdd,
+            upgrades: 0,
             name: name.into(),
         }
     }

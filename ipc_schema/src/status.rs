@@ -5,7 +5,8 @@
 //! (i64, u32; 0 when not running), restarts (i64, u32), last exit (text, empty if none), then
 //! the frames the module dropped, rejected and replayed (i64 ≥ 0, from its heartbeats), then
 //! the age of its last heartbeat in milliseconds when the rows were built (i64 ≥ 0; −1 when it
-//! does not run or has not beaten since it started). A run
+//! does not run or has not beaten since it started), then how often a live upgrade replaced its
+//! process (i64, u16). A run
 //! whose last row is incomplete, a value of another kind or out of range, a name that is not
 //! a module name or an unknown state is malformed.
 
@@ -18,7 +19,7 @@ use crate::names::is_module_name;
 use crate::value::Value;
 
 /// Values per module.
-pub const FIELDS: usize = 10;
+pub const FIELDS: usize = 11;
 
 /// One module as the supervisor reports it.
 #[cfg_attr(feature = "serde", derive(serde::Serialize))]
@@ -38,6 +39,8 @@ pub struct Row {
     /// How old its last heartbeat was when the supervisor built the rows (it does so at least
     /// four times a second); `None` when it does not run or has not beaten yet.
     pub heartbeat_age_ms: Option<u64>,
+    /// How often a live upgrade replaced its process (`modbot upgrade`).
+    pub upgrades: u16,
 }
 
 /// The states a row names.
@@ -79,6 +82,7 @@ impl Row {
             Some(ms) => push_u64(out, ms),
             None => push(out, Value::I64(-1)),
         }
+        push_u64(out, u64::from(self.upgrades));
     }
 
     fn decode(fields: &mut Fields<'_>) -> Result<Row, FieldError> {
@@ -102,6 +106,7 @@ impl Row {
                     ty: "milliseconds (≥ 0, or −1 for none)",
                 })?),
             },
+            upgrades: fields.int("the upgrades")?,
         })
     }
 }
@@ -159,6 +164,7 @@ mod tests {
                     replayed: 5,
                 },
                 heartbeat_age_ms: Some(120),
+                upgrades: 2,
             },
             Row {
                 name: "mobility".into(),
@@ -169,6 +175,7 @@ mod tests {
                 last_exit: String::new(),
                 counters: Counters::default(),
                 heartbeat_age_ms: None,
+                upgrades: 0,
             },
         ]
     }
@@ -179,7 +186,7 @@ mod tests {
         rows()[1].encode(&mut bytes);
         assert_eq!(
             hex::encode(&bytes),
-            "a86d6f62696c697479 03 a4646f776e 00 00 a0 00 00 00 ff".replace(' ', "")
+            "a86d6f62696c697479 03 a4646f776e 00 00 a0 00 00 00 ff 00".replace(' ', "")
         );
     }
 
@@ -200,7 +207,7 @@ mod tests {
             Err(StatusError::Row {
                 row: 1,
                 why: FieldError::Missing {
-                    what: "the heartbeat age"
+                    what: "the upgrades"
                 }
             })
         ));
@@ -215,7 +222,7 @@ mod tests {
             })
         ));
         let mut negative = bytes.clone();
-        let replayed = negative.len() - 2;
+        let replayed = negative.len() - 3;
         negative[replayed] = 0xff; // -1 replayed
         assert!(matches!(
             decode(&negative),
@@ -225,8 +232,9 @@ mod tests {
             })
         ));
         let mut aged = bytes.clone();
-        aged.pop();
+        aged.truncate(aged.len() - 2);
         push(&mut aged, Value::I64(-2));
+        push(&mut aged, Value::I64(0));
         assert!(matches!(
             decode(&aged),
             Err(StatusError::Row {

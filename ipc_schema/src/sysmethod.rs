@@ -46,6 +46,16 @@ pub const ACTIVATE: u8 = 0xF5;
 /// and reports go on.
 pub const DEACTIVATE: u8 = 0xF6;
 
+/// `upgrade_out(dir: text, methods: text, force: bool)` → ACK, or NAK `failed` naming how the
+/// methods differ: the supervisor asks a module to hand over to the process it started to
+/// take it over (`modbot upgrade`). `methods` is the new program's method names in id order,
+/// comma-separated; unless `force`, a table other than the module's own is refused and the
+/// module serves on. On ACK the module stops serving: it drops the requests that come (their
+/// callers' retransmissions reach the new process), keeps the reports for it, waits for the new
+/// process to subscribe and for its own calls' answers, then writes its state into `dir` and
+/// leaves (`modbot_core::upgrade` describes the handover).
+pub const UPGRADE_OUT: u8 = 0xF7;
+
 /// REPORT topic of the announcement a module broadcasts when it comes up:
 /// `[name: text, pid: i64]`.
 pub const ANNOUNCE_TOPIC: u8 = 0xFF;
@@ -60,12 +70,13 @@ pub fn name(id: u8) -> Option<&'static str> {
         STATS => "stats",
         ACTIVATE => "activate",
         DEACTIVATE => "deactivate",
+        UPGRADE_OUT => "upgrade_out",
         _ => return None,
     })
 }
 
 /// The system methods, in id order.
-pub const ALL: [u8; 7] = [
+pub const ALL: [u8; 8] = [
     DESCRIBE,
     BB_GET,
     BB_SET,
@@ -73,6 +84,7 @@ pub const ALL: [u8; 7] = [
     STATS,
     ACTIVATE,
     DEACTIVATE,
+    UPGRADE_OUT,
 ];
 
 /// The id of a reserved method, by name.
@@ -100,11 +112,15 @@ mod tests {
                 "bb_snapshot",
                 "stats",
                 "activate",
-                "deactivate"
+                "deactivate",
+                "upgrade_out"
             ]
         );
-        assert_eq!((STATS, ACTIVATE, DEACTIVATE), (0xF4, 0xF5, 0xF6));
+        assert_eq!(
+            (STATS, ACTIVATE, DEACTIVATE, UPGRADE_OUT),
+            (0xF4, 0xF5, 0xF6, 0xF7)
+        );
         assert_eq!(id("status"), None);
-        assert_eq!(name(0xF7), None);
+        assert_eq!(name(0xF8), None);
     }
 }

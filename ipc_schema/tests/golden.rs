@@ -105,6 +105,7 @@ fn the_readme_golden_vectors_match_the_encoders() {
                     state: ModuleState::Running,
                     pid: n("pid") as u32,
                     methods_digest: n("digest") as u32,
+                    upgrades: 0,
                     name: field(&desc, "name").to_owned(),
                 };
                 let mut image = vec![0u8; IMAGE_LEN];
@@ -361,6 +362,7 @@ fn the_readme_golden_vectors_match_the_encoders() {
                         replayed: n("replayed"),
                     },
                     heartbeat_age_ms: Some(n("heartbeat_age_ms")),
+                    upgrades: n("upgrades") as u16,
                 };
                 let mut bytes = Vec::new();
                 encode(std::slice::from_ref(&row), &mut bytes);

@@ -124,12 +124,13 @@ fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
             count.clone(),
             count.clone(),
             proptest::option::of(count),
+            any::<u16>(),
         ),
     )
         .prop_map(
             |(
                 (name, addr, state, pid, restarts, last_exit),
-                (dropped, rejected, replayed, heartbeat_age_ms),
+                (dropped, rejected, replayed, heartbeat_age_ms, upgrades),
             )| {
                 modbot_ipc_schema::status::Row {
                     name,
@@ -144,6 +145,7 @@ fn status_row() -> impl Strategy<Value = modbot_ipc_schema::status::Row> {
                         replayed,
                     },
                     heartbeat_age_ms,
+                    upgrades,
                 }
             },
         )

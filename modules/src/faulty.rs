@@ -14,6 +14,10 @@
 //!
 //! With `--slow-ms N` the module takes N ms over every REPORT it receives: a slow consumer.
 //!
+//! A live upgrade (`modbot upgrade`) carries its pings, reports and upgrade count over
+//! ([`upgrade_out`], [`upgrade_in`], state version [`STATE_VERSION`]); the blackboard item
+//! `upgrades` shows the count, which only this state can carry.
+//!
 //! [`send_garbage`] and [`send_spam`] are the bodies of `flood` and `spam`, for a benchmark
 //! that injects the same faults from its own endpoint.
 
@@ -46,6 +50,39 @@ pub struct Faulty {
     pub reports_shown: u64,
     /// Where `record` appends, opened for appending (`--journal PATH`); `None`: `record` fails.
     pub journal: Option<std::fs::File>,
+    /// Live upgrades this module's state went through.
+    pub upgrades: u32,
+}
+
+/// The version of the state [`upgrade_out`] writes.
+pub const STATE_VERSION: u32 = 1;
+
+/// The module's own state for a live upgrade: pings (i64 LE), reports (u64 LE), upgrades (u32
+/// LE).
+pub fn upgrade_out(f: &Faulty) -> Vec<u8> {
+    let mut out = Vec::with_capacity(20);
+    out.extend_from_slice(&f.pings.to_le_bytes());
+    out.extend_from_slice(&f.reports.to_le_bytes());
+    out.extend_from_slice(&f.upgrades.to_le_bytes());
+    out
+}
+
+/// Takes [`upgrade_out`]'s state over, one upgrade more; refuses another version or length.
+pub fn upgrade_in(f: &mut Faulty, ctx: &mut Ctx, version: u32, bytes: &[u8]) -> Result<(), String> {
+    if version != STATE_VERSION {
+        return Err(format!(
+            "state version {version}; this program reads version {STATE_VERSION}"
+        ));
+    }
+    let [p0, p1, p2, p3, p4, p5, p6, p7, r0, r1, r2, r3, r4, r5, r6, r7, u0, u1, u2, u3] = *bytes
+    else {
+        return Err(format!("{} bytes of state; version 1 has 20", bytes.len()));
+    };
+    f.pings = i64::from_le_bytes([p0, p1, p2, p3, p4, p5, p6, p7]);
+    f.reports = u64::from_le_bytes([r0, r1, r2, r3, r4, r5, r6, r7]);
+    f.upgrades = u32::from_le_bytes([u0, u1, u2, u3]) + 1;
+    let _ = ctx.bb.write("upgrades", Value::I64(i64::from(f.upgrades)));
+    Ok(())
 }
 
 pub fn ping(

@@ -161,6 +161,7 @@ mod tests {
             },
             counters: Default::default(),
             heartbeat_age_ms: None,
+            upgrades: 0,
         });
         m.active = active;
         m

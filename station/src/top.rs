@@ -373,6 +373,7 @@ mod tests {
             last_exit: String::new(),
             counters: Default::default(),
             heartbeat_age_ms: None,
+            upgrades: 0,
         });
         m.latency_p99_us = p99;
         m

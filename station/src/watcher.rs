@@ -248,6 +248,7 @@ impl Watcher {
                                 last_exit: String::new(),
                                 counters: Default::default(),
                                 heartbeat_age_ms: None,
+                                upgrades: 0,
                             })
                         })
                         .collect();
@@ -284,6 +285,7 @@ impl Watcher {
                     last_exit: String::new(),
                     counters: Default::default(),
                     heartbeat_age_ms: None,
+                    upgrades: 0,
                 }));
             }
         }

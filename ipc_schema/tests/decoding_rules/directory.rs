@@ -1,5 +1,6 @@
 //! The directory. The golden image lists `nav` at address 7: its header is bytes 0..16, its
-//! entry 16..80 (address, mode, state, name length, pid, digest, reserved, then the name at 32).
+//! entry 16..80 (address, mode, state, name length, pid, digest, upgrades, reserved, then the name
+//! at 32).
 
 use modbot_ipc_schema::addr::Addr;
 use modbot_ipc_schema::directory::{self, DirectoryError, EntryError, Listing, View, IMAGE_LEN};
@@ -70,7 +71,7 @@ fn a_directory_reader_ignores_its_reserved_bytes() {
     let mut bytes = image();
     let listing = View::parse(&bytes).unwrap().entries()[0].listing();
     bytes[5] = 0xaa; // the header's
-    bytes[16 + 12..16 + 16].fill(0xbb); // the entry's
+    bytes[16 + 14..16 + 16].fill(0xbb); // the entry's
     let view = View::parse(&bytes).unwrap();
     assert_eq!(
         (view.generation(), view.entries()[0].listing()),
@@ -100,6 +101,7 @@ fn entries_out_of_address_order_are_refused() {
         state: ModuleState::Running,
         pid: 1,
         methods_digest: 0,
+        upgrades: 0,
         name: name.into(),
     };
     let mut bytes = vec![0; IMAGE_LEN];

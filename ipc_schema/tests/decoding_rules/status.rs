@@ -1,5 +1,5 @@
 //! The supervisor's status rows. The golden row's values: name, address, state, pid,
-//! restarts, last exit, dropped, rejected, replayed, heartbeat age.
+//! restarts, last exit, dropped, rejected, replayed, heartbeat age, upgrades.
 
 use modbot_ipc_schema::fields::FieldError;
 use modbot_ipc_schema::status::{decode, StatusError};
@@ -14,7 +14,7 @@ fn with(index: usize, value: Value<'_>) -> Option<StatusError> {
 }
 
 #[test]
-fn a_last_row_with_fewer_than_10_values_is_refused() {
+fn a_last_row_with_fewer_than_11_values_is_refused() {
     let mut values = run_values(&crate::support::golden(GOLDEN));
     values.pop();
     assert_eq!(
@@ -22,7 +22,7 @@ fn a_last_row_with_fewer_than_10_values_is_refused() {
         Some(StatusError::Row {
             row: 0,
             why: FieldError::Missing {
-                what: "the heartbeat age"
+                what: "the upgrades"
             }
         })
     );

@@ -331,6 +331,26 @@ impl Blackboard {
         self.write_id(id, value)
     }
 
+    /// Every item's name and current value (devices not sampled), in layout order.
+    pub fn values(&self) -> impl Iterator<Item = (&str, Value<'_>)> + '_ {
+        self.layout
+            .items()
+            .iter()
+            .zip(&self.values)
+            .map(|(spec, v)| (spec.name.as_str(), v.as_value()))
+    }
+
+    /// Takes over the value the process of a live upgrade replaced had for `name`: written as
+    /// [`Blackboard::write`] does (an output device is driven with it, so it holds what it
+    /// held); an item its input device samples keeps its own.
+    pub fn restore(&mut self, name: &str, value: Value<'_>) -> Result<(), BlackboardError> {
+        let id = self.id(name)?;
+        if self.devices[id.0].read.is_some() {
+            return Ok(());
+        }
+        self.write_id(id, value)
+    }
+
     /// `name:kind[:rw]` for every item, comma-separated (for `describe`).
     pub fn describe(&self) -> String {
         self.layout

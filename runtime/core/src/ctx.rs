@@ -66,6 +66,8 @@ pub(crate) struct Serving {
     pub(crate) replayed: u64,
     /// Malformed or misrouted frames received and dropped.
     pub(crate) rejected: u64,
+    /// Handing over to the process of a live upgrade ([`crate::upgrade`]).
+    pub(crate) handover: Option<crate::upgrade::Outgoing>,
 }
 
 impl Default for Serving {
@@ -75,6 +77,7 @@ impl Default for Serving {
             served: ServedLog::default(),
             replayed: 0,
             rejected: 0,
+            handover: None,
         }
     }
 }

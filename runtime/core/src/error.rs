@@ -107,6 +107,10 @@ pub enum ModuleError {
     },
     #[error("module definition: {0}")]
     Definition(String),
+    /// This process was started to take a running module over and could not
+    /// ([`crate::upgrade`]).
+    #[error("live upgrade of module '{name}': {why}")]
+    Upgrade { name: String, why: String },
     #[error(transparent)]
     Transport(#[from] TransportError),
     #[error(transparent)]

@@ -24,6 +24,15 @@ pub type DoneFn<S> = fn(&mut S, &mut Ctx, CallHandle, Result<&Args<'_>, &CallErr
 /// Periodic work.
 pub type TaskFn<S> = fn(&mut S, &mut Ctx);
 
+/// Gives a live upgrade's new process the module's own state, as bytes (the old process, as
+/// it hands over: see [`crate::ModuleBuilder::on_upgrade_out`]).
+pub type UpgradeOutFn<S> = fn(&S) -> Vec<u8>;
+
+/// Takes the state the old process's [`UpgradeOutFn`] gave, with the version that program
+/// declared (the new process, before it serves): `Err` says why it cannot, and the module
+/// starts from its defaults.
+pub type UpgradeInFn<S> = fn(&mut S, &mut Ctx, u32, &[u8]) -> Result<(), String>;
+
 /// Told that the operator activated (`true`) or deactivated (`false`) the module.
 pub type ActivationFn<S> = fn(&mut S, &mut Ctx, bool);
 
@@ -73,4 +82,7 @@ pub(crate) struct Definition<S> {
     pub(crate) tasks: Vec<(Duration, TaskFn<S>)>,
     pub(crate) peers: Vec<String>,
     pub(crate) snapshot_period_ns: u64,
+    /// The state a live upgrade carries over, and its version.
+    pub(crate) upgrade_out: Option<(u32, UpgradeOutFn<S>)>,
+    pub(crate) upgrade_in: Option<UpgradeInFn<S>>,
 }

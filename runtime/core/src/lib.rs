@@ -13,6 +13,7 @@
 //! - [`calls`]: the method queue, matching answers by (peer, sequence), with retransmission.
 //! - `manager`: the message manager, serving one incoming frame.
 //! - [`served`]: the requests served lately, so a retransmission is not executed twice.
+//! - [`upgrade`]: a live upgrade's handover between the running process and its successor.
 //! - [`phonebook`]: names to addresses, liveness and method tables.
 //! - [`blackboard`]: typed items, logical and virtual devices, snapshots.
 //! - [`mod@run`]: the default application controller, for a program that needs no other.
@@ -45,6 +46,7 @@ pub mod signals;
 pub mod sim;
 pub mod stats;
 pub mod tool;
+pub mod upgrade;
 
 pub use modbot_transport as transport;
 pub use modbot_transport::domain;

@@ -362,8 +362,66 @@ fn system_method<S>(
             }
             Ok(())
         }
+        sysmethod::UPGRADE_OUT => {
+            let dir = args.text(0).map_err(MethodError::from)?;
+            let methods = args.text(1).map_err(MethodError::from)?;
+            let force = matches!(args.get(2), Some(Value::Bool(true)));
+            if ctx.serving.handover.is_some() {
+                return Err(MethodError::Busy("the module is handing over already".into()).into());
+            }
+            let mine: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
+            let theirs: Vec<&str> = methods.split(',').filter(|m| !m.is_empty()).collect();
+            if mine != theirs && !force {
+                return Err(MethodError::Failed(method_difference(&mine, &theirs)).into());
+            }
+            tracing::info!(
+                "module {} hands over to the process of a live upgrade (asked by {})",
+                ctx.name,
+                ctx.serving.caller
+            );
+            ctx.serving.handover = Some(crate::upgrade::Outgoing {
+                dir: dir.into(),
+                began_ns: ctx.now_ns(),
+                subscribed_ns: None,
+                kept: Vec::new(),
+                dropped: 0,
+            });
+            Ok(())
+        }
         _ => Err(UnknownOr::Unknown(format!("no system method with id {id}"))),
     }
+}
+
+/// How a new program's method table differs from this one's (ids are positions: a method
+/// that moved is a difference too).
+fn method_difference(mine: &[&str], theirs: &[&str]) -> String {
+    let missing: Vec<&str> = mine
+        .iter()
+        .filter(|m| !theirs.contains(m))
+        .copied()
+        .collect();
+    let added: Vec<&str> = theirs
+        .iter()
+        .filter(|m| !mine.contains(m))
+        .copied()
+        .collect();
+    let mut parts = Vec::new();
+    if !missing.is_empty() {
+        parts.push(format!("it lacks {}", missing.join(", ")));
+    }
+    if !added.is_empty() {
+        parts.push(format!("it adds {}", added.join(", ")));
+    }
+    if parts.is_empty() {
+        parts.push("the same methods in another order (a method's id is its position)".into());
+    }
+    format!(
+        "the new program's methods differ from the running one's: {} (running: {}; new: {}); \
+         upgrade with --force to take it anyway",
+        parts.join("; "),
+        mine.join(","),
+        theirs.join(",")
+    )
 }
 
 /// The NAK a blackboard error becomes.

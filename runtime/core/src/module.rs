@@ -4,10 +4,12 @@
 //! - `builder`: [`ModuleBuilder`], declaring a module and opening it in a domain;
 //! - this file: [`Module`], a running module (serving, housekeeping, calls, heartbeats);
 //! - `closed`: what stands in for the endpoint after the module released it;
-//! - `look`: looking for a frame before sleeping (blocking calls, lingering after serving).
+//! - `look`: looking for a frame before sleeping (blocking calls, lingering after serving);
+//! - `handover`: both sides of a live upgrade ([`crate::upgrade`]).
 
 mod builder;
 mod closed;
+mod handover;
 mod look;
 
 pub use builder::ModuleBuilder;
@@ -22,7 +24,9 @@ use modbot_ipc_schema::{Addr, Args, OwnedValue, Value};
 use crate::calls::{owned_answer, CallOptions, Purpose};
 use crate::ctx::Ctx;
 use crate::error::{CallError, ModuleError};
-pub use crate::hooks::{ActivationFn, DoneFn, MethodFn, Reply, Report, ReportFn, TaskFn};
+pub use crate::hooks::{
+    ActivationFn, DoneFn, MethodFn, Reply, Report, ReportFn, TaskFn, UpgradeInFn, UpgradeOutFn,
+};
 pub(crate) use crate::hooks::{Definition, Waiter};
 use crate::manager;
 use crate::transport::{PeerInfo, ReceiveMode, Rx, Transport, TransportError};
@@ -114,8 +118,16 @@ impl<S> Module<S> {
 
     fn poll_with(&mut self, waiter: &mut Waiter<'_>) -> Result<bool, TransportError> {
         let (def, state, ctx, reply) = (&self.def, &mut self.state, &mut self.ctx, &mut self.reply);
-        self.rx
-            .try_receive(&mut |bytes| manager::dispatch(def, state, ctx, reply, bytes, waiter))
+        self.rx.try_receive(&mut |bytes| {
+            if let Some(out) = ctx.serving.handover.as_mut() {
+                if let crate::upgrade::Route::Done =
+                    crate::upgrade::route(out, &mut ctx.serving.served, bytes)
+                {
+                    return;
+                }
+            }
+            manager::dispatch(def, state, ctx, reply, bytes, waiter)
+        })
     }
 
     /// Periodic work: due tasks, call deadlines, liveness, pending sends, snapshots.
@@ -125,6 +137,11 @@ impl<S> Module<S> {
 
     fn housekeeping_with(&mut self, waiter: &mut Waiter<'_>) {
         let now = self.ctx.now_ns();
+        if self.ctx.serving.handover.is_some() {
+            // Not inside a blocking call: the handover ends with the inbox given up.
+            self.handover_step(now, waiter.is_none());
+        }
+        let handing_over = self.ctx.serving.handover.is_some() || self.ctx.liveness.stop;
         for i in 0..self.def.tasks.len() {
             if now >= self.next_task_ns[i] {
                 let (period, f) = self.def.tasks[i];
@@ -134,8 +151,9 @@ impl<S> Module<S> {
                 } else {
                     self.next_task_ns[i] + period
                 };
-                // Deactivated: the beat is skipped, so the task resumes on its grid.
-                if self.ctx.liveness.active {
+                // Deactivated: the beat is skipped, so the task resumes on its grid. Handing
+                // over: the new process runs the tasks from now on.
+                if self.ctx.liveness.active && !handing_over {
                     f(&mut self.state, &mut self.ctx);
                 }
             }
@@ -222,7 +240,8 @@ impl<S> Module<S> {
                 let ctx = &mut self.ctx;
                 ctx.serving.served.forget(addr);
                 let (tx, me, sent) = (&mut ctx.link.tx, ctx.addr, &mut ctx.stats.frames_sent);
-                ctx.out.calls.resend_to(addr, |r| {
+                let every = changes.upgraded.contains(&addr);
+                ctx.out.calls.resend_to(addr, every, |r| {
                     match crate::ctx::send_retry(tx.as_mut(), me, r) {
                         Ok(()) => *sent += 1,
                         Err(e) => tracing::debug!("resend to {addr} not delivered: {e}"),

@@ -26,6 +26,8 @@ pub struct Entry {
     pub items: Option<String>,
     /// The digest of its method names, if the directory carries it (0: not known).
     pub methods_digest: u32,
+    /// How often a live upgrade replaced its process (see [`PeerInfo::upgrades`]).
+    pub upgrades: u16,
 }
 
 /// Name → address resolution with liveness.
@@ -68,6 +70,8 @@ impl Default for Resolved {
 pub struct Changes {
     pub died: Vec<Addr>,
     pub appeared: Vec<Addr>,
+    /// Of those that appeared: a live upgrade's new process (see [`PeerInfo::upgrades`]).
+    pub upgraded: Vec<Addr>,
 }
 
 impl PhoneBook {
@@ -105,11 +109,19 @@ impl PhoneBook {
                     e.methods_digest = p.methods_digest;
                 }
                 (Some(p), previous) => {
-                    if previous.as_ref().is_some_and(|e| e.alive) {
+                    // A live upgrade: the new process took the old one's calls over, so the
+                    // calls waiting for it go out again (`appeared`) and none fails.
+                    let upgraded = previous.as_ref().is_some_and(|e| {
+                        e.alive && p.alive && e.name == p.name && p.upgrades > e.upgrades
+                    });
+                    if previous.as_ref().is_some_and(|e| e.alive) && !upgraded {
                         changes.died.push(p.addr);
                     }
                     if p.alive {
                         changes.appeared.push(p.addr);
+                    }
+                    if upgraded {
+                        changes.upgraded.push(p.addr);
                     }
                     // The same program back (same name, same method digest): its method
                     // table is still right, and need not be asked for again.
@@ -132,6 +144,7 @@ impl PhoneBook {
                         methods,
                         items,
                         methods_digest: p.methods_digest,
+                        upgrades: p.upgrades,
                     });
                 }
                 (None, Some(e)) => {
@@ -288,6 +301,7 @@ mod tests {
             mode: ReceiveMode::BusyPoll,
             alive,
             methods_digest: 0,
+            upgrades: 0,
         }
     }
 
@@ -308,5 +322,31 @@ mod tests {
             None,
             "the module died: the call must go the long way and learn it"
         );
+    }
+
+    #[test]
+    fn a_new_process_with_a_higher_upgrade_count_appears_without_dying() {
+        let mut book = PhoneBook::new();
+        book.refresh(&Fixed(vec![peer(7, "nav", 100, true)]))
+            .unwrap();
+        let upgraded = PeerInfo {
+            upgrades: 1,
+            ..peer(7, "nav", 200, true)
+        };
+        let changes = book.refresh(&Fixed(vec![upgraded])).unwrap();
+        assert_eq!(
+            changes,
+            Changes {
+                died: vec![],
+                appeared: vec![Addr(7)],
+                upgraded: vec![Addr(7)],
+            }
+        );
+        // A restart (same count, new pid) is a death and an appearance.
+        let changes = book.refresh(&Fixed(vec![PeerInfo {
+            upgrades: 1,
+            ..peer(7, "nav", 300, true)
+        }]));
+        assert_eq!(changes.unwrap().died, vec![Addr(7)]);
     }
 }

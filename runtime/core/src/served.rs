@@ -85,6 +85,86 @@ impl ServedLog {
     pub fn forget(&mut self, peer: Addr) {
         self.peers[usize::from(peer.0)] = None;
     }
+
+    /// Forgets the answer kept for `peer`'s request `seq`: a request with that number came and
+    /// was not served (a module handing over to its upgrade drops requests; the caller's RETRY
+    /// must then be executed, not answered with an older request's answer).
+    pub fn invalidate(&mut self, peer: Addr, seq: Seq) {
+        if let Some(table) = self.peers[usize::from(peer.0)].as_mut() {
+            table[usize::from(seq.get())] = None;
+        }
+    }
+
+    /// The record as bytes, for the process that takes this module over: per entry, caller,
+    /// sequence number, method, kind (0 ACK, 1 REPLY, 2 NAK), NAK code, answer length (u32 LE),
+    /// then the kept answer.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        for (peer, table) in self.peers.iter().enumerate() {
+            let Some(table) = table else { continue };
+            for (seq, entry) in table.iter().enumerate() {
+                let Some(e) = entry else { continue };
+                let (kind, code) = match e.kind {
+                    FrameKind::Ack => (0, 0),
+                    FrameKind::Nak { code } => (2, code.0),
+                    _ => (1, 0),
+                };
+                out.extend_from_slice(&[peer as u8, seq as u8, e.method, kind, code]);
+                out.extend_from_slice(&(e.len as u32).to_le_bytes());
+                out.extend_from_slice(&e.payload[..e.len.min(KEPT_ANSWER)]);
+            }
+        }
+        out
+    }
+
+    /// Reads a record [`ServedLog::encode`] wrote.
+    pub fn decode(mut bytes: &[u8]) -> Result<ServedLog, ServedLogError> {
+        let mut log = ServedLog::default();
+        while !bytes.is_empty() {
+            let at = bytes.len();
+            let Some((head, rest)) = bytes.split_first_chunk::<9>() else {
+                return Err(ServedLogError::Truncated { left: at });
+            };
+            let [peer, seq, method, kind, code, l0, l1, l2, l3] = *head;
+            let len = u32::from_le_bytes([l0, l1, l2, l3]) as usize;
+            let kept = len.min(KEPT_ANSWER);
+            let Some(seq) = Seq::new(seq) else {
+                return Err(ServedLogError::Sequence(seq));
+            };
+            let kind = match kind {
+                0 => FrameKind::Ack,
+                1 => FrameKind::Reply,
+                2 => FrameKind::Nak {
+                    code: modbot_ipc_schema::NakCode(code),
+                },
+                k => return Err(ServedLogError::Kind(k)),
+            };
+            if rest.len() < kept {
+                return Err(ServedLogError::Truncated { left: at });
+            }
+            log.record(Addr(peer), seq, method, kind, &rest[..kept]);
+            if len > KEPT_ANSWER {
+                // Remembered by its size only, as when it was served.
+                let table = log.peers[usize::from(peer)].as_mut().expect("recorded");
+                if let Some(e) = table[usize::from(seq.get())].as_mut() {
+                    e.len = len;
+                }
+            }
+            bytes = &rest[kept..];
+        }
+        Ok(log)
+    }
+}
+
+/// Why bytes are not a record of served requests.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ServedLogError {
+    #[error("the record of served requests ends inside an entry ({left} bytes left)")]
+    Truncated { left: usize },
+    #[error("the record of served requests has sequence number {0} (0..=31)")]
+    Sequence(u8),
+    #[error("the record of served requests has answer kind {0} (0 ACK, 1 REPLY, 2 NAK)")]
+    Kind(u8),
 }
 
 #[cfg(test)]
@@ -127,6 +207,62 @@ mod tests {
         sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"old");
         sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"new");
         assert_eq!(sut.replay(Addr(3), seq(5), 2), replied(b"new"));
+    }
+
+    #[test]
+    fn a_record_read_back_from_its_bytes_replays_the_same_answers() {
+        let mut sut = ServedLog::default();
+        sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"\x2a");
+        sut.record(Addr(9), seq(31), 0, FrameKind::Ack, &[]);
+        let nak = FrameKind::Nak {
+            code: modbot_ipc_schema::NakCode(4),
+        };
+        sut.record(Addr(9), seq(0), 1, nak, b"busy");
+        sut.record(
+            Addr(200),
+            seq(1),
+            0,
+            FrameKind::Reply,
+            &[7; KEPT_ANSWER + 5],
+        );
+        let bytes = sut.encode();
+        let back = ServedLog::decode(&bytes).unwrap();
+        assert_eq!(back.replay(Addr(3), seq(5), 2), replied(b"\x2a"));
+        assert_eq!(
+            back.replay(Addr(9), seq(31), 0),
+            Some(Replay::Answer {
+                kind: FrameKind::Ack,
+                payload: &[]
+            })
+        );
+        assert_eq!(
+            back.replay(Addr(9), seq(0), 1),
+            Some(Replay::Answer {
+                kind: nak,
+                payload: b"busy"
+            })
+        );
+        assert_eq!(
+            back.replay(Addr(200), seq(1), 0),
+            Some(Replay::NotKept {
+                len: KEPT_ANSWER + 5
+            })
+        );
+        assert_eq!(back.encode(), bytes);
+        assert_eq!(
+            ServedLog::decode(&bytes[..bytes.len() - 1]).err(),
+            Some(ServedLogError::Truncated {
+                left: 9 + KEPT_ANSWER - 1
+            })
+        );
+    }
+
+    #[test]
+    fn an_invalidated_request_is_not_replayed() {
+        let mut sut = ServedLog::default();
+        sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"old");
+        sut.invalidate(Addr(3), seq(5));
+        assert_eq!(sut.replay(Addr(3), seq(5), 2), None);
     }
 
     #[test]

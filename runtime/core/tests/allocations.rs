@@ -185,6 +185,7 @@ fn publish_directory(transport: &IpcTransport, mode: ReceiveMode) -> (DirectoryW
         state: ModuleState::Running,
         pid: std::process::id(),
         methods_digest: 0,
+        upgrades: 0,
         name: name.into(),
     };
     writer

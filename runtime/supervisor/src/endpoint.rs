@@ -1,7 +1,7 @@
 //! The supervisor's own module, `supervisor` in the domain: its methods (`status`, `down`,
 //! the coordinator's `load_assembly`, and the hosts' `spawn_host`, `retire` and
-//! `current_assembly`) and the state they share with
-//! the supervisor.
+//! `current_assembly`; the live upgrades' `upgrade` and `upgrade_status`) and the state they
+//! share with the supervisor.
 
 use modbot_ipc_schema::{Addr, Args, Value};
 
@@ -9,6 +9,7 @@ use super::assemblies::load_assembly_method;
 use super::hosts::{current_assembly_method, retire_method, spawn_host_method};
 use super::shared::Shared;
 use super::status;
+use super::upgrades::{upgrade_method, upgrade_status_method};
 use super::{relay, SupervisorError};
 use modbot_core::ctx::Ctx;
 use modbot_core::error::MethodError;
@@ -35,6 +36,8 @@ pub(super) fn open_endpoint(
             .method("retire", retire_method)
             .method("current_assembly", current_assembly_method)
             .method("load_assembly", load_assembly_method)
+            .method("upgrade", upgrade_method)
+            .method("upgrade_status", upgrade_status_method)
             .on_done(relay::on_done)
             .open(transport.clone(), Shared::default());
         match opened {

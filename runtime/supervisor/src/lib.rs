@@ -29,6 +29,7 @@
 //! - `hosts`: the hosts of assemblies, started and retired at the coordinator's request;
 //! - `shared`: what the supervisor and its method handlers share;
 //! - `sweep`: refusing a domain in use, clearing what dead processes left;
+//! - `upgrades`: live upgrades, a new process taking a running module over;
 //! - [`env`]: what a module process learns from its environment.
 //! - `child`: spawning one module process and forwarding its output.
 //! - [`policy`]: restart decisions and exit reasons.
@@ -44,6 +45,7 @@ mod hosts;
 mod shared;
 mod shown;
 mod sweep;
+mod upgrades;
 pub use modbot_transport::launch as env;
 pub mod policy;
 pub mod processes;
@@ -169,6 +171,8 @@ struct Slot {
     retiring: bool,
     /// The threads forwarding its output: what it wrote last is shown before its end is.
     log_readers: Vec<std::thread::JoinHandle<()>>,
+    /// How often a live upgrade replaced its process.
+    upgrades: u16,
 }
 
 impl Slot {
@@ -188,6 +192,7 @@ impl Slot {
             methods_digest: 0,
             retiring: false,
             log_readers: Vec::new(),
+            upgrades: 0,
         }
     }
 }
@@ -231,6 +236,12 @@ pub struct Supervisor {
     /// Modules that came up and the supervisor has no link to yet: it opens them a few at a
     /// time while idle, so that the first calls it relays for a tool find them open.
     to_connect: Vec<Addr>,
+    /// Live upgrades under way.
+    upgrades: Vec<upgrades::Upgrade>,
+    /// Processes upgrades replaced, handing over before they end.
+    leaving: Vec<upgrades::Leaving>,
+    /// Directories of upgrades that ended, removed a while later.
+    remove_later: Vec<(std::path::PathBuf, Instant)>,
 }
 
 /// The modules' output, as the supervisor forwards it: `name | line`.
@@ -319,6 +330,9 @@ impl Supervisor {
             child_signal: child_signal.is_ok(),
             children_seen: Instant::now(),
             to_connect: Vec::new(),
+            upgrades: Vec::new(),
+            leaving: Vec::new(),
+            remove_later: Vec::new(),
         };
         sup.say(&format!(
             "starting {} module(s) in domain '{}'",
@@ -356,6 +370,7 @@ impl Supervisor {
         loop {
             self.serve();
             self.handle_host_requests();
+            self.handle_upgrades();
             self.watch();
             self.forward_logs();
             if opts.show_status
@@ -447,6 +462,7 @@ impl Supervisor {
                     .map(ToString::to_string)
                     .unwrap_or_default(),
                 counters: s.counters,
+                upgrades: s.upgrades,
                 heartbeat_age_ms: (s.child.is_some() && s.last_beat_ns > 0)
                     .then(|| now.saturating_sub(s.last_beat_ns) / 1_000_000),
             })
@@ -620,6 +636,7 @@ impl Supervisor {
                 self.to_connect.push(Addr(addr));
             }
         }
+        self.watch_leaving();
         self.roster.check_others(
             now,
             self.spec.supervision.heartbeat_timeout.as_nanos() as u64,
@@ -801,6 +818,7 @@ impl Supervisor {
 
     /// Stops every module in reverse order and removes the domain's shared memory.
     fn shutdown(&mut self) {
+        self.stop_upgrades();
         let grace = self.spec.supervision.stop_grace;
         for i in (0..self.slots.len()).rev() {
             let Some(mut child) = self.slots[i].child.take() else {
@@ -875,6 +893,7 @@ impl Supervisor {
                 },
                 pid: s.pid,
                 methods_digest: s.methods_digest,
+                upgrades: s.upgrades,
                 name: m.name.clone(),
             })
             .collect();
@@ -884,6 +903,7 @@ impl Supervisor {
             state: ModuleState::Running,
             pid: std::process::id(),
             methods_digest: self.endpoint.methods_digest(),
+            upgrades: 0,
             name: "supervisor".into(),
         });
         self.roster.publish(listings);

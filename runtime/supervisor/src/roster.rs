@@ -115,6 +115,7 @@ impl Roster {
                         state: ModuleState::Running,
                         pid: p.pid,
                         methods_digest: digest,
+                        upgrades: 0,
                         name: p.name,
                     });
                 }

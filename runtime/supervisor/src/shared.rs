@@ -1,6 +1,6 @@
 //! What the supervisor and its module's method handlers share: the rows `status` answers, the
-//! requests the handlers leave for the supervisor's loop (`down`, assembly hosts), relayed
-//! answers.
+//! requests the handlers leave for the supervisor's loop (`down`, assembly hosts, upgrades),
+//! relayed answers.
 
 use modbot_core::domain::Domain;
 use modbot_grid::component::Generation;
@@ -39,6 +39,10 @@ pub(super) struct Shared {
     pub(super) assemblies: Option<AssemblyLoader>,
     /// Relayed calls that ended: their handles and the tools' answers.
     pub(super) relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
+    /// Live upgrades asked for (`upgrade`), not started yet.
+    pub(super) upgrade_requests: Vec<super::upgrades::UpgradeRequest>,
+    /// How each module's last upgrade went (`upgrade_status`).
+    pub(super) upgrade_status: std::collections::BTreeMap<String, super::upgrades::UpgradeStatus>,
 }
 
 /// What loading an assembly needs: the system's grid as the description gave it (with the

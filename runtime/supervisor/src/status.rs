@@ -89,6 +89,7 @@ mod tests {
             last_exit: last_exit.into(),
             counters: Counters::default(),
             heartbeat_age_ms: None,
+            upgrades: 0,
         };
         let rows = vec![
             row("sonar", 2, 42, "killed by SIGKILL"),

@@ -27,6 +27,11 @@ pub const ASSIGNED: &str = "MODBOT_ASSIGNED";
 /// `Service::does_exist` reads the details of every node attached to the directory: at 253
 /// modules starting together, quadratic work that took most of the start-up).
 pub const SUPERVISOR: &str = "MODBOT_SUPERVISOR";
+/// A directory the supervisor made for a live upgrade (`modbot upgrade`): the process it
+/// started with this takes over the running module of its assigned address and name. Its
+/// endpoint opens in standby (every service but its inbox and buses, which it subscribes to
+/// when the handover begins: [`crate::Rx::attach`]); the files of the handover are in there.
+pub const UPGRADE_DIR: &str = "MODBOT_UPGRADE_DIR";
 /// Simulated seconds per real second (default 1); descriptions set it in a module's `env`.
 /// Read by `modbot_core::sim::SimTime::from_env`.
 pub const SIM_SPEED: &str = "MODBOT_SIM_SPEED";

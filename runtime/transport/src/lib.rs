@@ -100,6 +100,9 @@ pub struct PeerInfo {
     /// The digest of its method names ([`modbot_ipc_schema::directory::methods_digest`]); 0
     /// if the directory does not know it.
     pub methods_digest: u32,
+    /// How often a live upgrade replaced its process (published directories only; 0 else):
+    /// a new pid with a higher count took over the module, calls and all.
+    pub upgrades: u16,
 }
 
 /// Where a frame goes.
@@ -293,6 +296,19 @@ pub trait Rx {
 
     /// Sleeps until a frame may have arrived, a signal came, or `timeout` passed.
     fn wait(&mut self, timeout: Duration) -> Result<(), TransportError>;
+
+    /// Whether the endpoint was opened in standby, not yet subscribed to its inbox (a process
+    /// taking over a running module: [`launch::UPGRADE_DIR`]).
+    fn standby(&self) -> bool {
+        false
+    }
+
+    /// Subscribes a standby endpoint to its inbox and buses: from now on it receives every
+    /// frame sent to its address, as the process it takes over does. Nothing for one that is
+    /// not in standby.
+    fn attach(&mut self) -> Result<(), TransportError> {
+        Ok(())
+    }
 }
 
 /// The send side of a module's endpoint.

@@ -21,6 +21,7 @@ fn listing(name: &str, addr: u8) -> Listing {
         state: ModuleState::Running,
         pid: std::process::id(),
         methods_digest: 0,
+        upgrades: 0,
         name: name.to_owned(),
     }
 }

@@ -8,7 +8,8 @@ use modbot_ipc_schema::{sysmethod, Addr};
 
 use super::look::{realtime_thread, Look};
 use super::{
-    ActivationFn, Definition, DoneFn, MethodFn, Module, Reply, ReportFn, TaskFn, DEFAULT_LINGER,
+    ActivationFn, Definition, DoneFn, MethodFn, Module, Reply, ReportFn, TaskFn, UpgradeInFn,
+    UpgradeOutFn, DEFAULT_LINGER,
 };
 use crate::beat::Heartbeats;
 use crate::blackboard::Blackboard;
@@ -35,6 +36,8 @@ pub struct ModuleBuilder<S> {
     snapshot_period: Duration,
     clock: Arc<dyn Clock>,
     linger: Duration,
+    upgrade_out: Option<(u32, UpgradeOutFn<S>)>,
+    upgrade_in: Option<UpgradeInFn<S>>,
 }
 
 impl<S> ModuleBuilder<S> {
@@ -55,6 +58,8 @@ impl<S> ModuleBuilder<S> {
             snapshot_period: Duration::from_millis(100),
             clock: Arc::new(MonotonicClock),
             linger: DEFAULT_LINGER,
+            upgrade_out: None,
+            upgrade_in: None,
         }
     }
 
@@ -90,6 +95,24 @@ impl<S> ModuleBuilder<S> {
     /// run ([`Ctx::is_active`]).
     pub fn on_activation(mut self, f: ActivationFn<S>) -> Self {
         self.on_activation = Some(f);
+        self
+    }
+
+    /// What of the module's own state a live upgrade carries to the new process (`modbot
+    /// upgrade`): `f` writes it as bytes when this process hands over, tagged with `version`
+    /// (the new program's [`ModuleBuilder::on_upgrade_in`] checks it). Without it the new process
+    /// gets the blackboard's values only, and starts its own state from its defaults.
+    pub fn on_upgrade_out(mut self, version: u32, f: UpgradeOutFn<S>) -> Self {
+        self.upgrade_out = Some((version, f));
+        self
+    }
+
+    /// Takes the state the process this one upgrades handed over (its
+    /// [`ModuleBuilder::on_upgrade_out`] bytes and their version), before the module serves
+    /// its first frame; an `Err` (a version it cannot read, say) is logged and the module starts
+    /// from its defaults.
+    pub fn on_upgrade_in(mut self, f: UpgradeInFn<S>) -> Self {
+        self.upgrade_in = Some(f);
         self
     }
 
@@ -255,6 +278,8 @@ impl<S> ModuleBuilder<S> {
                 tasks: b.tasks,
                 peers: b.peers,
                 snapshot_period_ns: b.snapshot_period.as_nanos() as u64,
+                upgrade_out: b.upgrade_out,
+                upgrade_in: b.upgrade_in,
             },
             state,
             ctx,
@@ -271,8 +296,14 @@ impl<S> ModuleBuilder<S> {
         // Others learn of this module from the directory (its supervisor publishes it at the
         // first heartbeat; without a supervisor, their next scan finds its node).
         module.ctx.refresh_book();
+        if module.rx.standby() {
+            // A live upgrade's new process: it takes the running module over first (its
+            // blackboard's values included), and only then looks up its peers and publishes.
+            let dir = std::env::var_os(crate::transport::launch::UPGRADE_DIR).unwrap_or_default();
+            module.take_over(std::path::Path::new(&dir))?;
+        }
         module.look_up_peers();
-        module.publish_snapshot(now);
+        module.publish_snapshot(module.ctx.now_ns());
         tracing::info!(addr = %module.ctx.addr, mode = module.ctx.mode.name(), "module {} is up", module.ctx.name);
         Ok(module)
     }

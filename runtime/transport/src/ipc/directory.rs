@@ -137,6 +137,7 @@ impl Directory for PublishedDirectory {
                 mode,
                 alive: e.state() == ModuleState::Running,
                 methods_digest: e.methods_digest(),
+                upgrades: e.upgrades(),
             });
         }
         Ok(())
@@ -325,6 +326,7 @@ impl ScannedDirectory {
                             mode,
                             alive,
                             methods_digest: 0,
+                            upgrades: 0,
                         },
                     );
                 }

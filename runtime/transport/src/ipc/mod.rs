@@ -290,6 +290,20 @@ fn shared_bus(node: &Node<ipc::Service>, name: &str) -> Result<BytesService, Tra
         .ipc("open broadcast")
 }
 
+/// Subscribers to `services` (an inbox, then buses), each with its buffer size.
+fn subscribe(services: &[(BytesService, usize)]) -> Result<Vec<Sub>, TransportError> {
+    services
+        .iter()
+        .map(|(service, buffer)| {
+            service
+                .subscriber_builder()
+                .buffer_size(*buffer)
+                .create()
+                .ipc("inbox or bus subscriber")
+        })
+        .collect()
+}
+
 /// Refuses `addr` or `name` if the published directory lists another live process with it.
 fn refuse_taken(dir: &PublishedDirectory, addr: Addr, name: &str) -> Result<(), TransportError> {
     let mut taken = Ok(());
@@ -377,21 +391,18 @@ impl Transport for IpcTransport {
             }
         }
         debug_assert!(words.len() <= wake::MAX_WAIT_WORDS);
-        let inbox = inbox_service(&node, addr)?
-            .subscriber_builder()
-            .buffer_size(INBOX_DEPTH)
-            .create()
-            .ipc("inbox subscriber")?;
-        let mut subs = vec![inbox];
+        // The inbox, then the buses, with each one's buffer.
+        let mut services = vec![(inbox_service(&node, addr)?, INBOX_DEPTH)];
         for bus in &bus_names {
-            subs.push(
-                shared_bus(&node, bus)?
-                    .subscriber_builder()
-                    .buffer_size(16)
-                    .create()
-                    .ipc("bus subscriber")?,
-            );
+            services.push((shared_bus(&node, bus)?, 16));
         }
+        // A process taking over a running module subscribes when the handover begins.
+        let standby = assigned && std::env::var_os(crate::launch::UPGRADE_DIR).is_some();
+        let (subs, standby) = if standby {
+            (Vec::new(), Some(services))
+        } else {
+            (subscribe(&services)?, None)
+        };
         let heartbeat = heartbeat_service(&node)?
             .publisher_builder()
             .initial_max_slice_len(modbot_ipc_schema::heartbeat::LEN)
@@ -409,6 +420,7 @@ impl Transport for IpcTransport {
             subs,
             sleeps,
             next: 0,
+            standby,
         };
         let tx = IpcTx {
             node: node.clone(),
@@ -547,6 +559,9 @@ struct IpcRx {
     sleeps: Option<Sleeper>,
     /// Which bus to look at first next time, so broadcast cannot starve the inbox or back.
     next: usize,
+    /// In standby: the services to subscribe to at [`Rx::attach`] (the inbox has room for two
+    /// subscribers: the running module's and this one's).
+    standby: Option<Vec<(BytesService, usize)>>,
 }
 
 impl Rx for IpcRx {
@@ -562,6 +577,9 @@ impl Rx for IpcRx {
             });
         }
         let n = self.subs.len();
+        if n == 0 {
+            return Ok(false); // standby
+        }
         for i in 0..n {
             let idx = (self.next + i) % n;
             if let Some(sample) = self.subs[idx].receive().ipc("receive")? {
@@ -592,6 +610,17 @@ impl Rx for IpcRx {
             },
             timeout,
         )
+    }
+
+    fn standby(&self) -> bool {
+        self.standby.is_some()
+    }
+
+    fn attach(&mut self) -> Result<(), TransportError> {
+        if let Some(services) = self.standby.take() {
+            self.subs = subscribe(&services)?;
+        }
+        Ok(())
     }
 }
 

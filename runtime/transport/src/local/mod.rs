@@ -169,6 +169,7 @@ impl Directory for LocalDirectory {
                 mode: s.mode,
                 alive: s.alive,
                 methods_digest: 0,
+                upgrades: 0,
             });
         }
         Ok(())
