@@ -50,10 +50,10 @@ pub const DEACTIVATE: u8 = 0xF6;
 /// methods differ: the supervisor asks a module to hand over to the process it started to
 /// take it over (`modbot upgrade`). `methods` is the new program's method names in id order,
 /// comma-separated; unless `force`, a table other than the module's own is refused and the
-/// module serves on. On ACK the module stops serving: it drops the requests that come (their
-/// callers' retransmissions reach the new process), keeps the reports for it, waits for the new
-/// process to subscribe and for its own calls' answers, then writes its state into `dir` and
-/// leaves (`modbot_core::upgrade` describes the handover).
+/// module serves on. On ACK the module stops serving: it keeps the requests and reports that
+/// come, unserved, for the new process, waits for it to subscribe and for its own calls'
+/// answers, then writes its state (and what it kept) into `dir` and leaves
+/// (`modbot_core::upgrade` describes the handover).
 pub const UPGRADE_OUT: u8 = 0xF7;
 
 /// REPORT topic of the announcement a module broadcasts when it comes up:

@@ -506,18 +506,15 @@ impl MethodQueue {
     }
 
     /// Sends again, through `on_resend`, every sent call to `peer` that waits for it across a
-    /// restart (the peer came back: what it had received died with it); with `every`, every
-    /// call to it whose payload is kept (a live upgrade took the peer over: what the old process
-    /// dropped while handing over is served by the new one, what it answered is answered again
-    /// from its record).
-    pub fn resend_to(&mut self, peer: Addr, every: bool, mut on_resend: impl FnMut(Resend<'_>)) {
+    /// restart (the peer came back: what it had received died with it).
+    pub fn resend_to(&mut self, peer: Addr, mut on_resend: impl FnMut(Resend<'_>)) {
         for i in 0..self.slots.len() {
             let Some(slot) = self.slots[i].as_mut() else {
                 continue;
             };
             if slot.peer != peer
                 || slot.state != SlotState::Waiting
-                || !(slot.wait_for_peer || every)
+                || !slot.wait_for_peer
                 || !slot.kept
             {
                 continue;
@@ -777,7 +774,7 @@ mod tests {
         );
         assert!(sut.is_waiting(patient));
         let mut resent = vec![];
-        sut.resend_to(Addr(4), false, |r| resent.push((r.seq, r.payload.to_vec())));
+        sut.resend_to(Addr(4), |r| resent.push((r.seq, r.payload.to_vec())));
         assert_eq!(resent, vec![(seq, vec![7])]);
         assert_eq!(
             sut.complete(Addr(4), seq, 0),

@@ -384,7 +384,6 @@ fn system_method<S>(
                 began_ns: ctx.now_ns(),
                 subscribed_ns: None,
                 kept: Vec::new(),
-                dropped: 0,
             });
             Ok(())
         }

@@ -120,9 +120,7 @@ impl<S> Module<S> {
         let (def, state, ctx, reply) = (&self.def, &mut self.state, &mut self.ctx, &mut self.reply);
         self.rx.try_receive(&mut |bytes| {
             if let Some(out) = ctx.serving.handover.as_mut() {
-                if let crate::upgrade::Route::Done =
-                    crate::upgrade::route(out, &mut ctx.serving.served, bytes)
-                {
+                if let crate::upgrade::Route::Done = crate::upgrade::route(out, bytes) {
                     return;
                 }
             }
@@ -240,8 +238,12 @@ impl<S> Module<S> {
                 let ctx = &mut self.ctx;
                 ctx.serving.served.forget(addr);
                 let (tx, me, sent) = (&mut ctx.link.tx, ctx.addr, &mut ctx.stats.frames_sent);
-                let every = changes.upgraded.contains(&addr);
-                ctx.out.calls.resend_to(addr, every, |r| {
+                if changes.upgraded.contains(&addr) {
+                    // A live upgrade: the new process got every request on its way (nothing
+                    // to send again), and its own calls' sequence numbers start over.
+                    continue;
+                }
+                ctx.out.calls.resend_to(addr, |r| {
                     match crate::ctx::send_retry(tx.as_mut(), me, r) {
                         Ok(()) => *sent += 1,
                         Err(e) => tracing::debug!("resend to {addr} not delivered: {e}"),

@@ -86,15 +86,6 @@ impl ServedLog {
         self.peers[usize::from(peer.0)] = None;
     }
 
-    /// Forgets the answer kept for `peer`'s request `seq`: a request with that number came and
-    /// was not served (a module handing over to its upgrade drops requests; the caller's RETRY
-    /// must then be executed, not answered with an older request's answer).
-    pub fn invalidate(&mut self, peer: Addr, seq: Seq) {
-        if let Some(table) = self.peers[usize::from(peer.0)].as_mut() {
-            table[usize::from(seq.get())] = None;
-        }
-    }
-
     /// The record as bytes, for the process that takes this module over: per entry, caller,
     /// sequence number, method, kind (0 ACK, 1 REPLY, 2 NAK), NAK code, answer length (u32 LE),
     /// then the kept answer.
@@ -255,14 +246,6 @@ mod tests {
                 left: 9 + KEPT_ANSWER - 1
             })
         );
-    }
-
-    #[test]
-    fn an_invalidated_request_is_not_replayed() {
-        let mut sut = ServedLog::default();
-        sut.record(Addr(3), seq(5), 2, FrameKind::Reply, b"old");
-        sut.invalidate(Addr(3), seq(5));
-        assert_eq!(sut.replay(Addr(3), seq(5), 2), None);
     }
 
     #[test]

@@ -9,27 +9,27 @@
 //!    buses) and writes [`READY`]: its pid and its method names in id order.
 //! 2. The supervisor calls the old process's `upgrade_out(dir, methods, force)`. A method table
 //!    other than its own is refused (NAK, the difference named) and it serves on. Else, from
-//!    that frame on, it **hands over**: it serves no request (each one it takes is dropped and
-//!    forgotten in its record of served requests, so the caller's RETRY is executed by the new
-//!    process, not answered with an older answer), runs no task, keeps the reports it takes
-//!    for the new process, and still takes the answers to its own calls.
+//!    that frame on, it **hands over**: it serves no request and no report — it keeps each one
+//!    it takes, unserved, for the new process — runs no task, and still takes the answers to
+//!    its own calls.
 //! 3. The supervisor writes [`SUBSCRIBE`]; the new process subscribes to the inbox (which has
 //!    room for two subscribers) and writes [`SUBSCRIBED`]. From then on it receives every frame
 //!    and keeps them, unserved. The supervisor publishes the directory with the new pid and the
-//!    module's upgrade count one higher: callers see an upgrade, not a death, and send their
-//!    waiting calls again at once (RETRY).
+//!    module's upgrade count one higher: callers see an upgrade, not a death (their calls wait
+//!    on, nothing is sent again).
 //! 4. Once it sees [`SUBSCRIBED`] and its own calls are answered (or 2 s passed), the old
 //!    process takes what is left in its inbox (as in 2), unsubscribes, writes [`STATE`] —
 //!    blackboard values, its `on_upgrade_out` bytes with their version, its record of served
-//!    requests, the reports it kept — and ends.
+//!    requests, the frames it kept — and ends.
 //! 5. The new process reads [`STATE`], takes the blackboard's values over, gives the bytes to
-//!    its `on_upgrade_in`, serves the kept reports (those it also received itself once) and
-//!    then every frame it kept, and runs on.
+//!    its `on_upgrade_in`, serves the frames the old one kept (then [`merge`]: those it also
+//!    received itself, once) and then every frame it kept, and runs on.
 //!
-//! So every request is executed exactly once: before the handover by the old process (a
-//! retransmission of it is answered from the record), after it by the new one. The supervisor
-//! writes [`ABORT`] when the new process fails before step 4; the old one then serves the
-//! reports it kept and serves on, as before.
+//! So every request is executed exactly once and answered once: before the handover by the old
+//! process (a retransmission of it is answered from the record it hands over), after it by the
+//! new one; a caller sees a delay, not an error. The supervisor writes [`ABORT`] when the new
+//! process fails before step 4; the old one then serves what it kept and serves on, as
+//! before.
 
 use std::path::{Path, PathBuf};
 
@@ -65,7 +65,7 @@ pub struct Handover {
     pub state: Option<(u32, Vec<u8>)>,
     /// Its record of served requests ([`crate::served::ServedLog::encode`]).
     pub served: Vec<u8>,
-    /// The reports and broadcast requests it took while handing over, unserved.
+    /// The requests and reports it took while handing over, unserved.
     pub frames: Vec<Vec<u8>>,
 }
 
@@ -219,36 +219,25 @@ pub(crate) struct Outgoing {
     pub(crate) began_ns: u64,
     /// When it saw [`SUBSCRIBED`].
     pub(crate) subscribed_ns: Option<u64>,
-    /// Reports and broadcast requests taken meanwhile, for the new process.
+    /// Requests and reports taken meanwhile, unserved, for the new process.
     pub(crate) kept: Vec<Vec<u8>>,
-    /// Requests dropped meanwhile (their callers send them again).
-    pub(crate) dropped: u64,
 }
 
 /// What the old process does with a frame while it hands over.
 pub(crate) enum Route {
     /// Serve it as usual (an answer to one of its own calls, an announcement, garbage).
     Serve,
-    /// Dropped (a request) or kept for the new process (a report): done with.
+    /// Kept for the new process (a request, a report): done with.
     Done,
 }
 
-/// Decides what happens to `bytes` while handing over, and drops or keeps it.
-pub(crate) fn route(
-    out: &mut Outgoing,
-    served: &mut crate::served::ServedLog,
-    bytes: &[u8],
-) -> Route {
+/// Decides what happens to `bytes` while handing over, and keeps it for the new process.
+pub(crate) fn route(out: &mut Outgoing, bytes: &[u8]) -> Route {
     use modbot_ipc_schema::{sysmethod, Frame, FrameKind};
     let Ok(frame) = Frame::decode(bytes) else {
         return Route::Serve;
     };
     match frame.kind() {
-        FrameKind::Exec { .. } | FrameKind::Retry { .. } if !frame.dst().is_broadcast() => {
-            served.invalidate(frame.src(), frame.seq());
-            out.dropped += 1;
-            Route::Done
-        }
         FrameKind::Report { topic } if topic == sysmethod::ANNOUNCE_TOPIC => Route::Serve,
         FrameKind::Exec { .. } | FrameKind::Retry { .. } | FrameKind::Report { .. } => {
             out.kept.push(bytes.to_vec());

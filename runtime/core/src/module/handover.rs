@@ -45,19 +45,17 @@ impl<S> Module<S> {
         }
     }
 
-    /// Serves on after a called-off upgrade: the reports kept for the new process are served
-    /// here; the requests dropped meanwhile are executed when their callers send them again.
+    /// Serves on after a called-off upgrade: the requests and reports kept for the new process
+    /// are served here.
     fn resume(&mut self, why: &str) {
         let Some(out) = self.ctx.serving.handover.take() else {
             return;
         };
         tracing::warn!(
-            "module {}: the live upgrade was called off ({why}); it serves on ({} report(s) \
-             kept meanwhile served now, {} request(s) dropped meanwhile served when their \
-             callers send them again)",
+            "module {}: the live upgrade was called off ({why}); it serves on, first the {} \
+             frame(s) it kept meanwhile",
             self.ctx.name,
-            out.kept.len(),
-            out.dropped
+            out.kept.len()
         );
         for frame in &out.kept {
             self.serve_bytes(frame);
@@ -104,16 +102,14 @@ impl<S> Module<S> {
             .and_then(|t| t.lines().next().map(str::to_owned))
             .unwrap_or_else(|| "?".into());
         tracing::info!(
-            "module {} handed over to pid {to}: {} blackboard item(s), {}, {} report(s) kept, \
-             {} request(s) left to their callers' retransmission",
+            "module {} handed over to pid {to}: {} blackboard item(s), {}, {} frame(s) kept",
             self.ctx.name,
             handover.items.len(),
             match &handover.state {
                 Some((v, b)) => format!("its own state (version {v}, {} bytes)", b.len()),
                 None => "no state of its own (no on_upgrade_out)".into(),
             },
-            handover.frames.len(),
-            out.dropped
+            handover.frames.len()
         );
     }
 
