@@ -158,3 +158,38 @@ fn high_level_killed_mid_patrol_is_given_its_patrol_again_by_the_control_station
     assert_scenario_completed(&output);
     assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
 }
+
+/// The high-level module upgraded live mid-patrol (`modbot upgrade high_level`): the new process
+/// takes the patrol over where the old one was — the control station need not send it again —
+/// and the robot goes on to the intruder.
+#[test]
+fn high_level_upgraded_mid_patrol_carries_the_patrol_on_to_the_alert() {
+    let mut sut = TestDomain::new("moserup");
+    let up = moser(&mut sut);
+    sut.wait_for(
+        "the patrol to be under way",
+        Duration::from_secs(60),
+        || sut.output_of(up).contains("patrolling wing 3  point"),
+    );
+    let before = sut.ls_field("high_level", "PID").expect("high_level runs");
+    let upgraded = sut.modbot_ok(&["upgrade", "high_level"]);
+    assert!(upgraded.contains("high_level upgraded"), "{upgraded}");
+    assert_ne!(sut.ls_field("high_level", "PID").unwrap(), before);
+    assert_eq!(sut.ls_field("high_level", "UPGRADES").as_deref(), Some("1"));
+    let status = sut.wait_exit(up, Duration::from_secs(200));
+    let output = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{output}");
+    assert!(
+        output.contains("took the patrol over: patrolling"),
+        "{output}"
+    );
+    // The control station may send the patrol again at the start (it asked before the base's
+    // first pose); after the upgrade it has no need to.
+    let after = &output[output
+        .find("high_level upgraded")
+        .expect("the upgrade line")..];
+    assert!(!after.contains("sent again"), "{output}");
+    assert!(!output.contains("high_level ended"), "{output}");
+    assert_scenario_completed(&output);
+    assert_eq!(sut.leftover_files(), Vec::<std::path::PathBuf>::new());
+}

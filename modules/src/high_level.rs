@@ -9,6 +9,9 @@
 //! around it. Once a second it reports its progress to the control station.
 //!
 //! Methods: `patrol(wing)`, `stop()`. Blackboard: `state`, `wing`, `goal`, `replans`, `laps`.
+//! A live upgrade carries the patrol under way to the new process (`carried`).
+
+pub mod carried;
 
 use modbot_core::sim::SimTime;
 use modbot_core::{CallError, CallHandle, Ctx, MethodError, Reply};

@@ -55,6 +55,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         .method("patrol", high_level::patrol)
         .method("stop", high_level::stop)
         .on_done(high_level::on_done)
+        .on_upgrade_out(
+            high_level::carried::VERSION,
+            high_level::carried::upgrade_out,
+        )
+        .on_upgrade_in(high_level::carried::upgrade_in)
         .every(
             Duration::from_millis(cli.period_ms.max(1)),
             high_level::tick,

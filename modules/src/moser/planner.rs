@@ -116,6 +116,33 @@ impl Grid {
     }
 
     /// Whether a robot centred at `p` is clear of everything the grid knows.
+    /// The cells (FREE, INFLATED or OCCUPIED, row-major).
+    pub fn cells(&self) -> &[u8] {
+        &self.cells
+    }
+
+    /// This grid with `cells` instead (from [`Grid::cells`] of a grid of the same building);
+    /// refused if their number or a value does not fit.
+    pub fn with_cells(&self, cells: Vec<u8>) -> Result<Grid, String> {
+        if cells.len() != self.cells.len() {
+            return Err(format!(
+                "a grid of {} cells; this building's has {}",
+                cells.len(),
+                self.cells.len()
+            ));
+        }
+        if let Some(v) = cells
+            .iter()
+            .find(|&&c| ![FREE, INFLATED, OCCUPIED].contains(&c))
+        {
+            return Err(format!("a grid cell holds {v}"));
+        }
+        Ok(Grid {
+            cells,
+            ..self.clone()
+        })
+    }
+
     pub fn is_free(&self, p: P) -> bool {
         self.cell_of(p).is_some_and(|c| self.cells[c] == FREE)
     }
