@@ -123,6 +123,9 @@ enum Cmd {
     Replay(RunArgs),
     /// 13: a call through two Zenoh bridges over a veth link against a raw Zenoh query.
     Remote(RunArgs),
+    /// 14: live upgrades of a module under 1 000 calls a second: the call latency they add
+    /// against the same stream without one, and the handover.
+    Upgrade(RunArgs),
     /// One side of a benchmark (started by the benchmarks themselves).
     #[command(hide = true)]
     Child {
@@ -187,6 +190,7 @@ fn run() -> anyhow::Result<()> {
         Cmd::Station(args) => run_benches(&args, &[bench("station")]),
         Cmd::Replay(args) => run_benches(&args, &[bench("replay")]),
         Cmd::Remote(args) => run_benches(&args, &[bench("remote")]),
+        Cmd::Upgrade(args) => run_benches(&args, &[bench("upgrade")]),
         Cmd::Ethercat(args) => {
             ethercat::require_root()?;
             run_benches(&args, &[bench("ethercat")])

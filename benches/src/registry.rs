@@ -8,7 +8,7 @@ use modbot_bench_kit::report::Report;
 use modbot_bench_kit::targets::TargetsFn;
 use modbot_bench_soak as soak;
 use modbot_bench_system::{
-    arm, ethercat, faults, fmu, grid, remote, replay, scale, station, swaps,
+    arm, ethercat, faults, fmu, grid, remote, replay, scale, station, swaps, upgrade,
 };
 
 type RunFn = fn(&Opts, &mut Report) -> anyhow::Result<()>;
@@ -21,7 +21,7 @@ pub struct Bench {
 }
 
 /// Every benchmark, in the order `all` runs them.
-pub const BENCHES: [Bench; 12] = [
+pub const BENCHES: [Bench; 13] = [
     Bench {
         name: "calls",
         run: calls::run,
@@ -84,6 +84,11 @@ pub const BENCHES: [Bench; 12] = [
         run: remote::run,
         needs_binaries: true,
     },
+    Bench {
+        name: "upgrade",
+        run: upgrade::run,
+        needs_binaries: true,
+    },
 ];
 
 /// The soak: not in `all` (it runs for minutes).
@@ -105,7 +110,7 @@ pub fn bench(name: &str) -> &'static Bench {
 type ChildFn = fn(&str, &[String]) -> Option<anyhow::Result<()>>;
 
 /// The child roles of every benchmark; `None` from one means "not mine".
-pub const CHILDREN: [ChildFn; 12] = [
+pub const CHILDREN: [ChildFn; 13] = [
     arm::child,
     hogs::child,
     echo::child,
@@ -118,6 +123,7 @@ pub const CHILDREN: [ChildFn; 12] = [
     swaps::child,
     soak::child,
     ethercat::child,
+    upgrade::child,
 ];
 
 /// The targets the soak, EtherCAT and the station keep, checked after those of calls,

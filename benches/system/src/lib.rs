@@ -21,6 +21,9 @@
 //!   attached against none, and the station's looks at 253 modules; its targets.
 //! - [`replay`] (12): `modbot replay` of a recorded arm against the lockstep run that
 //!   recorded it.
+//! - [`remote`] (13): a call through two Zenoh bridges against a raw Zenoh query.
+//! - [`upgrade`] (14): live upgrades of a module under a stream of calls: the latency they add
+//!   and the handover.
 //!
 //! The systems they start, the report and the samples are `modbot-bench-kit`'s; the call paths
 //! the lockstep run and the station use are `modbot-bench-ipc`'s.
@@ -36,3 +39,4 @@ pub mod replay;
 pub mod scale;
 pub mod station;
 pub mod swaps;
+pub mod upgrade;

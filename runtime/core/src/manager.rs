@@ -382,6 +382,7 @@ fn system_method<S>(
             ctx.serving.handover = Some(crate::upgrade::Outgoing {
                 dir: dir.into(),
                 began_ns: ctx.now_ns(),
+                began_mono_ns: crate::clock::Clock::now_ns(&crate::clock::MonotonicClock),
                 subscribed_ns: None,
                 kept: Vec::new(),
             });

@@ -495,7 +495,9 @@ impl<S> Module<S> {
         } else {
             self.last_snapshot_ns + self.def.snapshot_period_ns
         };
-        let pending = if self.ctx.out.pending.is_empty() {
+        // Waiting for a call to be sent, or handing over to a live upgrade's new process (it
+        // looks for the new process's files at every housekeeping).
+        let pending = if self.ctx.out.pending.is_empty() && self.ctx.serving.handover.is_none() {
             u64::MAX
         } else {
             now + 1_000_000

@@ -59,6 +59,9 @@ pub const CALLS_LIMIT_NS: u64 = 2_000_000_000;
 pub struct Handover {
     /// The old process's pid.
     pub from_pid: u32,
+    /// When it stopped serving (`upgrade_out`), on CLOCK_MONOTONIC: the new process's first
+    /// frame served after it is the handover's gap.
+    pub stopped_ns: u64,
     /// Every blackboard item's value, by name.
     pub items: Vec<(String, OwnedValue)>,
     /// What its `on_upgrade_out` returned, with the version it declared.
@@ -87,7 +90,7 @@ pub enum HandoverError {
 
 impl Handover {
     /// The state as bytes: a sequence of values (the RVMF* value encoding): magic, version,
-    /// pid, item count and (name, value) pairs, whether hook state follows and if so its
+    /// pid, stop time, item count and (name, value) pairs, whether hook state follows and if so its
     /// version and bytes, the served record's bytes, frame count and frames.
     pub fn encode(&self) -> Vec<u8> {
         let mut out = Vec::new();
@@ -98,6 +101,7 @@ impl Handover {
         put(Value::Text(MAGIC));
         put(Value::I64(VERSION));
         put(Value::I64(i64::from(self.from_pid)));
+        put(Value::I64(self.stopped_ns as i64));
         put(Value::I64(self.items.len() as i64));
         for (name, value) in &self.items {
             put(Value::Text(name));
@@ -141,6 +145,7 @@ impl Handover {
                 .ok_or_else(|| bad(what))
         };
         let from_pid = count(next("pid")?, "pid")? as u32;
+        let stopped_ns = count(next("stop time")?, "stop time")? as u64;
         let n = count(next("item count")?, "item count")?;
         let mut items = Vec::with_capacity(n.min(4096));
         for _ in 0..n {
@@ -175,6 +180,7 @@ impl Handover {
         }
         Ok(Handover {
             from_pid,
+            stopped_ns,
             items,
             state,
             served,
@@ -217,6 +223,8 @@ pub(crate) struct Outgoing {
     pub(crate) dir: PathBuf,
     /// When it began (the module's clock).
     pub(crate) began_ns: u64,
+    /// When it began, on CLOCK_MONOTONIC (see [`Handover::stopped_ns`]).
+    pub(crate) began_mono_ns: u64,
     /// When it saw [`SUBSCRIBED`].
     pub(crate) subscribed_ns: Option<u64>,
     /// Requests and reports taken meanwhile, unserved, for the new process.
@@ -305,6 +313,7 @@ mod tests {
     fn a_handover_state_reads_back_as_written() {
         let sut = Handover {
             from_pid: 4242,
+            stopped_ns: 123_456_789,
             items: vec![
                 ("total".into(), OwnedValue::F64(3.5)),
                 ("mode".into(), OwnedValue::Text("patrol".into())),

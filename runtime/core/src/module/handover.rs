@@ -7,6 +7,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use super::{Closed, Module};
+use crate::clock::{Clock, MonotonicClock};
 use crate::error::ModuleError;
 use crate::manager;
 use crate::served::ServedLog;
@@ -78,6 +79,7 @@ impl<S> Module<S> {
         let state = self.def.upgrade_out.map(|(v, f)| (v, f(&self.state)));
         let handover = Handover {
             from_pid: std::process::id(),
+            stopped_ns: out.began_mono_ns,
             items,
             state,
             served: self.ctx.serving.served.encode(),
@@ -218,16 +220,19 @@ impl<S> Module<S> {
             }
         };
         let frames = upgrade::merge(handover.frames, received);
+        for frame in &frames {
+            self.serve_bytes(frame);
+        }
+        // From the moment the old process stopped serving to now, when the frames that came
+        // meanwhile are served: what a caller waited at most for the switch.
+        let gap_us = Clock::now_ns(&MonotonicClock).saturating_sub(handover.stopped_ns) / 1000;
         tracing::info!(
             "module {name} took over from pid {}: {restored} of {} blackboard item(s), {own}, \
-             {} frame(s) kept meanwhile",
+             {} frame(s) kept meanwhile served; handover {gap_us} us",
             handover.from_pid,
             handover.items.len(),
             frames.len()
         );
-        for frame in &frames {
-            self.serve_bytes(frame);
-        }
         Ok(())
     }
 }
