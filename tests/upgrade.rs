@@ -254,7 +254,8 @@ fn a_module_under_a_stream_of_calls_upgraded_20_times_answers_every_call_exactly
 }
 
 /// A new program that ends at start is refused with its exit status, and the running process
-/// serves on; so is one whose method table differs, unless forced.
+/// serves on; so is one whose method table differs, unless forced; a deactivated module stays
+/// deactivated.
 #[test]
 fn a_new_program_that_exits_at_start_or_has_other_methods_is_refused_and_the_old_one_serves_on() {
     let mut sys = System::start("uprefuse");
@@ -295,6 +296,17 @@ fn a_new_program_that_exits_at_start_or_has_other_methods_is_refused_and_the_old
     assert_eq!(sys.sut.modbot_ok(&["call", "target.ping"]).trim(), "5");
     let methods = sys.sut.ls_field("target", "METHODS").unwrap();
     assert!(!methods.contains("spam"), "{methods}");
+
+    // A module the operator deactivated stays deactivated across an upgrade.
+    sys.sut.modbot_ok(&["deactivate", "target"]);
+    let (code, out, err) = sys.upgrade(&["--program", other.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert_eq!(
+        sys.sut.ls_field("target", "STATE").as_deref(),
+        Some("deactivated")
+    );
+    sys.sut.modbot_ok(&["activate", "target"]);
+    assert_eq!(sys.sut.modbot_ok(&["call", "target.ping"]).trim(), "6");
     let _ = std::fs::remove_file(failing);
     let _ = std::fs::remove_file(other);
     sys.stop();

@@ -45,14 +45,20 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     );
     report.push(Row::from_histogram("upgrade.handover", &m.handover).is_baseline());
     report.push(Row::from_histogram("upgrade.total", &m.total).against("upgrade.handover", &[]));
+    let mut slowest = m.slowest.clone();
+    slowest.sort_unstable();
+    let median = slowest.get(slowest.len() / 2).copied().unwrap_or_default();
     report.note(format!(
         "upgrade: {} live upgrades of a module under {RATE_HZ} calls/s ({} calls during upgrades, \
          {} steady); every call answered exactly once. The handover is the new process's own \
          record, from the old process's `upgrade_out` to the frames that came meanwhile served; \
-         the total adds the new process's start and its first heartbeat.",
+         the total adds the new process's start and its first heartbeat. The median upgrade's \
+         slowest call took {:.1} ms and was sent {:.1} ms after `modbot upgrade` started.",
         m.total.len(),
         m.during.len(),
-        m.steady.len()
+        m.steady.len(),
+        median.0 as f64 / 1e6,
+        median.1 as f64 / 1e6
     ));
     Ok(())
 }
@@ -67,6 +73,9 @@ struct Measured {
     during: Histogram<u64>,
     handover: Histogram<u64>,
     total: Histogram<u64>,
+    /// Per upgrade: its slowest call's round trip and when it was sent, from the upgrade's
+    /// start (ns).
+    slowest: Vec<(u64, u64)>,
 }
 
 /// The stream's caller: when each call was sent, and when it was answered.
@@ -198,8 +207,15 @@ module "target" {{ addr = 10, program = "modbot-faulty" }}
         during: modbot_bench_kit::sample::histogram(),
         handover: modbot_bench_kit::sample::histogram(),
         total: modbot_bench_kit::sample::histogram(),
+        slowest: vec![(0, 0); windows.len()],
     };
     for &(sent, answered) in &stream.answered {
+        if let Some(w) = windows.iter().position(|&(a, b)| sent >= a && sent <= b) {
+            let rtt = ns(answered - sent);
+            if rtt > m.slowest[w].0 {
+                m.slowest[w] = (rtt, ns(sent - windows[w].0));
+            }
+        }
         let rtt = ns(answered - sent);
         if sent < first_upgrade {
             m.steady.saturating_record(rtt);

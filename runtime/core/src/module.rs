@@ -495,9 +495,11 @@ impl<S> Module<S> {
         } else {
             self.last_snapshot_ns + self.def.snapshot_period_ns
         };
-        // Waiting for a call to be sent, or handing over to a live upgrade's new process (it
-        // looks for the new process's files at every housekeeping).
-        let pending = if self.ctx.out.pending.is_empty() && self.ctx.serving.handover.is_none() {
+        // Waiting for a call to be sent; handing over to a live upgrade's new process, whose
+        // files it looks for at every housekeeping (every call to it waits meanwhile).
+        let pending = if self.ctx.serving.handover.is_some() {
+            now + 100_000
+        } else if self.ctx.out.pending.is_empty() {
             u64::MAX
         } else {
             now + 1_000_000

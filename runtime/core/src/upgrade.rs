@@ -62,6 +62,8 @@ pub struct Handover {
     /// When it stopped serving (`upgrade_out`), on CLOCK_MONOTONIC: the new process's first
     /// frame served after it is the handover's gap.
     pub stopped_ns: u64,
+    /// Whether the operator left the module active (`deactivate`d, it stays so).
+    pub active: bool,
     /// Every blackboard item's value, by name.
     pub items: Vec<(String, OwnedValue)>,
     /// What its `on_upgrade_out` returned, with the version it declared.
@@ -90,7 +92,7 @@ pub enum HandoverError {
 
 impl Handover {
     /// The state as bytes: a sequence of values (the RVMF* value encoding): magic, version,
-    /// pid, stop time, item count and (name, value) pairs, whether hook state follows and if so its
+    /// pid, stop time, active, item count and (name, value) pairs, whether hook state follows and if so its
     /// version and bytes, the served record's bytes, frame count and frames.
     pub fn encode(&self) -> Vec<u8> {
         let mut out = Vec::new();
@@ -102,6 +104,7 @@ impl Handover {
         put(Value::I64(VERSION));
         put(Value::I64(i64::from(self.from_pid)));
         put(Value::I64(self.stopped_ns as i64));
+        put(Value::Bool(self.active));
         put(Value::I64(self.items.len() as i64));
         for (name, value) in &self.items {
             put(Value::Text(name));
@@ -146,6 +149,9 @@ impl Handover {
         };
         let from_pid = count(next("pid")?, "pid")? as u32;
         let stopped_ns = count(next("stop time")?, "stop time")? as u64;
+        let Value::Bool(active) = next("active")? else {
+            return Err(bad("active"));
+        };
         let n = count(next("item count")?, "item count")?;
         let mut items = Vec::with_capacity(n.min(4096));
         for _ in 0..n {
@@ -181,6 +187,7 @@ impl Handover {
         Ok(Handover {
             from_pid,
             stopped_ns,
+            active,
             items,
             state,
             served,
@@ -314,6 +321,7 @@ mod tests {
         let sut = Handover {
             from_pid: 4242,
             stopped_ns: 123_456_789,
+            active: false,
             items: vec![
                 ("total".into(), OwnedValue::F64(3.5)),
                 ("mode".into(), OwnedValue::Text("patrol".into())),

@@ -13,8 +13,9 @@ use crate::manager;
 use crate::served::ServedLog;
 use crate::upgrade::{self, Handover, ABORT, READY, STATE, SUBSCRIBE, SUBSCRIBED};
 
-/// How often a process polls the handover's files while it waits for the other side.
-const POLL: core::time::Duration = core::time::Duration::from_millis(1);
+/// How often the new process looks for the handover's files while it waits for the other
+/// side (a stat each time: every call to the module waits for the handover meanwhile).
+const POLL: core::time::Duration = core::time::Duration::from_micros(100);
 
 impl<S> Module<S> {
     /// The running process, handing over: gives up when the supervisor called the upgrade off
@@ -80,6 +81,7 @@ impl<S> Module<S> {
         let handover = Handover {
             from_pid: std::process::id(),
             stopped_ns: out.began_mono_ns,
+            active: self.ctx.liveness.active,
             items,
             state,
             served: self.ctx.serving.served.encode(),
@@ -185,6 +187,11 @@ impl<S> Module<S> {
                 Ok(()) => restored += 1,
                 Err(e) => tracing::warn!("module {name}: blackboard item not carried over: {e}"),
             }
+        }
+        if !handover.active {
+            // The operator's word stands: it refuses its methods and pauses its tasks.
+            self.ctx.liveness.active = false;
+            tracing::warn!("module {name} takes over deactivated, as the operator left it");
         }
         match ServedLog::decode(&handover.served) {
             Ok(log) => self.ctx.serving.served = log,
