@@ -806,13 +806,19 @@ impl Supervisor {
     /// Shows what module `i`, which ended, wrote last: its output threads end when its pipes
     /// close (waited for up to 200 ms: a process it left behind may hold them open).
     fn flush_output_of(&mut self, i: usize) {
+        let mut readers = std::mem::take(&mut self.slots[i].log_readers);
+        self.flush_readers(&mut readers);
+        self.slots[i].log_readers = readers;
+    }
+
+    /// Waits up to 200 ms for a process's output threads to end (a process it left behind may
+    /// hold its pipes open), then forwards what they sent.
+    fn flush_readers(&mut self, readers: &mut Vec<std::thread::JoinHandle<()>>) {
         let deadline = Instant::now() + Duration::from_millis(200);
-        while self.slots[i].log_readers.iter().any(|r| !r.is_finished())
-            && Instant::now() < deadline
-        {
+        while readers.iter().any(|r| !r.is_finished()) && Instant::now() < deadline {
             std::thread::sleep(Duration::from_millis(1));
         }
-        self.slots[i].log_readers.retain(|r| !r.is_finished());
+        readers.retain(|r| !r.is_finished());
         self.forward_logs();
     }
 

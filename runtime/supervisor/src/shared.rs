@@ -40,9 +40,9 @@ pub(super) struct Shared {
     /// Relayed calls that ended: their handles and the tools' answers.
     pub(super) relayed: Vec<(modbot_core::calls::CallHandle, Vec<u8>)>,
     /// Live upgrades asked for (`upgrade`), not started yet.
-    pub(super) upgrade_requests: Vec<super::upgrades::UpgradeRequest>,
+    pub(super) upgrade_requests: Vec<UpgradeRequest>,
     /// How each module's last upgrade went (`upgrade_status`).
-    pub(super) upgrade_status: std::collections::BTreeMap<String, super::upgrades::UpgradeStatus>,
+    pub(super) upgrade_status: std::collections::BTreeMap<String, UpgradeStatus>,
 }
 
 /// What loading an assembly needs: the system's grid as the description gave it (with the
@@ -51,4 +51,22 @@ pub(super) struct Shared {
 pub(super) struct AssemblyLoader {
     pub(super) grid: GridSpec,
     pub(super) domain: Domain,
+}
+
+/// An upgrade asked for, not started yet.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) struct UpgradeRequest {
+    pub(super) module: String,
+    /// The new program; the module's own when `None` (a rebuilt binary at the same path).
+    pub(super) program: Option<String>,
+    /// Take a program whose method table differs.
+    pub(super) force: bool,
+}
+
+/// How an upgrade goes, as `upgrade_status` answers it: `preparing`, `done` or `refused`,
+/// with what happened.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) struct UpgradeStatus {
+    pub(super) state: &'static str,
+    pub(super) detail: String,
 }

@@ -36,27 +36,9 @@ use nix::unistd::Pid;
 
 use super::child;
 use super::env;
-use super::shared::Shared;
+use super::shared::{Shared, UpgradeRequest, UpgradeStatus};
 use super::status::RunState;
 use super::{reason_of, Supervisor};
-
-/// An upgrade asked for, not started yet.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(super) struct UpgradeRequest {
-    pub(super) module: String,
-    /// The new program; the module's own when `None` (a rebuilt binary at the same path).
-    pub(super) program: Option<String>,
-    /// Take a program whose method table differs.
-    pub(super) force: bool,
-}
-
-/// How an upgrade goes, as `upgrade_status` answers it: `preparing`, `done` or `refused`,
-/// with what happened.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub(super) struct UpgradeStatus {
-    pub(super) state: &'static str,
-    pub(super) detail: String,
-}
 
 /// Where an upgrade under way is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -408,16 +390,6 @@ impl Supervisor {
         for (dir, _) in std::mem::take(&mut self.remove_later) {
             let _ = std::fs::remove_dir_all(dir);
         }
-        self.forward_logs();
-    }
-
-    /// Waits up to 200 ms for output threads to end, then forwards what they sent.
-    fn flush_readers(&mut self, readers: &mut Vec<JoinHandle<()>>) {
-        let deadline = Instant::now() + Duration::from_millis(200);
-        while readers.iter().any(|r| !r.is_finished()) && Instant::now() < deadline {
-            std::thread::sleep(Duration::from_millis(1));
-        }
-        readers.retain(|r| !r.is_finished());
         self.forward_logs();
     }
 }
