@@ -53,12 +53,14 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
          {} steady); every call answered exactly once. The handover is the new process's own \
          record, from the old process's `upgrade_out` to the frames that came meanwhile served; \
          the total adds the new process's start and its first heartbeat. The median upgrade's \
-         slowest call took {:.1} ms and was sent {:.1} ms after `modbot upgrade` started.",
+         slowest call took {:.1} ms and was sent {:.1} ms after `modbot upgrade` started; {} \
+         call(s) were held back (32 waited for the module already).",
         m.total.len(),
         m.during.len(),
         m.steady.len(),
         median.0 as f64 / 1e6,
-        median.1 as f64 / 1e6
+        median.1 as f64 / 1e6,
+        m.held_back
     ));
     Ok(())
 }
@@ -76,6 +78,8 @@ struct Measured {
     /// Per upgrade: its slowest call's round trip and when it was sent, from the upgrade's
     /// start (ns).
     slowest: Vec<(u64, u64)>,
+    /// Calls not sent because 32 waited for the module already.
+    held_back: u64,
 }
 
 /// The stream's caller: when each call was sent, and when it was answered.
@@ -135,6 +139,7 @@ module "target" {{ addr = 10, program = "modbot-faulty" }}
     let started = Instant::now();
     let mut next = started;
     let mut upgrades_done = None;
+    let mut held_back = 0u64;
     loop {
         let now = Instant::now();
         if now >= next {
@@ -142,6 +147,8 @@ module "target" {{ addr = 10, program = "modbot-faulty" }}
                 Ok(h) => {
                     caller.state_mut().sent.insert(h.id(), now);
                 }
+                // 32 calls wait already: not sent (the stream is held back), not a failure.
+                Err(CallError::TooManyOutstanding(_)) => held_back += 1,
                 Err(e) => caller.state_mut().failed.push(e.to_string()),
             }
             next += Duration::from_nanos(1_000_000_000 / RATE_HZ);
@@ -208,6 +215,7 @@ module "target" {{ addr = 10, program = "modbot-faulty" }}
         handover: modbot_bench_kit::sample::histogram(),
         total: modbot_bench_kit::sample::histogram(),
         slowest: vec![(0, 0); windows.len()],
+        held_back,
     };
     for &(sent, answered) in &stream.answered {
         if let Some(w) = windows.iter().position(|&(a, b)| sent >= a && sent <= b) {

@@ -665,6 +665,7 @@ impl Supervisor {
     }
 
     fn check_exit(&mut self, i: usize, now: u64) {
+        self.switch_if_handed_over(i);
         let slot = &mut self.slots[i];
         let Some(child) = slot.child.as_mut() else {
             return;

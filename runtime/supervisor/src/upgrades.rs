@@ -310,6 +310,19 @@ impl Supervisor {
         }
     }
 
+    /// Before the end of slot `slot`'s process is handled as the module's: if it is the old
+    /// process of an upgrade whose new process has subscribed, it ended because it handed over
+    /// (it does so as soon as it sees `subscribed`, maybe before this loop did): the slot
+    /// switches to the new process first, and the old one is let go.
+    pub(super) fn switch_if_handed_over(&mut self, slot: usize) {
+        let handed = self.upgrades.iter().position(|u| {
+            u.slot == slot && u.phase == Phase::Subscribing && handover::exists(&u.dir, SUBSCRIBED)
+        });
+        if let Some(i) = handed {
+            self.switch_to_new(i);
+        }
+    }
+
     /// The new process receives the module's frames: it is the module's from now on.
     fn switch_to_new(&mut self, i: usize) {
         let now = self.now_ns();
