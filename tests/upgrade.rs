@@ -283,6 +283,16 @@ fn a_new_program_that_exits_at_start_or_has_other_methods_is_refused_and_the_old
     assert_eq!(sys.call("target.ping"), "2");
     let pid = sys.pid();
 
+    // Only the supervisor may make a module hand over.
+    let out = sys
+        .sut
+        .modbot(&["call", "target.upgrade_out", "/tmp", "ping", "true"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("the supervisor's"),
+        "{err}"
+    );
+
     let failing = sys.script("failing", "echo 'cannot read the calibration' >&2\nexit 3");
     let (code, _, err) = sys.upgrade(&["--program", failing.to_str().unwrap()]);
     assert_eq!(code, Some(1), "{err}");

@@ -369,6 +369,17 @@ fn system_method<S>(
             if ctx.serving.handover.is_some() {
                 return Err(MethodError::Busy("the module is handing over already".into()).into());
             }
+            // The supervisor started the new process and made the directory: nobody else may
+            // make a module stop serving and write its state somewhere.
+            if ctx.caller_entry().is_none_or(|e| e.name != "supervisor") {
+                return Err(MethodError::Failed(
+                    "upgrade_out is the supervisor's (modbot upgrade MODULE)".into(),
+                )
+                .into());
+            }
+            if !std::path::Path::new(dir).is_dir() {
+                return Err(MethodError::Failed(format!("{dir} is not a directory")).into());
+            }
             let mine: Vec<&str> = def.methods.iter().map(|(n, _)| n.as_str()).collect();
             let theirs: Vec<&str> = methods.split(',').filter(|m| !m.is_empty()).collect();
             if mine != theirs && !force {
