@@ -47,7 +47,8 @@ pub const ACTIVATE: u8 = 0xF5;
 pub const DEACTIVATE: u8 = 0xF6;
 
 /// `upgrade_out(dir: text, methods: text, force: bool)` → ACK, or NAK `failed` naming how the
-/// methods differ: the supervisor asks a module to hand over to the process it started to
+/// methods differ (or refusing a caller that is not the supervisor, or a `dir` that is no
+/// directory): the supervisor asks a module to hand over to the process it started to
 /// take it over (`modbot upgrade`). `methods` is the new program's method names in id order,
 /// comma-separated; unless `force`, a table other than the module's own is refused and the
 /// module serves on. On ACK the module stops serving: it keeps the requests and reports that
