@@ -25,6 +25,7 @@
 use std::f64::consts::PI;
 use std::time::Duration;
 
+use super::carry::{Carry, CarryError};
 use super::component::{
     Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
     PortDecl, PortType, PortValue, Registry, Released, BASE_PERIOD_S, PERIOD_S,
@@ -159,6 +160,10 @@ impl Component for Counter {
         self.y = self.y.wrapping_add(1);
         outputs[0] = PortValue::I64(self.y);
     }
+
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.i64("y", &mut self.y)
+    }
 }
 
 fn ramp_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
@@ -176,6 +181,11 @@ impl Component for Ramp {
     fn step(&mut self, rel: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
         let tick = rel.tick.0;
         put(&mut outputs[0], self.slope * tick as f64 * self.dt);
+    }
+
+    /// A function of the tick and its parameters: nothing to carry.
+    fn carry(&mut self, _: &mut Carry<'_>) -> Result<(), CarryError> {
+        Ok(())
     }
 }
 
@@ -198,6 +208,10 @@ impl Component for Sine {
         let y = self.amplitude * (2.0 * PI * self.freq * tick as f64 * self.dt).sin();
         put(&mut outputs[0], y);
     }
+
+    fn carry(&mut self, _: &mut Carry<'_>) -> Result<(), CarryError> {
+        Ok(())
+    }
 }
 
 // ---- arithmetic: gain, sum ----
@@ -215,6 +229,10 @@ impl Component for Gain {
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         put(&mut outputs[0], self.k * inputs[0].as_f64());
     }
+
+    fn carry(&mut self, _: &mut Carry<'_>) -> Result<(), CarryError> {
+        Ok(())
+    }
 }
 
 fn sum_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
@@ -226,6 +244,10 @@ struct Sum;
 impl Component for Sum {
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         put(&mut outputs[0], inputs[0].as_f64() + inputs[1].as_f64());
+    }
+
+    fn carry(&mut self, _: &mut Carry<'_>) -> Result<(), CarryError> {
+        Ok(())
     }
 }
 
@@ -253,6 +275,10 @@ impl Component for Integrator {
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         self.y += inputs[0].as_f64() * self.h;
         put(&mut outputs[0], self.y);
+    }
+
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.f64("y", &mut self.y)
     }
 }
 
@@ -282,6 +308,10 @@ impl Component for Lowpass {
         };
         self.y = a * self.y + (1.0 - a) * self.k * inputs[0].as_f64();
         put(&mut outputs[0], self.y);
+    }
+
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.f64("y", &mut self.y)
     }
 }
 
@@ -317,6 +347,10 @@ impl Component for Delay {
     fn state_hash(&self, outputs: &[PortValue], hasher: &mut crate::StateHasher) {
         hasher.outputs(outputs);
         hasher.f64(self.last);
+    }
+
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.f64("last", &mut self.last)
     }
 }
 
@@ -458,6 +492,81 @@ mod tests {
         let mut p = Params::new();
         p.set_timing(0.5, period);
         p
+    }
+
+    /// Steps a fresh instance of `type_name` through `ticks`, carries its state into another
+    /// after `split` of them, and steps both on: every output equal to the bit.
+    fn carried_steps_on_the_same(
+        type_name: &str,
+        params: &Params,
+        ticks: &[(u64, Vec<PortValue>)],
+        split: usize,
+    ) {
+        let registry = grid_registry();
+        let info = registry.info(type_name, params).unwrap();
+        let mut old = registry.instantiate(type_name, params).unwrap();
+        let mut new = registry.instantiate(type_name, params).unwrap();
+        let (mut a, mut b) = (info.zero_outputs(), info.zero_outputs());
+        old.initial_outputs(&mut a);
+        for (tick, inputs) in &ticks[..split] {
+            old.step(&Released::at(*tick), inputs, &mut a);
+        }
+        let mut measure = Carry::measure();
+        old.carry(&mut measure).unwrap();
+        let mut buf = vec![0; measure.len()];
+        old.carry(&mut Carry::save(&mut buf)).unwrap();
+        let mut load = Carry::load(&buf);
+        new.carry(&mut load).unwrap();
+        load.finish().unwrap();
+        for (tick, inputs) in &ticks[split..] {
+            old.step(&Released::at(*tick), inputs, &mut a);
+            new.step(&Released::at(*tick), inputs, &mut b);
+            let bits = |v: &[PortValue]| {
+                format!(
+                    "{:?}",
+                    v.iter().map(|p| p.as_f64().to_bits()).collect::<Vec<_>>()
+                )
+            };
+            assert_eq!(bits(&a), bits(&b), "{type_name} at tick {tick}");
+        }
+    }
+
+    #[test]
+    fn every_stateful_builtin_carried_into_another_instance_steps_on_to_the_bit() {
+        let input = |tick: u64| vec![PortValue::F64((tick as f64 * 0.37).sin())];
+        let ticks: Vec<(u64, Vec<PortValue>)> = (0..40).map(|t| (t, input(t))).collect();
+        let start = Params::new().with("start", ParamValue::I64(10));
+        carried_steps_on_the_same("counter", &start, &ticks, 17);
+        carried_steps_on_the_same(
+            "integrator",
+            &timing(2).with("initial", ParamValue::F64(0.5)),
+            &ticks,
+            17,
+        );
+        carried_steps_on_the_same(
+            "lowpass",
+            &timing(1).with("T", ParamValue::F64(3.0)),
+            &ticks,
+            17,
+        );
+        carried_steps_on_the_same("delay", &timing(1), &ticks, 17);
+        carried_steps_on_the_same("ramp", &timing(1), &ticks, 17);
+        carried_steps_on_the_same(
+            "gain",
+            &timing(1).with("k", ParamValue::F64(2.5)),
+            &ticks,
+            17,
+        );
+    }
+
+    #[test]
+    fn a_type_that_cannot_carry_its_state_says_so() {
+        let registry = grid_registry();
+        let mut sut = registry.instantiate("sleeper", &timing(1)).unwrap();
+        assert_eq!(
+            sut.carry(&mut Carry::measure()),
+            Err(CarryError::Unsupported)
+        );
     }
 
     #[test]

@@ -339,6 +339,15 @@ pub trait Component: Send {
         hasher.outputs(outputs);
     }
 
+    /// Visits every field its steps depend on beyond its parameters, in one order, for
+    /// [`crate::carry::Carry`] to measure, save or load: another instance of the type,
+    /// initialised with the same parameters and loaded, steps on bit for bit as this one would
+    /// have (a live upgrade of its host). By default the type cannot.
+    fn carry(&mut self, c: &mut crate::carry::Carry<'_>) -> Result<(), crate::carry::CarryError> {
+        let _ = c;
+        Err(crate::carry::CarryError::Unsupported)
+    }
+
     /// The grid stops (a normal stop: `modbot down`, its ticks done): no release follows.
     /// The bus quick-stops its drives here without taking the silence for a lost coordinator.
     fn stopping(&mut self) {}

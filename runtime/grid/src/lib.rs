@@ -54,6 +54,7 @@
 //!   files are read by `modbot_system::load_assembly`.
 
 pub mod builtin;
+pub mod carry;
 pub mod component;
 pub mod host;
 pub mod ledger;

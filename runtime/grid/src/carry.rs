@@ -1,0 +1,250 @@
+//! Carrying a component's state into another instance of its type, bit for bit: what a live
+//! upgrade of a grid host needs so that the new process steps on exactly as the old one would
+//! have (docs/upgrade.md; not yet used by a host).
+//!
+//! One method serves both directions ([`crate::component::Component::carry`]): it visits every
+//! field its `step` depends on beyond its parameters, in one order, and the [`Carry`] it is
+//! given either measures, saves into a buffer, or loads from one. Save and load cannot then
+//! disagree on the order. Floats move as their bits; an array's length must match on load.
+
+use thiserror::Error;
+
+/// Why a state cannot be carried.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum CarryError {
+    #[error("its type cannot carry its state into another instance")]
+    Unsupported,
+    #[error("the state ends before {what} ({left} bytes left, {need} needed)")]
+    Truncated {
+        what: &'static str,
+        left: usize,
+        need: usize,
+    },
+    #[error("{what} has {got} elements in the state and {expected} in this instance")]
+    Shape {
+        what: &'static str,
+        expected: usize,
+        got: usize,
+    },
+    #[error("the state has {0} bytes more than this instance takes")]
+    Trailing(usize),
+}
+
+enum Mode<'a> {
+    Measure,
+    Save(&'a mut [u8]),
+    Load(&'a [u8]),
+}
+
+/// Measures, saves or loads the fields a component visits.
+pub struct Carry<'a> {
+    mode: Mode<'a>,
+    /// Bytes visited so far.
+    at: usize,
+}
+
+impl<'a> Carry<'a> {
+    /// Counts the bytes a state takes ([`Carry::len`] after the visit).
+    pub fn measure() -> Carry<'static> {
+        Carry {
+            mode: Mode::Measure,
+            at: 0,
+        }
+    }
+
+    /// Writes the visited fields into `buf` (as long as a measure said: no allocation).
+    pub fn save(buf: &'a mut [u8]) -> Carry<'a> {
+        Carry {
+            mode: Mode::Save(buf),
+            at: 0,
+        }
+    }
+
+    /// Sets the visited fields from `bytes`.
+    pub fn load(bytes: &'a [u8]) -> Carry<'a> {
+        Carry {
+            mode: Mode::Load(bytes),
+            at: 0,
+        }
+    }
+
+    /// Bytes visited so far.
+    pub fn len(&self) -> usize {
+        self.at
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.at == 0
+    }
+
+    /// After a load: every byte was taken.
+    pub fn finish(&self) -> Result<(), CarryError> {
+        match &self.mode {
+            Mode::Load(bytes) if bytes.len() > self.at => {
+                Err(CarryError::Trailing(bytes.len() - self.at))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn bytes<const N: usize>(
+        &mut self,
+        what: &'static str,
+        v: &mut [u8; N],
+    ) -> Result<(), CarryError> {
+        let at = self.at;
+        match &mut self.mode {
+            Mode::Measure => {}
+            Mode::Save(buf) => {
+                let left = buf.len().saturating_sub(at);
+                let room = buf.get_mut(at..at + N).ok_or(CarryError::Truncated {
+                    what,
+                    left,
+                    need: N,
+                })?;
+                room.copy_from_slice(v);
+            }
+            Mode::Load(bytes) => {
+                let left = bytes.len().saturating_sub(at);
+                let have = bytes.get(at..at + N).ok_or(CarryError::Truncated {
+                    what,
+                    left,
+                    need: N,
+                })?;
+                v.copy_from_slice(have);
+            }
+        }
+        self.at += N;
+        Ok(())
+    }
+
+    pub fn u64(&mut self, what: &'static str, v: &mut u64) -> Result<(), CarryError> {
+        let mut b = v.to_le_bytes();
+        self.bytes(what, &mut b)?;
+        *v = u64::from_le_bytes(b);
+        Ok(())
+    }
+
+    pub fn i64(&mut self, what: &'static str, v: &mut i64) -> Result<(), CarryError> {
+        let mut b = v.to_le_bytes();
+        self.bytes(what, &mut b)?;
+        *v = i64::from_le_bytes(b);
+        Ok(())
+    }
+
+    /// An f64 as its bits (NaN payloads and -0.0 kept).
+    pub fn f64(&mut self, what: &'static str, v: &mut f64) -> Result<(), CarryError> {
+        let mut bits = v.to_bits();
+        self.u64(what, &mut bits)?;
+        *v = f64::from_bits(bits);
+        Ok(())
+    }
+
+    pub fn bool(&mut self, what: &'static str, v: &mut bool) -> Result<(), CarryError> {
+        let mut b = [u8::from(*v)];
+        self.bytes(what, &mut b)?;
+        *v = b[0] != 0;
+        Ok(())
+    }
+
+    /// An array of the instance's length: its length goes first, and must match on load.
+    pub fn f64s(&mut self, what: &'static str, v: &mut [f64]) -> Result<(), CarryError> {
+        let mut n = v.len() as u64;
+        self.u64(what, &mut n)?;
+        if n != v.len() as u64 {
+            return Err(CarryError::Shape {
+                what,
+                expected: v.len(),
+                got: usize::try_from(n).unwrap_or(usize::MAX),
+            });
+        }
+        for x in v.iter_mut() {
+            self.f64(what, x)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A state of every kind, visited in one order both ways.
+    #[derive(Debug, Clone, PartialEq)]
+    struct State {
+        n: u64,
+        i: i64,
+        x: f64,
+        on: bool,
+        xs: [f64; 3],
+    }
+
+    impl State {
+        fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+            c.u64("n", &mut self.n)?;
+            c.i64("i", &mut self.i)?;
+            c.f64("x", &mut self.x)?;
+            c.bool("on", &mut self.on)?;
+            c.f64s("xs", &mut self.xs)
+        }
+    }
+
+    fn zero() -> State {
+        State {
+            n: 0,
+            i: 0,
+            x: 0.0,
+            on: false,
+            xs: [0.0; 3],
+        }
+    }
+
+    #[test]
+    fn a_state_saved_and_loaded_is_the_same_to_the_bit() {
+        let mut old = State {
+            n: 7,
+            i: -3,
+            x: -0.0,
+            on: true,
+            xs: [1.5, f64::from_bits(0x7ff8_0000_0000_0001), 1e-300],
+        };
+        let mut measure = Carry::measure();
+        old.carry(&mut measure).unwrap();
+        let mut buf = vec![0; measure.len()];
+        old.carry(&mut Carry::save(&mut buf)).unwrap();
+        let mut new = zero();
+        let mut load = Carry::load(&buf);
+        new.carry(&mut load).unwrap();
+        load.finish().unwrap();
+        assert_eq!(new.x.to_bits(), old.x.to_bits());
+        assert_eq!(new.xs.map(f64::to_bits), old.xs.map(f64::to_bits));
+        assert_eq!((new.n, new.i, new.on), (7, -3, true));
+    }
+
+    #[test]
+    fn a_short_or_long_state_or_another_length_is_refused() {
+        let mut old = zero();
+        let mut buf = vec![0; 8 + 8 + 8 + 1 + 8 + 24];
+        old.carry(&mut Carry::save(&mut buf)).unwrap();
+        let refused = zero().carry(&mut Carry::load(&buf[..buf.len() - 1]));
+        assert!(matches!(
+            refused,
+            Err(CarryError::Truncated { what: "xs", .. })
+        ));
+        let mut long = buf.clone();
+        long.push(0);
+        let mut load = Carry::load(&long);
+        zero().carry(&mut load).unwrap();
+        assert_eq!(load.finish(), Err(CarryError::Trailing(1)));
+        let mut other = buf.clone();
+        other[25] = 4; // the array's length (after n, i, x, on)
+        assert_eq!(
+            zero().carry(&mut Carry::load(&other)),
+            Err(CarryError::Shape {
+                what: "xs",
+                expected: 3,
+                got: 4
+            })
+        );
+    }
+}
