@@ -105,6 +105,14 @@ impl Component for Feedforward {
             *t = 0.0;
         }
     }
+
+    /// A function of its inputs and parameters: nothing to carry.
+    fn carry(
+        &mut self,
+        _: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        Ok(())
+    }
 }
 
 #[cfg(test)]

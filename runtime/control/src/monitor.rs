@@ -20,6 +20,7 @@
 //! [q_min, q_max] that excludes 0 trips at once.
 
 use super::{array, array_ports, at, axes, axes_decl, finite, per_axis, per_axis_decl, positive};
+use modbot_grid::carry::{Carry, CarryError};
 use modbot_grid::component::{
     Component, ComponentError, ComponentInfo, ParamError, Params, PortDecl, PortType, PortValue,
     Released,
@@ -127,6 +128,16 @@ impl Component for Monitor {
     fn unsafe_state(&self) -> bool {
         self.tripped.is_some()
     }
+
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        let mut tripped = self.tripped.is_some();
+        let (mut code, mut axis) = self.tripped.unwrap_or((OK, -1));
+        c.bool("tripped", &mut tripped)?;
+        c.i64("code", &mut code)?;
+        c.i64("axis", &mut axis)?;
+        self.tripped = tripped.then_some((code, axis));
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -159,6 +170,17 @@ mod tests {
         let mut sut = monitor();
         sut.step(0, &[&q, &qd, &q_ref]);
         verdict(&sut)
+    }
+
+    #[test]
+    fn a_trip_carried_into_another_instance_holds_there() {
+        let (mut old, mut new) = (monitor(), monitor());
+        old.step(0, &[&[0.0, 0.0, 0.0], &[0.0; 3], &[0.0; 3]]);
+        old.step(1, &[&[0.0, 2.5, 0.0], &[0.0; 3], &[0.0, 2.5, 0.0]]);
+        super::super::harness::carry_into(old.sut.as_mut(), new.sut.as_mut());
+        new.step(2, &[&[0.0; 3], &[0.0; 3], &[0.0; 3]]);
+        assert_eq!(verdict(&new), (false, POSITION_LIMIT, 1));
+        assert!(new.sut.unsafe_state());
     }
 
     #[test]

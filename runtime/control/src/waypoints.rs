@@ -10,6 +10,7 @@
 //! was at that point already), that counts as arrived.
 
 use super::{array_mut, array_ports, axes, axes_decl};
+use modbot_grid::carry::{Carry, CarryError};
 use modbot_grid::component::{
     Component, ComponentError, ComponentInfo, ParamDecl, ParamError, ParamType, ParamValue, Params,
     PortDecl, PortType, PortValue, Released, PERIOD_S,
@@ -109,6 +110,23 @@ impl Component for Waypoints {
         let point = &self.points[self.index * self.axes..(self.index + 1) * self.axes];
         array_mut(&mut outputs[0]).copy_from_slice(point);
     }
+
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        let mut index = self.index as u64;
+        c.u64("index", &mut index)?;
+        let count = self.points.len() / self.axes;
+        if index >= count as u64 {
+            return Err(CarryError::Shape {
+                what: "the point (index)",
+                expected: count,
+                got: usize::try_from(index).unwrap_or(usize::MAX),
+            });
+        }
+        self.index = index as usize;
+        c.bool("moved", &mut self.moved)?;
+        c.u64("since_goal", &mut self.since_goal)?;
+        c.u64("at_goal", &mut self.at_goal)
+    }
 }
 
 #[cfg(test)]
@@ -132,6 +150,22 @@ mod tests {
         match &out[0] {
             PortValue::F64s(x) => x.clone(),
             other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn carried_into_another_instance_it_goes_on_to_the_same_points() {
+        let (mut old, mut a) = waypoints(0.002);
+        let (mut new, mut b) = waypoints(0.002);
+        let done = |t: u64| [PortValue::Bool(t % 7 > 2)];
+        for t in 0..10 {
+            old.step(&Released::at(t), &done(t), &mut a);
+        }
+        super::super::harness::carry_into(old.as_mut(), new.as_mut());
+        for t in 10..60 {
+            old.step(&Released::at(t), &done(t), &mut a);
+            new.step(&Released::at(t), &done(t), &mut b);
+            assert_eq!(goal(&a), goal(&b), "tick {t}");
         }
     }
 
