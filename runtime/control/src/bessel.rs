@@ -45,6 +45,14 @@ pub struct Bessel2 {
 }
 
 impl Bessel2 {
+    /// Carries the filter's state (its coefficients come from its parameters).
+    pub fn carry(
+        &mut self,
+        c: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        c.f64s("a filter's state", &mut self.s)
+    }
+
     /// A filter with its −3 dB point at `cutoff_hz`, sampled every `period_s` seconds, at
     /// rest at 0. The cutoff must be positive and below the Nyquist frequency 1 / (2·period_s).
     pub fn new(cutoff_hz: f64, period_s: f64) -> Result<Bessel2, FilterError> {

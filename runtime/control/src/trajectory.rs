@@ -64,6 +64,7 @@ use super::{
     array, array_mut, array_ports, at, axes, axes_decl, per_axis, per_axis_decl, per_axis_default,
     positive, rest,
 };
+use modbot_grid::carry::{Carry, CarryError};
 use modbot_grid::component::{
     Component, ComponentError, ComponentInfo, ParamDecl, ParamType, ParamValue, Params, PortDecl,
     PortType, PortValue, Released, BASE_PERIOD_S, PERIOD_S,
@@ -576,6 +577,43 @@ impl Component for Ptp {
         self.write_handover(tick, &mut outputs[4]);
     }
 
+    /// The motion (per axis and its goal), the filters, what tracking and braking keep.
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        for f in self.filters.iter_mut().flatten() {
+            f.carry(c)?;
+        }
+        for a in &mut self.axes {
+            c.f64("an axis's start", &mut a.from)?;
+            c.f64("an axis's distance", &mut a.distance)?;
+            c.f64("an axis's acceleration", &mut a.a)?;
+            c.f64("an axis's velocity", &mut a.v)?;
+            c.f64("an axis's acceleration time", &mut a.t_a)?;
+        }
+        c.f64s("target", &mut self.target)?;
+        c.f64s("taken", &mut self.taken)?;
+        c.f64("duration", &mut self.duration)?;
+        c.u64("began", &mut self.began)?;
+        c.bool("moving", &mut self.moving)?;
+        c.bool("latched", &mut self.latched)?;
+        c.bool("settled", &mut self.settled)?;
+        c.bool("braked", &mut self.braked)?;
+        let lead = &mut self.ahead;
+        c.f64s("lead.last", &mut lead.last)?;
+        c.f64s("lead.last_rate", &mut lead.last_rate)?;
+        c.f64s("lead.ahead", &mut lead.ahead)?;
+        c.f64s("lead.velocity", &mut lead.velocity)?;
+        let mut samples = u64::from(lead.samples);
+        c.u64("lead.samples", &mut samples)?;
+        lead.samples = samples.min(2) as u8;
+        c.bool("lead.tracking", &mut lead.tracking)?;
+        let brake = &mut self.brake;
+        c.f64s("brake.from", &mut brake.from)?;
+        c.f64s("brake.v0", &mut brake.v0)?;
+        c.f64s("brake.a", &mut brake.a)?;
+        c.u64("brake.began", &mut brake.began)?;
+        c.f64("brake.duration", &mut brake.duration)
+    }
+
     /// Rests where the robot will be commanded to be when it takes over (the handover it
     /// reads, else `start` carried ahead: see [`Lead`]); the first goal it sees after that is
     /// new, so it then moves from there.
@@ -747,6 +785,41 @@ mod tests {
             .with("a_max", list(a_max))
             .with("bessel_hz", ParamValue::F64(bessel_hz));
         Harness::new("ptp", params, 1)
+    }
+
+    #[test]
+    fn a_motion_carried_into_another_instance_goes_on_to_the_bit() {
+        let (mut old, mut new) = (
+            ptp(&[1.0, 2.0], &[4.0, 3.0], 20.0),
+            ptp(&[1.0, 2.0], &[4.0, 3.0], 20.0),
+        );
+        // Tracking a demand that moves (the lead), then live towards a goal, carried mid-motion.
+        for tick in 0..5 {
+            // Moving at 0.1 and -0.2 rad/s when taken over.
+            let demand = [0.0001 * tick as f64, -0.0002 * tick as f64];
+            old.track(tick, &[&[0.0, 0.0], &demand]);
+        }
+        let goal = [0.8, -0.5];
+        for tick in 5..300 {
+            let start = old.out(0).to_vec();
+            old.step(tick, &[&goal, &start]);
+        }
+        super::super::harness::carry_into(old.sut.as_mut(), new.sut.as_mut());
+        for tick in 300..2500 {
+            let start = old.out(0).to_vec();
+            old.step(tick, &[&goal, &start]);
+            new.step(tick, &[&goal, &start]);
+            assert_eq!(
+                format!("{:?}", old.outputs),
+                format!("{:?}", new.outputs),
+                "tick {tick}"
+            );
+        }
+        let end = old.out(0).to_vec();
+        assert!(
+            (end[0] - goal[0]).abs() < 1e-6 && (end[1] - goal[1]).abs() < 1e-6,
+            "the motion went on to the goal after the carry: {end:?}"
+        );
     }
 
     /// Runs `sut` from tick `from` until done (at most `ticks`): q, qd, qdd at every release.
