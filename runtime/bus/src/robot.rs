@@ -370,6 +370,14 @@ struct Enable {
 }
 
 impl Component for Enable {
+    /// Which axes' fault reset edge was sent (its mode and whether it resets are parameters).
+    fn carry(
+        &mut self,
+        c: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        c.bools("reset_sent", &mut self.reset_sent)
+    }
+
     fn step(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         let status = slice(&inputs[0]);
         let (cw, rest) = outputs.split_at_mut(1);

@@ -200,6 +200,18 @@ struct Lead {
 impl Lead {
     const TICKS: f64 = 2.0;
 
+    /// What it tracked (its base tick comes from the parameters).
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.f64s("lead.last", &mut self.last)?;
+        c.f64s("lead.last_rate", &mut self.last_rate)?;
+        c.f64s("lead.ahead", &mut self.ahead)?;
+        c.f64s("lead.velocity", &mut self.velocity)?;
+        let mut samples = u64::from(self.samples);
+        c.u64("lead.samples", &mut samples)?;
+        self.samples = samples.min(2) as u8;
+        c.bool("lead.tracking", &mut self.tracking)
+    }
+
     fn new(n: usize, dt: f64) -> Lead {
         Lead {
             last: vec![0.0; n],
@@ -263,6 +275,14 @@ struct Brake {
 }
 
 impl Brake {
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.f64s("brake.from", &mut self.from)?;
+        c.f64s("brake.v0", &mut self.v0)?;
+        c.f64s("brake.a", &mut self.a)?;
+        c.u64("brake.began", &mut self.began)?;
+        c.f64("brake.duration", &mut self.duration)
+    }
+
     fn new(n: usize) -> Brake {
         Brake {
             from: vec![0.0; n],
@@ -597,21 +617,8 @@ impl Component for Ptp {
         c.bool("latched", &mut self.latched)?;
         c.bool("settled", &mut self.settled)?;
         c.bool("braked", &mut self.braked)?;
-        let lead = &mut self.ahead;
-        c.f64s("lead.last", &mut lead.last)?;
-        c.f64s("lead.last_rate", &mut lead.last_rate)?;
-        c.f64s("lead.ahead", &mut lead.ahead)?;
-        c.f64s("lead.velocity", &mut lead.velocity)?;
-        let mut samples = u64::from(lead.samples);
-        c.u64("lead.samples", &mut samples)?;
-        lead.samples = samples.min(2) as u8;
-        c.bool("lead.tracking", &mut lead.tracking)?;
-        let brake = &mut self.brake;
-        c.f64s("brake.from", &mut brake.from)?;
-        c.f64s("brake.v0", &mut brake.v0)?;
-        c.f64s("brake.a", &mut brake.a)?;
-        c.u64("brake.began", &mut brake.began)?;
-        c.f64("brake.duration", &mut brake.duration)
+        self.ahead.carry(c)?;
+        self.brake.carry(c)
     }
 
     /// Rests where the robot will be commanded to be when it takes over (the handover it
@@ -751,6 +758,14 @@ impl Component for Hold {
         let tick = rel.tick.0;
         self.command(tick, inputs, outputs);
         self.write_handover(tick, &mut outputs[3]);
+    }
+
+    /// Where it holds, what it tracked, its braking.
+    fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.f64s("q", &mut self.q)?;
+        c.bool("latched", &mut self.latched)?;
+        self.ahead.carry(c)?;
+        self.brake.carry(c)
     }
 
     /// Follows the handover it reads, else `start` carried ahead (see [`Lead`]), until it
@@ -1053,6 +1068,39 @@ mod tests {
                 "{name}: then it went to the goal"
             );
         }
+    }
+
+    #[test]
+    fn hold_position_carried_while_braking_brakes_and_holds_the_same_to_the_bit() {
+        let hold = || {
+            Harness::new(
+                "hold_position",
+                Params::new().with("axes", ParamValue::I64(2)),
+                1,
+            )
+        };
+        let (mut old, mut new) = (hold(), hold());
+        // Tracking a robot moving at 0.8 and -0.4 rad/s, then live: it brakes; carried mid-brake.
+        for tick in 0..5 {
+            let demand = [0.0008 * tick as f64, -0.0004 * tick as f64];
+            old.track(tick, &[&demand]);
+        }
+        for tick in 5..60 {
+            let demand = old.out(0).to_vec();
+            old.step(tick, &[&demand]);
+        }
+        super::super::harness::carry_into(old.sut.as_mut(), new.sut.as_mut());
+        for tick in 60..600 {
+            let demand = old.out(0).to_vec();
+            old.step(tick, &[&demand]);
+            new.step(tick, &[&demand]);
+            assert_eq!(
+                format!("{:?}", old.outputs),
+                format!("{:?}", new.outputs),
+                "tick {tick}"
+            );
+        }
+        assert_eq!(old.out(1), [0.0, 0.0], "at rest");
     }
 
     #[test]

@@ -147,17 +147,32 @@ impl<'a> Carry<'a> {
         Ok(())
     }
 
-    /// An array of the instance's length: its length goes first, and must match on load.
-    pub fn f64s(&mut self, what: &'static str, v: &mut [f64]) -> Result<(), CarryError> {
-        let mut n = v.len() as u64;
+    /// Flags of the instance's number: their number goes first, and must match on load.
+    pub fn bools(&mut self, what: &'static str, v: &mut [bool]) -> Result<(), CarryError> {
+        self.length(what, v.len())?;
+        for b in v.iter_mut() {
+            self.bool(what, b)?;
+        }
+        Ok(())
+    }
+
+    /// Visits `len`; on load, refuses another.
+    fn length(&mut self, what: &'static str, len: usize) -> Result<(), CarryError> {
+        let mut n = len as u64;
         self.u64(what, &mut n)?;
-        if n != v.len() as u64 {
+        if n != len as u64 {
             return Err(CarryError::Shape {
                 what,
-                expected: v.len(),
+                expected: len,
                 got: usize::try_from(n).unwrap_or(usize::MAX),
             });
         }
+        Ok(())
+    }
+
+    /// An array of the instance's length: its length goes first, and must match on load.
+    pub fn f64s(&mut self, what: &'static str, v: &mut [f64]) -> Result<(), CarryError> {
+        self.length(what, v.len())?;
         for x in v.iter_mut() {
             self.f64(what, x)?;
         }
@@ -177,6 +192,7 @@ mod tests {
         x: f64,
         on: bool,
         xs: [f64; 3],
+        flags: [bool; 2],
     }
 
     impl State {
@@ -185,7 +201,8 @@ mod tests {
             c.i64("i", &mut self.i)?;
             c.f64("x", &mut self.x)?;
             c.bool("on", &mut self.on)?;
-            c.f64s("xs", &mut self.xs)
+            c.f64s("xs", &mut self.xs)?;
+            c.bools("flags", &mut self.flags)
         }
     }
 
@@ -196,6 +213,7 @@ mod tests {
             x: 0.0,
             on: false,
             xs: [0.0; 3],
+            flags: [false; 2],
         }
     }
 
@@ -207,6 +225,7 @@ mod tests {
             x: -0.0,
             on: true,
             xs: [1.5, f64::from_bits(0x7ff8_0000_0000_0001), 1e-300],
+            flags: [false, true],
         };
         let mut measure = Carry::measure();
         old.carry(&mut measure).unwrap();
@@ -218,18 +237,21 @@ mod tests {
         load.finish().unwrap();
         assert_eq!(new.x.to_bits(), old.x.to_bits());
         assert_eq!(new.xs.map(f64::to_bits), old.xs.map(f64::to_bits));
-        assert_eq!((new.n, new.i, new.on), (7, -3, true));
+        assert_eq!(
+            (new.n, new.i, new.on, new.flags),
+            (7, -3, true, [false, true])
+        );
     }
 
     #[test]
     fn a_short_or_long_state_or_another_length_is_refused() {
         let mut old = zero();
-        let mut buf = vec![0; 8 + 8 + 8 + 1 + 8 + 24];
+        let mut buf = vec![0; 8 + 8 + 8 + 1 + 8 + 24 + 8 + 2];
         old.carry(&mut Carry::save(&mut buf)).unwrap();
         let refused = zero().carry(&mut Carry::load(&buf[..buf.len() - 1]));
         assert!(matches!(
             refused,
-            Err(CarryError::Truncated { what: "xs", .. })
+            Err(CarryError::Truncated { what: "flags", .. })
         ));
         let mut long = buf.clone();
         long.push(0);
