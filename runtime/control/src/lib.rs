@@ -248,14 +248,7 @@ mod harness {
     /// Carries `from`'s state into `to` (another instance of its type, same parameters), as a
     /// live upgrade of their host would.
     pub fn carry_into(from: &mut dyn Component, to: &mut dyn Component) {
-        use modbot_grid::carry::Carry;
-        let mut measure = Carry::measure();
-        from.carry(&mut measure).unwrap();
-        let mut buf = vec![0; measure.len()];
-        from.carry(&mut Carry::save(&mut buf)).unwrap();
-        let mut load = Carry::load(&buf);
-        to.carry(&mut load).unwrap();
-        load.finish().unwrap();
+        modbot_grid::component::carry_state(from, to).unwrap();
     }
 
     /// Why `type_name` refuses `params`, as a description's author reads it.

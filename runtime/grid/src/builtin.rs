@@ -511,13 +511,7 @@ mod tests {
         for (tick, inputs) in &ticks[..split] {
             old.step(&Released::at(*tick), inputs, &mut a);
         }
-        let mut measure = Carry::measure();
-        old.carry(&mut measure).unwrap();
-        let mut buf = vec![0; measure.len()];
-        old.carry(&mut Carry::save(&mut buf)).unwrap();
-        let mut load = Carry::load(&buf);
-        new.carry(&mut load).unwrap();
-        load.finish().unwrap();
+        crate::component::carry_state(old.as_mut(), new.as_mut()).unwrap();
         for (tick, inputs) in &ticks[split..] {
             old.step(&Released::at(*tick), inputs, &mut a);
             new.step(&Released::at(*tick), inputs, &mut b);

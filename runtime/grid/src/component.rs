@@ -356,6 +356,24 @@ pub trait Component: Send {
     fn terminate(&mut self) {}
 }
 
+/// Carries `from`'s state into `to`, another instance of its type initialised with the same
+/// parameters ([`Component::carry`]: measured, saved, loaded, every byte taken); the state's
+/// size.
+pub fn carry_state(
+    from: &mut dyn Component,
+    to: &mut dyn Component,
+) -> Result<usize, crate::carry::CarryError> {
+    use crate::carry::Carry;
+    let mut measure = Carry::measure();
+    from.carry(&mut measure)?;
+    let mut buf = vec![0; measure.len()];
+    from.carry(&mut Carry::save(&mut buf))?;
+    let mut load = Carry::load(&buf);
+    to.carry(&mut load)?;
+    load.finish()?;
+    Ok(buf.len())
+}
+
 /// A component type a system description declares (`component_type`): its interface, and
 /// the host program that makes it.
 #[derive(Debug, Clone, PartialEq)]
