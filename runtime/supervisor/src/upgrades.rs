@@ -280,6 +280,8 @@ impl Supervisor {
                 let s = &self.slots[slot];
                 if s.pid != u.pid || s.child.is_none() {
                     // It ended after it took over: the slot's restart policy has it.
+                    let dir = u.dir.clone();
+                    self.remove_later.push((dir, Instant::now()));
                     self.set_upgrade_status(
                         &name,
                         "refused",
