@@ -21,19 +21,17 @@ pub fn up(
     station: Option<&str>,
 ) -> anyhow::Result<ExitCode> {
     let resolver = DefaultResolver::for_file(file);
-    let mut spec = match system::load_with_vars(file, &resolver, vars) {
+    // The domain from the command line is the system's from the start: the assembly data its
+    // assembly files read is that domain's too (where its robot programs write).
+    let mut spec = match system::load_in_domain(file, &resolver, vars, domain) {
         Ok(spec) => spec,
         Err(e) => {
             eprintln!("modbot up: {e}");
             return Ok(ExitCode::from(2));
         }
     };
-    if let Some(given) = domain.filter(|d| *d != spec.domain) {
-        tracing::info!(
-            "domain '{given}' from the command line, not the description's '{}'",
-            spec.domain
-        );
-        spec.domain = given.to_owned();
+    if let Some(given) = domain {
+        tracing::info!("domain '{given}' from the command line");
     }
     let replayable = spec
         .grid

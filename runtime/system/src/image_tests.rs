@@ -81,3 +81,33 @@ fn a_grid_with_an_fmu_reads_back_with_the_interface_its_model_description_gave()
     let spec = super::load_str_with_vars(file.to_str().unwrap(), source, &found, &[]).unwrap();
     round_trip("fmu", &spec.grid.unwrap());
 }
+
+/// `modbot up FILE --domain D` runs the system in D from the start: its assembly files read
+/// D's assembly data — where a robot program in D writes its commands' parameters — not the
+/// data of the domain the description names (a program's moves then found no goal, and the
+/// arm stood still).
+#[test]
+fn a_system_loaded_in_another_domain_reads_that_domains_assembly_data() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/kr16.lua");
+    let any_program = |name: &str| Some(PathBuf::from(format!("/usr/bin/{name}")));
+    let data_of = |domain: Option<&str>| {
+        let spec = super::load_in_domain(&path, &any_program, &[], domain)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let source = spec.grid.and_then(|g| g.assembly).and_then(|a| a.source);
+        (spec.domain, source.and_then(|s| s.data.clone()))
+    };
+    assert_eq!(
+        data_of(None),
+        ("kr16".to_owned(), Some(modbot_data::path_for("kr16")))
+    );
+    assert_eq!(
+        data_of(Some("kr16_elsewhere")),
+        (
+            "kr16_elsewhere".to_owned(),
+            Some(modbot_data::path_for("kr16_elsewhere"))
+        )
+    );
+    let refused = super::load_in_domain(&path, &any_program, &[], Some("no/slash"))
+        .expect_err("a domain name with a slash");
+    assert!(refused.to_string().contains("no/slash"), "{refused}");
+}

@@ -349,6 +349,29 @@ pub fn load_with_vars(
     load_with_registry(path, resolver, vars, &modbot_components::builtin())
 }
 
+/// Like [`load_with_vars`], in the domain `domain` when one is given (`modbot up --domain`)
+/// rather than the description's: everything that depends on the domain follows it — the
+/// assembly data the assembly files read (`data(key)`, the first assembly's included) is the
+/// given domain's, where a robot program of that domain writes its commands' parameters.
+pub fn load_in_domain(
+    path: &Path,
+    resolver: &dyn ProgramResolver,
+    vars: &[(String, String)],
+    domain: Option<&str>,
+) -> Result<SystemSpec, SystemError> {
+    let (file, source) = read_description(path)?;
+    let mut declarations = lua::evaluate(&file, &source, vars, None)?;
+    if let Some(given) = domain {
+        modbot_core::Domain::new(given).map_err(|e| {
+            SystemError::new(&file, None, format!("--domain {given}: {e}")).because(e)
+        })?;
+        let line = declarations.domain.as_ref().map_or(0, |(_, line)| *line);
+        declarations.domain = Some((given.to_owned(), line));
+    }
+    let registry = modbot_components::builtin();
+    validate::build(&file, &source, declarations, resolver, &registry, vars)
+}
+
 /// Like [`load_with_vars`], with the grid's component types taken from `registry` (the others
 /// use the built-in ones, [`Registry::builtin`]).
 pub fn load_with_registry(
@@ -357,6 +380,12 @@ pub fn load_with_registry(
     vars: &[(String, String)],
     registry: &Registry,
 ) -> Result<SystemSpec, SystemError> {
+    let (file, source) = read_description(path)?;
+    load_str_with_registry(&file, &source, resolver, vars, registry)
+}
+
+/// The description in the file `path`, as text, and the file's name for messages.
+fn read_description(path: &Path) -> Result<(String, String), SystemError> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| {
         SystemError::new(&file, None, format!("cannot read the description: {e}")).because(e)
@@ -371,7 +400,7 @@ pub fn load_with_registry(
             ),
         )
     })?;
-    load_str_with_registry(&file, &source, resolver, vars, registry)
+    Ok((file, source))
 }
 
 /// Evaluates and checks the system description `source`; messages call it `file_name`.
