@@ -418,12 +418,31 @@ fn the_kr16_program_in_lockstep_gives_the_same_numbers_to_the_last_digit_in_ever
             .collect();
         let svg = std::fs::read(dir.path().join("kr16_ff.svg")).expect("the plot");
         down(&mut sut, up);
+        // What the grid did (switches, postponements, the gate, warnings): shown when a run
+        // differs.
+        let grid: String = sut
+            .output_of(up)
+            .lines()
+            .filter(|l| {
+                [
+                    "coordinator |",
+                    "WARN",
+                    "ERROR",
+                    "gate",
+                    "late",
+                    "safe stop",
+                ]
+                .iter()
+                .any(|w| l.contains(w))
+            })
+            .map(|l| format!("{l}\n"))
+            .collect();
         runs.push((
             out.replace(&at, "DIR"),
             data.replace(&at, "DIR"),
             svg,
             dir,
-            err,
+            format!("{err}\n--- the system's grid lines:\n{grid}"),
         ));
     }
     let (first, data, svg, dir, _) = &runs[0];

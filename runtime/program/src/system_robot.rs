@@ -75,7 +75,16 @@ impl SystemRobot {
             stepping: None,
             gate_called: std::time::Instant::now(),
         };
-        robot.stepping = take_gate(&mut robot.tool)?;
+        let (held, lifted) = take_gate_noting(&mut robot.tool)?;
+        if let (Some(held), Some(why)) = (held, lifted) {
+            // `modbot up --gate` held the grid for a program that came too late: the grid ran
+            // on, and this run starts where it got to.
+            eprintln!(
+                "modbot program: {why}; the program steps it from tick {held}: this run is not \
+                 the same as another"
+            );
+        }
+        robot.stepping = held;
         Ok(robot)
     }
 
@@ -413,8 +422,9 @@ impl Drop for SystemRobot {
 
 /// What the coordinator's gate says to a call.
 enum GateSays {
-    /// The tick the grid holds before, and whether it is held there.
-    At(u64, bool),
+    /// The tick the grid holds before, whether it is held there, and — to the caller that
+    /// takes a gate which was lifted by itself — why it was lifted.
+    At(u64, bool, Option<String>),
     /// Refused, with the coordinator's words: a real-time grid, or a tick the grid has passed
     /// (the gate was lifted meanwhile).
     Refused(String),
@@ -432,7 +442,11 @@ fn gate(tool: &mut Tool, until: i64) -> Result<GateSays, RobotError> {
         CallOptions::timeout(CALL_TIMEOUT),
         |r| match r {
             Ok(args) => match (args.i64(0), args.bool(1)) {
-                (Ok(next), Ok(held)) => Ok(GateSays::At(u64::try_from(next).unwrap_or(0), held)),
+                (Ok(next), Ok(held)) => Ok(GateSays::At(
+                    u64::try_from(next).unwrap_or(0),
+                    held,
+                    args.text(2).ok().map(str::to_owned),
+                )),
                 _ => Err(RobotError::Grid(
                     "the coordinator's gate answered oddly".into(),
                 )),
@@ -453,10 +467,16 @@ fn gate(tool: &mut Tool, until: i64) -> Result<GateSays, RobotError> {
 /// Takes the gate of a lockstep grid and waits until the grid is held: the tick it holds
 /// before. `None`: a grid that keeps its own time (real time), or none.
 fn take_gate(tool: &mut Tool) -> Result<Option<u64>, RobotError> {
+    take_gate_noting(tool).map(|(held, _)| held)
+}
+
+/// [`take_gate`], and why the gate had been lifted by itself when it was (the grid ran on
+/// before this program took it).
+fn take_gate_noting(tool: &mut Tool) -> Result<(Option<u64>, Option<String>), RobotError> {
     match gate(tool, -1)? {
-        GateSays::At(next, true) => Ok(Some(next)),
-        GateSays::At(_, false) => wait_held(tool, None).map(Some),
-        GateSays::Refused(_) | GateSays::Absent => Ok(None),
+        GateSays::At(next, true, lifted) => Ok((Some(next), lifted)),
+        GateSays::At(_, false, lifted) => Ok((Some(wait_held(tool, None)?), lifted)),
+        GateSays::Refused(_) | GateSays::Absent => Ok((None, None)),
     }
 }
 
@@ -465,7 +485,7 @@ fn wait_held(tool: &mut Tool, next: Option<u64>) -> Result<u64, RobotError> {
     let deadline = std::time::Instant::now() + STEP_TIMEOUT;
     loop {
         match gate(tool, -1)? {
-            GateSays::At(at, true) if next.is_none_or(|n| n == at) => return Ok(at),
+            GateSays::At(at, true, _) if next.is_none_or(|n| n == at) => return Ok(at),
             GateSays::At(..) => {}
             GateSays::Refused(why) => return Err(RobotError::Grid(why)),
             GateSays::Absent => {
@@ -492,7 +512,7 @@ fn wait_held(tool: &mut Tool, next: Option<u64>) -> Result<u64, RobotError> {
 fn run_to(tool: &mut Tool, tick: u64) -> Result<u64, RobotError> {
     let next = tick + 1;
     match gate(tool, i64::try_from(next).unwrap_or(i64::MAX))? {
-        GateSays::At(at, true) if at == next => Ok(next),
+        GateSays::At(at, true, _) if at == next => Ok(next),
         GateSays::At(..) => wait_held(tool, Some(next)),
         GateSays::Refused(why) => match take_gate(tool)? {
             Some(held) => {

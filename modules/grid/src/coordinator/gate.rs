@@ -159,6 +159,8 @@ impl Gate {
         // Whoever calls next, the one that lost the gate is told only until then.
         if let Some((lost_by, why)) = self.lost.take() {
             if until.is_some() && lost_by == caller.addr && self.owner.is_none() {
+                // Told now: not again when it takes the gate back.
+                self.lifted = None;
                 return Err(GateRefused::Lost { why });
             }
         }
@@ -356,6 +358,25 @@ mod tests {
         );
         // A lifted gate has nothing to look at.
         assert_eq!(sut.look(2 * LEASE_NS, 100, gone), None);
+    }
+
+    #[test]
+    fn who_takes_a_gate_lifted_by_itself_learns_why_once_and_its_lost_owner_is_told_only_once() {
+        // `--gate 100`, and no program came for the lease: the first taker learns why.
+        let (mut sut, _) = Gate::initial(Some(100), 0);
+        let (_, why) = sut.look(LEASE_NS, 100, alive).expect("lifted");
+        sut.call(A, None, 180, LEASE_NS + 1, alive).unwrap();
+        assert_eq!(sut.take_lifted(), Some(why));
+        assert_eq!(sut.take_lifted(), None);
+        // An owner that lost it is told by the refusal of its next move, not again after.
+        let (_, why) = sut.look(2 * LEASE_NS + 2, 180, gone).expect("lifted");
+        assert_eq!(
+            sut.call(A, Some(200), 250, 2 * LEASE_NS + 3, alive)
+                .unwrap_err(),
+            GateRefused::Lost { why }
+        );
+        sut.call(A, None, 250, 2 * LEASE_NS + 4, alive).unwrap();
+        assert_eq!(sut.take_lifted(), None);
     }
 
     #[test]

@@ -134,7 +134,8 @@ fn gate_method(
         .gate
         .call(caller, until, s.ticks, now, |o| owner_name(book, o))
         .map_err(refused)?;
-    if let Some(why) = s.gate.take_lifted() {
+    let lifted = s.gate.take_lifted();
+    if let Some(why) = &lifted {
         tracing::warn!("{why}; now taken again by address {}", caller.addr.0);
     }
     if changed.is_some() {
@@ -142,6 +143,11 @@ fn gate_method(
     }
     reply.push(Value::I64(answer.next as i64));
     reply.push(Value::Bool(answer.held));
+    // Its new owner is told the grid ran on by itself (a program that came after the lease
+    // of `--gate`): its run is not the same as another.
+    if let Some(why) = &lifted {
+        reply.push(Value::Text(why));
+    }
     Ok(())
 }
 
