@@ -129,6 +129,11 @@ enum Command {
         /// reproducible, switches included.
         #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
         switches: Vec<(u64, String)>,
+        /// Upgrade host HOST of the running assembly live at tick TICK (repeatable): a new
+        /// process takes its components over, their state carried to the bit; with --lockstep
+        /// the grid waits at TICK until it has, and the run is the same as one without.
+        #[arg(long = "upgrade", value_name = "TICK:HOST", value_parser = modbot_grid::switch::parse_scripted)]
+        upgrades: Vec<(u64, String)>,
         /// With --lockstep: hold the grid before tick TICK until a robot program takes the
         /// coordinator's gate and steps it (lifted by itself after 20 s without one).
         #[arg(long, value_name = "TICK")]
@@ -370,6 +375,7 @@ fn main() -> ExitCode {
             state_hash_every,
             lockstep,
             switches,
+            upgrades,
             gate,
             record,
             replayable,
@@ -386,6 +392,7 @@ fn main() -> ExitCode {
                 replay_log: None,
                 lockstep,
                 switches,
+                upgrades,
                 gate,
             },
             station.as_deref(),

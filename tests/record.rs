@@ -234,18 +234,6 @@ fn recorded_run(sut: &mut TestDomain, file: &Path, var: &str, more: &[&str], tag
     recording
 }
 
-/// `modbot record compare A B`: its exit code and what it printed.
-fn record_compare(sut: &TestDomain, a: &Path, b: &Path) -> (Option<i32>, String) {
-    let out = sut.modbot(&[
-        "record",
-        "compare",
-        a.to_str().unwrap(),
-        b.to_str().unwrap(),
-    ]);
-    let said = String::from_utf8_lossy(&out.stdout).into_owned();
-    (out.status.code(), said)
-}
-
 /// A grid of three components, only the first recorded: a ramp A (period 1) into a gain B
 /// (period 2, gain `vars.k`) into an integrator C (period 5). Run in lockstep twice with k = 2
 /// and once with k = 2.5: the two alike compare identical, signals and state hash; the third
@@ -279,7 +267,7 @@ connect "B.y -> C.u"
     let mut run =
         |tag: &str, k: &str| recorded_run(&mut sut, &recorded, &format!("k={k}"), &more, tag);
     let (a, b, c) = (run("a", "2"), run("b", "2"), run("c", "2.5"));
-    let compare = |x: &Path, y: &Path| record_compare(&sut, x, y);
+    let compare = |x: &Path, y: &Path| sut.record_compare(x, y);
     let (code, said) = compare(&a, &b);
     assert_eq!(
         (code, said.trim_end()),
@@ -368,7 +356,7 @@ fn two_lockstep_recordings_of_the_arm_are_identical_and_a_changed_run_names_its_
         recorded_run(&mut sut, &arm, &format!("dwell={dwell}"), &more, tag)
     };
     let (a, b, c) = (run("a", "0"), run("b", "0"), run("c", "0.05"));
-    let compare = |x: &Path, y: &Path| record_compare(&sut, x, y);
+    let compare = |x: &Path, y: &Path| sut.record_compare(x, y);
     let (code, said) = compare(&a, &b);
     assert_eq!(code, Some(0), "{said}");
     assert!(

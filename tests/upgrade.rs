@@ -342,3 +342,92 @@ fn a_new_program_that_exits_at_start_or_has_other_methods_is_refused_and_the_old
     let _ = std::fs::remove_file(other);
     sys.stop();
 }
+
+/// `modbot up FILE --lockstep --record X …` in `sut`'s domain (the description's `--var
+/// domain` too, so its assembly data is the test's): exits 0; its recording and output.
+fn recorded(
+    sut: &mut TestDomain,
+    file: &std::path::Path,
+    tag: &str,
+    more: &[&str],
+) -> (PathBuf, String) {
+    let recording = std::env::temp_dir().join(format!("{}.{tag}.h5", sut.name()));
+    let _ = std::fs::remove_file(&recording);
+    let domain = format!("domain={}", sut.name());
+    let mut args = vec!["up", file.to_str().unwrap(), "--var", &domain, "--record"];
+    args.push(recording.to_str().unwrap());
+    args.extend_from_slice(&["--lockstep", "--ticks", "3000"]);
+    args.extend_from_slice(more);
+    let up = sut.spawn_logged("modbot", &args);
+    let status = sut.wait_exit(up, Duration::from_secs(300));
+    let out = sut.output_of(up);
+    assert_eq!(status.code(), Some(0), "{out}");
+    (recording, out)
+}
+
+/// A host of the time grid upgraded live (`--upgrade TICK:HOST`, as `modbot upgrade
+/// host_ctrl_g2` does it): the arm's `ptp` assembly moves the robot from A to B from tick 356,
+/// and its host `ctrl` is replaced by a new process at tick 900 mid-motion and again at 1400
+/// (braking into B). The components' state is carried to the bit, so the lockstep recording
+/// is identical to a run without the upgrades — every signal and the grid's state hash in every
+/// row — and no tick is missed. A host whose components cannot carry their state (the KR 16's
+/// `ptp_ff`: its cascade keeps integrators that do not yet) is refused: the running process
+/// serves on and the run is again the same as one without.
+#[test]
+fn a_grid_host_upgraded_twice_during_a_ptp_motion_in_lockstep_records_the_same_as_a_run_without() {
+    let _arm = common::arm::one_arm_at_a_time();
+    let mut sut = TestDomain::new("upgrid");
+    let arm = common::arm::arm();
+    let plan = ["--var", "dwell=0", "--switch", "300:ptp"];
+    let (a, _) = recorded(&mut sut, &arm, "plain", &plan);
+    let mut upgraded: Vec<&str> = plan.to_vec();
+    upgraded.extend_from_slice(&["--upgrade", "900:ctrl", "--upgrade", "1400:ctrl"]);
+    let (b, out) = recorded(&mut sut, &arm, "upgraded", &upgraded);
+    for at in [900, 1400] {
+        assert!(
+            out.contains(&format!(
+                "host ctrl: took the components over at tick {at} ("
+            )),
+            "{out}"
+        );
+    }
+    assert!(out.contains("host_ctrl_g2 upgraded: pid "), "{out}");
+    assert!(out.contains(", upgrade 2, in "), "{out}");
+    assert!(!out.contains("refused"), "{out}");
+    let (code, said) = sut.record_compare(&a, &b);
+    assert_eq!(code, Some(0), "{said}\n{out}");
+    assert!(
+        said.starts_with("identical through tick 2999 (3000 rows, "),
+        "{said}"
+    );
+    // The robot moved through both handovers: the upgrades were mid-motion.
+    let moving = common::python::python(
+        "import sys, h5py\nf = h5py.File(sys.argv[1], 'r')\nq = f['robot.demand_position']\n\
+         t = list(f['tick'])\nat = lambda n: q[t.index(n)][0]\n\
+         print(at(899) != at(901), at(1399) != at(1401))",
+        &[a.to_str().unwrap()],
+    );
+    assert_eq!(moving.trim(), "True True", "{moving}");
+
+    // A host that cannot carry its components' state is refused; the run goes on unchanged.
+    let kr16 = arm.with_file_name("kr16.lua");
+    let plan = ["--switch", "300:ptp_ff"];
+    let (c, _) = recorded(&mut sut, &kr16, "kr16", &plan);
+    let mut refused: Vec<&str> = plan.to_vec();
+    refused.extend_from_slice(&["--upgrade", "900:ctrl"]);
+    let (d, out) = recorded(&mut sut, &kr16, "kr16refused", &refused);
+    assert!(
+        out.contains("cannot carry its state to a new process"),
+        "{out}"
+    );
+    assert!(
+        out.contains("upgrade of host_ctrl_g2 refused: the new program ended before it took over"),
+        "{out}"
+    );
+    assert!(out.contains("the running process serves on"), "{out}");
+    let (code, said) = sut.record_compare(&c, &d);
+    assert_eq!(code, Some(0), "{said}\n{out}");
+    for f in [a, b, c, d] {
+        let _ = std::fs::remove_file(f);
+    }
+}

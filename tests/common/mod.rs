@@ -230,6 +230,22 @@ impl TestDomain {
         self.modbot_with_input(args, "")
     }
 
+    /// `modbot record compare A B`: its exit code and what it printed.
+    pub fn record_compare(
+        &self,
+        a: &std::path::Path,
+        b: &std::path::Path,
+    ) -> (Option<i32>, String) {
+        let out = self.modbot(&[
+            "record",
+            "compare",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+        ]);
+        let said = String::from_utf8_lossy(&out.stdout).into_owned();
+        (out.status.code(), said)
+    }
+
     /// Runs `modbot ARGS` in this domain with `input` on its standard input.
     pub fn modbot_with_input(&self, args: &[&str], input: &str) -> Output {
         self.modbot_at(None, args, input)

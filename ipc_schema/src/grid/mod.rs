@@ -75,6 +75,20 @@ pub const READY: u16 = u16::MAX - 1;
 /// It needs no done notice.
 pub const STOPPING: u16 = u16::MAX - 2;
 
+/// Special component index of a release notice: a new process of the host takes its
+/// components over at tick `tick` (a live upgrade, `modbot upgrade`). The notice comes after
+/// every release before that tick, as the last of its batch; `released_ns` carries the new
+/// process's pid. Both processes of the host read it: the running one hands the components'
+/// state over and serves no more (once the new one says it took it), the new one takes the
+/// state and serves every release from `tick` on.
+pub const HANDOVER: u16 = u16::MAX - 3;
+
+/// Special component index of a done notice: a new process of a host is ready to take its
+/// components over (subscribed, standing by). `tick` carries the index of one of the host's
+/// components (so the coordinator knows the host), `exec_ns` the new process's pid; the
+/// coordinator answers with a [`HANDOVER`] release.
+pub const SUCCESSOR: u16 = u16::MAX - 4;
+
 /// The most source components one component's inputs come from.
 pub const MAX_SOURCES: usize = 16;
 /// Size of the output sample header.

@@ -70,7 +70,12 @@ impl HostProcess {
         let transport = args.module.transport()?;
         let node: Arc<dyn Channels> =
             Arc::new(transport.channels(&format!("grid.host.{}", args.host))?);
-        let host = Host::new(&*node, &grid, registry, &args.host)?;
+        let mut host = Host::new(&*node, &grid, registry, &args.host)?;
+        host.keep_node(node.clone());
+        // Started by a live upgrade: it stands by to take the components over.
+        if let Some(dir) = std::env::var_os(modbot_core::transport::launch::UPGRADE_DIR) {
+            host.standby(node.clone(), Some(dir.into()))?;
+        }
         signals::install_termination_handler()?;
         Ok(HostProcess {
             grid,
@@ -126,8 +131,13 @@ impl HostProcess {
         );
         let service = serve_module(
             move || {
-                let module = declare(ModuleBuilder::new(&name, addr).mode(mode))
-                    .method("latest", crate::board::latest_method::<S>);
+                // In a live upgrade the grid hands the components' state over (at a tick,
+                // before the module): the module itself has none to carry.
+                let builder = ModuleBuilder::new(&name, addr)
+                    .mode(mode)
+                    .on_upgrade_out(1, state_in_the_grid::<S>)
+                    .on_upgrade_in(carried_by_the_grid::<S>);
+                let module = declare(builder).method("latest", crate::board::latest_method::<S>);
                 Ok(module.blackboard(bb).open(transport, state)?)
             },
             move |module| board.refresh(&mut module.ctx().bb),
@@ -137,9 +147,19 @@ impl HostProcess {
         Ok(service)
     }
 
-    /// Whether the clocked work goes on: no termination asked, the module still served.
+    /// Whether the clocked work goes on: no termination asked, the module still served (a
+    /// process that handed its module over to a new one ends).
     pub fn running(service: &JoinHandle<anyhow::Result<()>>) -> bool {
         !signals::termination_requested() && !service.is_finished()
+    }
+
+    /// A new process of a live upgrade that could not take the components over ends here,
+    /// with the reason (the running process serves on).
+    pub fn check_upgrade(&self) -> anyhow::Result<()> {
+        match self.host.refused() {
+            Some(why) => anyhow::bail!("not upgraded: {why}"),
+            None => Ok(()),
+        }
     }
 
     /// Ends the process: reports releases not executed, and the service thread's result.
@@ -155,6 +175,21 @@ impl HostProcess {
             Err(_) => anyhow::bail!("the service thread panicked"),
         }
     }
+}
+
+/// A host module's own state in a live upgrade: none (its components' is the grid's to carry).
+fn state_in_the_grid<S>(_: &S) -> Vec<u8> {
+    Vec::new()
+}
+
+/// Takes the (empty) state of [`state_in_the_grid`].
+fn carried_by_the_grid<S>(
+    _: &mut S,
+    _: &mut modbot_core::ctx::Ctx,
+    _: u32,
+    _: &[u8],
+) -> Result<(), String> {
+    Ok(())
 }
 
 /// The command line of a host program: what the supervisor passes.
@@ -188,6 +223,7 @@ pub fn host_main_with(
             // Wakes up for its releases; every 5 ms also to look at the termination flag.
             p.host
                 .wait_and_serve(Some(std::time::Duration::from_millis(5)), &now)?;
+            p.check_upgrade()?;
             p.prepare_step()?;
         }
         p.finish(service)

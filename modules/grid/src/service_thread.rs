@@ -10,7 +10,10 @@ use modbot_core::{signals, Module};
 /// Starts the thread: it opens the module with `open` (so the module announces itself only
 /// after the caller opened its grid channels), then serves it until a termination signal,
 /// calling `between` between rounds of serving (at least every 2 ms: the host's blackboard).
-/// Returns once the module is open, or with the error that kept it from opening.
+/// Returns once the module is open, or with the error that kept it from opening — at once for
+/// the new process of a live upgrade, whose module opens only when the running one hands it
+/// over (after the grid's components: the caller's thread takes those over meanwhile; a module
+/// that fails to open ends the thread, which the caller sees).
 pub fn serve_module<S: 'static>(
     open: impl FnOnce() -> anyhow::Result<Module<S>> + Send + 'static,
     mut between: impl FnMut(&mut Module<S>) + Send + 'static,
@@ -29,7 +32,8 @@ pub fn serve_module<S: 'static>(
                     anyhow::bail!("{text}");
                 }
             };
-            while !signals::termination_requested() {
+            // A module that handed over to a new process (a live upgrade) stops here.
+            while !signals::termination_requested() && !module.should_stop() {
                 let mut served = 0;
                 while served < 16 && module.poll_once()? {
                     served += 1;
@@ -43,6 +47,9 @@ pub fn serve_module<S: 'static>(
             Ok(())
         },
     )?;
+    if std::env::var_os(modbot_core::transport::launch::UPGRADE_DIR).is_some() {
+        return Ok(handle);
+    }
     match opened.recv() {
         Ok(Ok(())) => Ok(handle),
         Ok(Err(e)) => Err(e),

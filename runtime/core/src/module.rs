@@ -473,7 +473,9 @@ impl<S> Module<S> {
         Ok(())
     }
 
-    pub(crate) fn should_stop(&self) -> bool {
+    /// Whether the module is done: stopped (`Ctx::stop`, or handed over to a new process in a
+    /// live upgrade) or asked to terminate.
+    pub fn should_stop(&self) -> bool {
         self.ctx.liveness.stop || crate::signals::termination_requested()
     }
 

@@ -46,6 +46,9 @@ pub const SUBSCRIBED: &str = "subscribed";
 pub const STATE: &str = "state";
 /// Written by the supervisor: the upgrade is called off.
 pub const ABORT: &str = "abort";
+/// Written by the new process of a time grid's host once it has taken the host's components
+/// over (the tick it serves from): the supervisor hands the module over only then.
+pub const GRID: &str = "grid";
 
 /// The longest a handover step waits for the other side before it gives up (the old process
 /// serves on; the new one ends with an error).

@@ -7,6 +7,7 @@
 //! given either measures, saves into a buffer, or loads from one. Save and load cannot then
 //! disagree on the order. Floats move as their bits; an array's length must match on load.
 
+use modbot_ipc_schema::grid::PortValue;
 use thiserror::Error;
 
 /// Why a state cannot be carried.
@@ -28,6 +29,8 @@ pub enum CarryError {
     },
     #[error("the state has {0} bytes more than this instance takes")]
     Trailing(usize),
+    #[error("{what} has a value of another type in the state")]
+    Kind { what: &'static str },
 }
 
 enum Mode<'a> {
@@ -157,7 +160,7 @@ impl<'a> Carry<'a> {
     }
 
     /// Visits `len`; on load, refuses another.
-    fn length(&mut self, what: &'static str, len: usize) -> Result<(), CarryError> {
+    pub fn length(&mut self, what: &'static str, len: usize) -> Result<(), CarryError> {
         let mut n = len as u64;
         self.u64(what, &mut n)?;
         if n != len as u64 {
@@ -176,6 +179,90 @@ impl<'a> Carry<'a> {
         for x in v.iter_mut() {
             self.f64(what, x)?;
         }
+        Ok(())
+    }
+
+    /// Port values of the instance's number and types (a vector's length included), each as
+    /// its bits: a type other than the instance's is refused on load.
+    pub fn ports(&mut self, what: &'static str, v: &mut [PortValue]) -> Result<(), CarryError> {
+        self.length(what, v.len())?;
+        for port in v.iter_mut() {
+            let mut kind: u64 = match port {
+                PortValue::Bool(_) => 0,
+                PortValue::I64(_) => 1,
+                PortValue::F64(_) => 2,
+                PortValue::F64s(_) => 3,
+            };
+            let expected = kind;
+            self.u64(what, &mut kind)?;
+            if kind != expected {
+                return Err(CarryError::Kind { what });
+            }
+            match port {
+                PortValue::Bool(b) => self.bool(what, b)?,
+                PortValue::I64(i) => self.i64(what, i)?,
+                PortValue::F64(x) => self.f64(what, x)?,
+                PortValue::F64s(xs) => self.f64s(what, xs)?,
+            }
+        }
+        Ok(())
+    }
+
+    /// A block of its own, its length first: on load `f` must take every byte of it (a
+    /// component's state, so that one whose layout changed is refused by name, not read
+    /// askew).
+    pub fn framed(
+        &mut self,
+        what: &'static str,
+        f: impl FnOnce(&mut Carry<'_>) -> Result<(), CarryError>,
+    ) -> Result<(), CarryError> {
+        let at = self.at;
+        let len = match &mut self.mode {
+            Mode::Measure => {
+                let mut inner = Carry::measure();
+                f(&mut inner)?;
+                inner.at
+            }
+            Mode::Save(buf) => {
+                let left = buf.len().saturating_sub(at);
+                let room =
+                    buf.get_mut(at..)
+                        .filter(|r| r.len() >= 8)
+                        .ok_or(CarryError::Truncated {
+                            what,
+                            left,
+                            need: 8,
+                        })?;
+                let (head, body) = room.split_at_mut(8);
+                let mut inner = Carry::save(body);
+                f(&mut inner)?;
+                head.copy_from_slice(&(inner.at as u64).to_le_bytes());
+                inner.at
+            }
+            Mode::Load(bytes) => {
+                let left = bytes.len().saturating_sub(at);
+                let head = bytes.get(at..at + 8).ok_or(CarryError::Truncated {
+                    what,
+                    left,
+                    need: 8,
+                })?;
+                let mut n = [0u8; 8];
+                n.copy_from_slice(head);
+                let len = usize::try_from(u64::from_le_bytes(n)).unwrap_or(usize::MAX);
+                let body = bytes.get(at + 8..).and_then(|b| b.get(..len)).ok_or(
+                    CarryError::Truncated {
+                        what,
+                        left: left.saturating_sub(8),
+                        need: len,
+                    },
+                )?;
+                let mut inner = Carry::load(body);
+                f(&mut inner)?;
+                inner.finish()?;
+                len
+            }
+        };
+        self.at += 8 + len;
         Ok(())
     }
 }
@@ -268,5 +355,49 @@ mod tests {
                 got: 4
             })
         );
+    }
+
+    #[test]
+    fn port_values_and_framed_blocks_round_trip_and_a_block_read_short_is_refused() {
+        let mut ports = vec![
+            PortValue::Bool(true),
+            PortValue::I64(-9),
+            PortValue::F64(-0.0),
+            PortValue::F64s(vec![1.0, 2.5]),
+        ];
+        let mut state = State { n: 1, ..zero() };
+        let visit = |c: &mut Carry<'_>, ports: &mut Vec<PortValue>, state: &mut State| {
+            c.ports("outputs", ports)?;
+            c.framed("component", |inner| state.carry(inner))?;
+            c.u64("after", &mut 42)
+        };
+        let mut measure = Carry::measure();
+        visit(&mut measure, &mut ports, &mut state).unwrap();
+        let mut buf = vec![0; measure.len()];
+        visit(&mut Carry::save(&mut buf), &mut ports, &mut state).unwrap();
+        let mut back = vec![
+            PortValue::Bool(false),
+            PortValue::I64(0),
+            PortValue::F64(1.0),
+            PortValue::F64s(vec![0.0, 0.0]),
+        ];
+        let mut loaded = zero();
+        let mut load = Carry::load(&buf);
+        visit(&mut load, &mut back, &mut loaded).unwrap();
+        load.finish().unwrap();
+        assert_eq!(back, ports);
+        assert!(matches!(back[2], PortValue::F64(x) if x.to_bits() == (-0.0f64).to_bits()));
+        assert_eq!(loaded, state);
+        // A port of another type, and a component that takes less than its block, are refused.
+        let mut other = back.clone();
+        other[0] = PortValue::I64(0);
+        assert_eq!(
+            Carry::load(&buf).ports("outputs", &mut other),
+            Err(CarryError::Kind { what: "outputs" })
+        );
+        let mut load = Carry::load(&buf);
+        load.ports("outputs", &mut back).unwrap();
+        let short = load.framed("component", |inner| inner.u64("n", &mut 0));
+        assert!(matches!(short, Err(CarryError::Trailing(_))), "{short:?}");
     }
 }

@@ -166,6 +166,9 @@ impl Schedule {
                     s.restarts.push((tick, host.to_owned()));
                 }
                 "end" => s.ended = Some(tick),
+                // A live upgrade of a host: a new process stepped its components on from this
+                // tick, their state carried — nothing for a replay to do differently.
+                "upgrade" => {}
                 _ => return Err(bad("unknown line")),
             }
         }

@@ -15,6 +15,7 @@
 use modbot_ipc_schema::grid::{read_record, OutHeader, PortValue};
 use zerocopy::FromBytes;
 
+use super::carry::{Carry, CarryError};
 use super::wire::Sub;
 
 /// Versions kept beyond twice the longest period involved.
@@ -87,6 +88,30 @@ impl Versions {
             .iter()
             .find(|(from, _)| *from == want)
             .map(|(_, v)| v.as_slice())
+    }
+
+    /// Carries the versions kept (and the initial outputs) into the same reader in a new
+    /// process of the host (a live upgrade): the new process then holds every version the old
+    /// one could still read, those published before it subscribed included. The sender takes
+    /// what arrived first; what arrives after a load goes in after the carried versions.
+    pub fn carry(&mut self, c: &mut Carry<'_>) -> Result<(), CarryError> {
+        c.ports("a source's initial outputs", &mut self.initial)?;
+        c.length("the versions a reader keeps", self.ring.len())?;
+        for (from, values) in &mut self.ring {
+            c.u64("a version's tick", from)?;
+            c.ports("a version's outputs", values)?;
+        }
+        let mut next = self.next as u64;
+        c.u64("the next version's place", &mut next)?;
+        self.next = usize::try_from(next)
+            .ok()
+            .filter(|n| *n < self.ring.len())
+            .ok_or(CarryError::Shape {
+                what: "the next version's place",
+                expected: self.ring.len(),
+                got: usize::try_from(next).unwrap_or(usize::MAX),
+            })?;
+        Ok(())
     }
 
     /// Makes the connection to the source's publisher here (it maps the publisher's memory), so

@@ -14,6 +14,8 @@
 //!   coordinator can sleep while it waits for a late one (a notification the coordinator has
 //!   not taken yet makes the next one free: iceoryx2 sends nothing then);
 //! - `grid.wake.<host>`: an event, so a blocking host sleeps until it is released;
+//! - `grid.handover.<host>` and `.verdict`: a live upgrade's handover between the running
+//!   process of a host and its new one (the components' state, the new one's answer);
 //! - `grid.assembly`: the assembly being prepared ([`modbot_ipc_schema::grid::Prepare`]), from
 //!   the coordinator to the hosts of the system's own components, with history 1.
 //!
@@ -61,6 +63,14 @@ const PREPARE: ChannelSpec = ChannelSpec {
     history: 1,
     publishers: 2,
     subscribers: 64,
+};
+/// A host's handover in a live upgrade: the running process's state to the new one, and the
+/// new one's verdict back (a sample each; the newest reaches a reader that comes late).
+const HANDOVER: ChannelSpec = ChannelSpec {
+    depth: 2,
+    history: 1,
+    publishers: 2,
+    subscribers: 2,
 };
 /// The assembly notices' channel.
 const PREPARE_CHANNEL: &str = "grid.assembly";
@@ -144,4 +154,25 @@ pub fn wake_notifier(ch: &dyn Channels, service: &str) -> Result<Notifier, Trans
 /// A host's wake-up.
 pub fn wake_listener(ch: &dyn Channels, service: &str) -> Result<Listener, TransportError> {
     ch.listener(service, 2)
+}
+
+/// The running process's end of a host's handover (`service`:
+/// [`super::GridSpec::handover_service`]): its state out (`len` bytes), the verdict in.
+pub fn handover_out(
+    ch: &dyn Channels,
+    service: &str,
+    len: usize,
+) -> Result<(Pub, Sub), TransportError> {
+    Ok((
+        ch.publisher(service, &HANDOVER, len)?,
+        ch.subscriber(&format!("{service}.verdict"), &HANDOVER)?,
+    ))
+}
+
+/// The new process's end of a host's handover: the state in, its verdict out.
+pub fn handover_in(ch: &dyn Channels, service: &str) -> Result<(Sub, Pub), TransportError> {
+    Ok((
+        ch.subscriber(service, &HANDOVER)?,
+        ch.publisher(&format!("{service}.verdict"), &HANDOVER, 1)?,
+    ))
 }

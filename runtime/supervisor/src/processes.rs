@@ -56,6 +56,8 @@ pub struct GridRun {
     pub lockstep: bool,
     /// Assembly switches at given ticks: (tick, assembly).
     pub switches: Vec<(u64, String)>,
+    /// Live upgrades of hosts of the running assembly at given ticks: (tick, host).
+    pub upgrades: Vec<(u64, String)>,
     /// In lockstep, hold the grid before this tick until a robot program steps it (the
     /// coordinator's gate).
     pub gate: Option<u64>,
@@ -65,7 +67,7 @@ pub struct GridRun {
 #[derive(Debug, thiserror::Error)]
 pub enum GridProcessError {
     #[error(
-        "{}: --ticks, --trace, --state-hash-every, --lockstep, --switch and --gate need a grid, and the description has none",
+        "{}: --ticks, --trace, --state-hash-every, --lockstep, --switch, --upgrade and --gate need a grid, and the description has none",
         .file.display()
     )]
     NoGrid { file: PathBuf },
@@ -127,6 +129,7 @@ pub fn add_processes(
             || run.state_hash_every.is_some()
             || run.lockstep
             || !run.switches.is_empty()
+            || !run.upgrades.is_empty()
             || run.gate.is_some()
         {
             let file = file.to_path_buf();
@@ -241,6 +244,9 @@ pub fn add_processes(
     }
     for (tick, name) in &run.switches {
         args.extend(["--switch".to_owned(), format!("{tick}:{name}")]);
+    }
+    for (tick, host) in &run.upgrades {
+        args.extend(["--upgrade".to_owned(), format!("{tick}:{host}")]);
     }
     if let Some(tick) = run.gate {
         args.extend(["--gate".to_owned(), tick.to_string()]);

@@ -18,6 +18,12 @@
 //! A new program that ends, or is not ready within the start timeout, is refused and killed,
 //! the old process serving on (after `upgrade_out`, the supervisor writes `abort` and the old
 //! process serves again what it had kept).
+//!
+//! A host of the time grid first hands its components over at a tick (`modbot_grid::host`'s
+//! `handover`: the new process stands by, the coordinator names the tick, the state is carried
+//! to the bit); its new process writes `grid` once it steps them, and only then does the
+//! module follow as above (its method table is then taken as it is: the components are the
+//! new process's already).
 
 use std::path::PathBuf;
 use std::process::Child;
@@ -28,7 +34,7 @@ use modbot_core::calls::CallOptions;
 use modbot_core::ctx::Ctx;
 use modbot_core::error::{CallError, MethodError};
 use modbot_core::module::Reply;
-use modbot_core::upgrade::{self as handover, ABORT, READY, SUBSCRIBE, SUBSCRIBED};
+use modbot_core::upgrade::{self as handover, ABORT, GRID, READY, SUBSCRIBE, SUBSCRIBED};
 use modbot_grid::spec::GridRole;
 use modbot_ipc_schema::{Args, Value};
 use nix::sys::signal::{kill, Signal};
@@ -143,10 +149,9 @@ impl Supervisor {
         let Some(slot) = self.spec.modules.iter().position(|m| m.name == r.module) else {
             return Err(format!("no module named {}", r.module));
         };
-        if GridRole::of(&r.module).is_some() {
+        if matches!(GridRole::of(&r.module), Some(GridRole::Coordinator)) {
             return Err(format!(
-                "{} is a process of the time grid: its components upgrade at a tick, which \
-                 `modbot upgrade` does not do yet (swap its assembly instead)",
+                "{} keeps the time grid's clock: it does not upgrade",
                 r.module
             ));
         }
@@ -242,10 +247,22 @@ impl Supervisor {
                     }
                     return Ok(false);
                 }
+                // A host of the time grid: its new process takes the components over at a tick
+                // first (it writes `grid` then); the module follows, whatever its methods (the
+                // components are the new process's already).
+                let grid_host = matches!(GridRole::of(&name), Some(GridRole::Host { .. }));
+                if grid_host && !handover::exists(&u.dir, GRID) {
+                    if u.began.elapsed() > limit + handover_limit() {
+                        return Err("the new process did not take the grid's components over \
+                                    in time (is the grid running?)"
+                            .into());
+                    }
+                    return Ok(false);
+                }
                 let ready = handover::read_file(&u.dir, READY).map_err(|e| e.to_string())?;
                 let ready = String::from_utf8_lossy(&ready).into_owned();
                 let methods = ready.lines().nth(1).unwrap_or("").to_owned();
-                let (dir, force) = (u.dir.display().to_string(), u.force);
+                let (dir, force) = (u.dir.display().to_string(), u.force || grid_host);
                 let answer = self.endpoint.call_owned(
                     &name,
                     "upgrade_out",

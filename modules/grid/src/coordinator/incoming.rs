@@ -155,6 +155,7 @@ impl<W: Write> Coordinator<W> {
         let Some(inc) = self.incoming.take() else {
             return;
         };
+        self.forget_successor();
         let base = self.base();
         let old = self
             .spec

@@ -27,6 +27,7 @@
 //!   - `incoming`: the tick thread's side of a switch: the assembly being prepared, announced,
 //!     tracking, and the switch at its tick;
 //!   - `timing`: how the wake-ups kept to the base tick (missed ticks, tick error, rate);
+//!   - `upgrade`: a live upgrade of a host: the tick its new process takes over at;
 //!   - `tick_thread`: the thread's loop, the commands it takes between ticks and its news;
 //! - the **service thread** (normal scheduling) serves the module's methods, reads the
 //!   directory, calls the supervisor:
@@ -34,12 +35,16 @@
 //!     its methods and its switch job share;
 //!   - `switch_job`: the service thread's side of a switch: the supervisor loads the
 //!     assembly, its hosts start, the links open, the tick thread is asked to announce it;
+//!   - `upgrade_job`: a scripted live upgrade of a host (`--upgrade TICK:HOST`) asked of the
+//!     supervisor and followed;
 //!   - `gate`: the lockstep gate a robot program steps the grid with (who owns it, where it
 //!     holds, when it lifts by itself).
 
 use std::io::Write;
 
-use modbot_ipc_schema::grid::{Done, Generation, Release, MAX_SOURCES, PING, READY, STOPPING};
+use modbot_ipc_schema::grid::{
+    Done, Generation, Release, MAX_SOURCES, PING, READY, STOPPING, SUCCESSOR,
+};
 use zerocopy::IntoBytes;
 
 use modbot_core::signals::Shutdown;
@@ -63,6 +68,8 @@ mod shared;
 mod switch_job;
 mod tick_thread;
 mod timing;
+mod upgrade;
+mod upgrade_job;
 
 use incoming::Incoming;
 pub use incoming::{BeginSwitchError, SwitchState};
@@ -239,6 +246,10 @@ pub struct Coordinator<W: Write> {
     malformed_done: bool,
     /// The run's schedule for a replay, if it is kept.
     replay_log: ReplayLog,
+    /// A new process of a host waiting to take its components over (a live upgrade).
+    successor: Option<upgrade::Successor>,
+    /// Hosts handed over to a new process so far.
+    handovers: u64,
 }
 
 /// The hosts' done notices, as the coordinator waits for them.
@@ -309,6 +320,8 @@ impl<W: Write> Coordinator<W> {
             tick_hash: 0,
             malformed_done: false,
             replay_log: ReplayLog::none(),
+            successor: None,
+            handovers: 0,
         })
     }
 
@@ -457,6 +470,7 @@ impl<W: Write> Coordinator<W> {
         }
         self.release_due(n, now_ns);
         self.release_incoming(n, now_ns);
+        self.hand_over_after_tick(n + 1);
         self.wake_hosts();
         self.tick += 1;
         Ok(())
@@ -467,6 +481,7 @@ impl<W: Write> Coordinator<W> {
     /// that were sent something.
     pub fn between_ticks(&mut self) {
         self.take_done(self.tick);
+        self.hand_over_between_ticks();
         self.wake_hosts();
     }
 
@@ -527,6 +542,9 @@ impl<W: Write> Coordinator<W> {
     /// Takes one done notice at tick `n`.
     fn take_one_done(&mut self, n: u64, base: usize, current: Generation, done: &Done) {
         let (c, g) = (done.component.get(), Generation(done.generation.get()));
+        if c == SUCCESSOR {
+            return self.successor_offered(done, current);
+        }
         let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
         if c == PING || c == READY {
             if let Some(inc) = inc {

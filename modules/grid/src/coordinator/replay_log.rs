@@ -9,6 +9,8 @@
 //! announce tick=N generation=G from=F at=A     assembly G tracks from F and takes over at A
 //! postpone tick=N generation=G at=A            (a late release near the switch) now at A
 //! switch tick=N generation=G                   G took over at N
+//! upgrade tick=N host=H                        a new process of H steps its components from
+//!                                              N, their state carried (a live upgrade)
 //! held tick=N on|off                           from N the running assembly tracks (or not)
 //! fault tick=N from=C                          from component index C at tick N: faulted
 //! overrun tick=T generation=G component=NAME release=M   M still ran at T; not released at T
@@ -105,6 +107,11 @@ impl ReplayLog {
 
     pub(super) fn restart(&mut self, n: u64, host: &str) {
         self.line(format_args!("restart tick={n} host={host}"));
+    }
+
+    /// A new process of `host` steps its components from tick `at` (a live upgrade).
+    pub(super) fn upgrade(&mut self, at: u64, host: &str) {
+        self.line(format_args!("upgrade tick={at} host={host}"));
     }
 
     pub(super) fn end(&mut self, n: u64) {

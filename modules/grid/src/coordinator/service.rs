@@ -22,6 +22,7 @@ use super::gate::{Gate, GateRefused, Owner};
 use super::shared::Shared;
 use super::switch_job::Switching;
 use super::tick_thread::{self as ticker, FromTick, ToTick};
+use super::upgrade_job::UpgradeJob;
 use super::Coordinator;
 use crate::grid_args::GridArgs;
 
@@ -59,6 +60,11 @@ pub struct Cli {
     /// waits at that tick while the assembly is prepared, so the run is reproducible.
     #[arg(long = "switch", value_name = "TICK:NAME", value_parser = modbot_grid::switch::parse_scripted)]
     switches: Vec<(u64, String)>,
+    /// Upgrade host HOST of the running assembly live at tick TICK (`TICK:HOST`; repeatable):
+    /// a new process takes its components over, their state carried. In lockstep the grid
+    /// waits at that tick until it has.
+    #[arg(long = "upgrade", value_name = "TICK:HOST", value_parser = modbot_grid::switch::parse_scripted)]
+    upgrades: Vec<(u64, String)>,
     /// In lockstep, hold the grid before tick TICK until a robot program takes the gate and
     /// steps it (`gate(until)`); lifted by itself after 20 s without one.
     #[arg(long, value_name = "TICK")]
@@ -313,6 +319,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     let (tell, from_tick) = std::sync::mpsc::sync_channel(1024);
     let domain = modbot_core::Domain::new(&cli.module.domain)?;
     let mut switching = Switching::new(node.clone(), to_tick.clone(), assemblies, domain)?;
+    let mut upgrading = UpgradeJob::default();
     // The tick thread puts itself under SCHED_FIFO (the grid's priority); this thread keeps
     // normal scheduling, so its work never delays a tick.
     // Ledger buffers go back to the tick thread, so it does not allocate a new one each time.
@@ -322,6 +329,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         period_ns,
         max_ticks: cli.ticks,
         script: cli.switches.clone(),
+        upgrades: cli.upgrades.clone(),
         gate: first_gate,
         shutdown: shutdown.clone(),
     };
@@ -391,6 +399,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                         run_failed = Some(why);
                     }
                 }
+                FromTick::Upgrade(host) => {
+                    upgrading.start(&mut module, &host, &host_modules, &to_tick)
+                }
                 FromTick::Script(name) => {
                     if let Err(e) = request_switch(module.state_mut(), &name) {
                         tracing::error!("the scripted switch to {name} cannot be made: {e}");
@@ -411,6 +422,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         }
         if ended.is_none() {
             switching.step(&mut module);
+            upgrading.step(&mut module, &to_tick);
         }
         if last_look.elapsed() >= Duration::from_millis(200) {
             last_look = Instant::now();
@@ -470,7 +482,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// module's housekeeping, has their pids): their hosts lost what they were released.
 fn notice_restarts(
     module: &mut Module<Shared>,
-    pids: &mut HashMap<String, u32>,
+    pids: &mut HashMap<String, (u32, u16)>,
     hosts: &[(String, String)],
 ) -> Vec<String> {
     let mut restarted = Vec::new();
@@ -480,13 +492,15 @@ fn notice_restarts(
             .phone_book()
             .entries()
             .find(|e| &e.name == name && e.alive)
-            .map_or(0, |e| e.pid);
-        let pid = pids.entry(name.clone()).or_insert(0);
-        if now != 0 && *pid != 0 && now != *pid {
+            .map_or((0, 0), |e| (e.pid, e.upgrades));
+        let seen = pids.entry(name.clone()).or_insert((0, 0));
+        // A new process with a higher upgrade count took the host over (a live upgrade): it
+        // has every release the old one had.
+        if now.0 != 0 && seen.0 != 0 && now.0 != seen.0 && now.1 == seen.1 {
             restarted.push(host.clone());
         }
-        if now != 0 {
-            *pid = now;
+        if now.0 != 0 {
+            *seen = now;
         }
     }
     restarted

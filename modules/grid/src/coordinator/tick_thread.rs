@@ -37,6 +37,8 @@ pub enum ToTick {
     HostRestarted(String),
     /// The scripted switch due now could not be asked for: go on.
     ScriptRefused,
+    /// The scripted upgrade due now was refused: go on.
+    UpgradeRefused,
     /// Hold the grid before this tick (lockstep), or run free; answered by
     /// [`FromTick::Held`].
     Gate(Setting),
@@ -71,6 +73,8 @@ pub enum FromTick {
     Failed(String),
     /// A scripted switch to this assembly is due (`--switch TICK:NAME`).
     Script(String),
+    /// A scripted live upgrade of this host is due (`--upgrade TICK:HOST`).
+    Upgrade(String),
     /// The gate of setting `seq` holds the grid before tick `next`, every release done.
     Held { seq: u32, next: u64 },
 }
@@ -84,6 +88,8 @@ pub struct Run {
     pub max_ticks: Option<u64>,
     /// Switches to ask for at ticks: (tick, assembly).
     pub script: Vec<(u64, String)>,
+    /// Live upgrades of hosts to ask for at ticks: (tick, host).
+    pub upgrades: Vec<(u64, String)>,
     /// The gate from the start (`--gate`).
     pub gate: Option<Setting>,
     /// Ends the run when requested.
@@ -156,12 +162,13 @@ mod tests {
     }
 }
 
-/// Where a scripted switch stands on the tick thread.
+/// Where a scripted switch (or upgrade) stands on the tick thread.
 #[derive(Default)]
 struct Script {
-    /// (tick, assembly), the next first.
+    /// (tick, assembly or host), the next first.
     due: std::collections::VecDeque<(u64, String)>,
-    /// A scripted switch was asked for and has not begun: in lockstep the grid waits.
+    /// A scripted switch was asked for and has not begun (an upgrade: its new process has not
+    /// taken over): in lockstep the grid waits.
     awaiting: bool,
 }
 
@@ -176,9 +183,16 @@ fn tick(
         period_ns,
         max_ticks,
         mut script,
+        mut upgrades,
         gate,
         shutdown,
     } = run;
+    upgrades.sort_by_key(|u| u.0);
+    let mut upgrade = Script {
+        due: upgrades.into(),
+        awaiting: false,
+    };
+    let mut handovers = coord.handovers();
     let mut gate = Gated {
         setting: gate,
         reported: None,
@@ -227,12 +241,25 @@ fn tick(
         if script.awaiting && coord.switch_state() != SwitchState::Idle {
             script.awaiting = false;
         }
+        // A scripted upgrade: in lockstep the grid waits at its tick until the host's new
+        // process has taken over (there, between ticks), so the run is reproducible.
+        if upgrade.due.front().is_some_and(|u| u.0 <= coord.ticks()) && !upgrade.awaiting {
+            if let Some((_, host)) = upgrade.due.pop_front() {
+                upgrade.awaiting = true;
+                handovers = coord.handovers();
+                tell(out, FromTick::Upgrade(host));
+            }
+        }
+        if upgrade.awaiting && coord.handovers() != handovers {
+            upgrade.awaiting = false;
+        }
         // In lockstep the grid waits while an assembly is prepared: the tick of the switch
         // then depends on the tick it was asked for alone.
         // And before the gate's tick, until its owner moves it (see `gate`).
         let gated = lockstep && gate.closed(coord.ticks());
         let hold = lockstep
             && (script.awaiting
+                || upgrade.awaiting
                 || gated
                 || matches!(coord.switch_state(), SwitchState::Preparing { .. }));
         if gated {
@@ -251,6 +278,7 @@ fn tick(
         for _ in 0..COMMANDS_PER_TICK {
             match commands.try_recv() {
                 Ok(ToTick::ScriptRefused) => script.awaiting = false,
+                Ok(ToTick::UpgradeRefused) => upgrade.awaiting = false,
                 Ok(ToTick::Gate(setting)) => {
                     gate.setting = Some(setting);
                     coord.set_held_before(None);
@@ -301,7 +329,7 @@ fn obey(coord: &mut Coord, command: ToTick, out: &SyncSender<FromTick>) {
         ToTick::HostRestarted(host) => {
             coord.host_restarted(&host);
         }
-        ToTick::ScriptRefused | ToTick::Gate(_) => {}
+        ToTick::ScriptRefused | ToTick::UpgradeRefused | ToTick::Gate(_) => {}
     }
 }
 

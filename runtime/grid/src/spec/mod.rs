@@ -605,6 +605,16 @@ impl GridSpec {
         }
     }
 
+    /// The channel on which a process of `host` hands its components' state to a new process
+    /// of the host (a live upgrade); the new one answers on the channel of this name with
+    /// `.verdict` after it.
+    pub fn handover_service(&self, host: &str) -> String {
+        match self.host_generation(host).0 {
+            0 => format!("grid.handover.{host}"),
+            g => format!("grid.handover.g{g}.{host}"),
+        }
+    }
+
     /// The wake-up of `host`.
     pub fn wake_service(&self, host: &str) -> String {
         match self.host_generation(host).0 {

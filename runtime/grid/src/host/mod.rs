@@ -23,8 +23,8 @@
 use core::time::Duration;
 
 use modbot_ipc_schema::grid::{
-    record_len, write_record, Done, OutHeader, PortValue, Prepare, Release, OUT_HEADER_LEN, PING,
-    READY, STOPPING,
+    record_len, write_record, Done, OutHeader, PortValue, Prepare, Release, HANDOVER,
+    OUT_HEADER_LEN, PING, READY, STOPPING,
 };
 use zerocopy::IntoBytes;
 
@@ -35,6 +35,8 @@ use super::versions::{self, Versions};
 use super::wire::{self, Listener, Notifier, Pub, Sub};
 use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
+
+mod handover;
 
 type Source = Versions;
 
@@ -113,6 +115,12 @@ pub struct Host {
     /// served.
     view: SharedOutputs,
     last_tick: u64,
+    /// The node, kept for a live upgrade's handover ([`Host::keep_node`]).
+    node: Option<std::sync::Arc<dyn Channels>>,
+    /// A live upgrade this process takes part in (see [`handover`]).
+    upgrade: Option<handover::Upgrade>,
+    /// Why this new process did not take the components over.
+    refused: Option<String>,
 }
 
 /// A thread that drops what it is sent. It is started before the serving thread raises its
@@ -140,6 +148,14 @@ pub enum HostError {
         #[source]
         error: ComponentError,
     },
+    #[error("component '{name}' cannot carry its state to a new process: {error}")]
+    Carry {
+        name: String,
+        #[source]
+        error: crate::carry::CarryError,
+    },
+    #[error("{0}")]
+    Upgrade(String),
     #[error(transparent)]
     Transport(#[from] TransportError),
 }
@@ -269,6 +285,9 @@ impl Host {
             reaper: reaper()?,
             view: std::sync::Arc::new(std::sync::Mutex::new(view)),
             last_tick: 0,
+            node: None,
+            upgrade: None,
+            refused: None,
         })
     }
 
@@ -303,6 +322,7 @@ impl Host {
     pub fn serve(&mut self, now: &dyn Fn() -> u64) -> Result<usize, TransportError> {
         // Taken before looking: a release sent after this wakes the next wait.
         self.wake.drain();
+        self.offer()?;
         let mut served = 0;
         loop {
             // Copied out of the sample (no allocation while the batch fits what a tick's
@@ -320,23 +340,37 @@ impl Host {
                 break;
             }
             for release in &batch {
-                self.step(release, now)?;
-                served += 1;
+                if release.component.get() == HANDOVER {
+                    self.handover(release)?;
+                } else if self.serves() {
+                    self.step(release, now)?;
+                    served += 1;
+                }
             }
             self.batch = batch;
         }
         if served > 0 {
-            let outputs = self.hosted.iter().map(|h| h.outputs.as_slice());
-            // In lockstep the view is current before the done notice leaves, so a program
-            // that saw the grid held reads these outputs (see `outputs_view`).
-            let lockstep = self.spec.timing.clock == crate::GridClock::Lockstep;
-            outputs_view::refresh(&self.view, self.last_tick, outputs, lockstep);
-            self.send_done()?;
-            if let Err(e) = self.done_wake.notify() {
-                tracing::debug!("done wake-up not sent: {e:?}");
-            }
+            self.finish_batch()?;
         }
         Ok(served)
+    }
+
+    /// After serving releases: the view refreshed, the done notices sent and the coordinator
+    /// woken.
+    fn finish_batch(&mut self) -> Result<(), TransportError> {
+        let outputs = self.hosted.iter().map(|h| h.outputs.as_slice());
+        // In lockstep the view is current before the done notice leaves, so a program that saw
+        // the grid held reads these outputs (see `outputs_view`).
+        let lockstep = self.spec.timing.clock == crate::GridClock::Lockstep;
+        outputs_view::refresh(&self.view, self.last_tick, outputs, lockstep);
+        if self.done_batch.is_empty() {
+            return Ok(());
+        }
+        self.send_done()?;
+        if let Err(e) = self.done_wake.notify() {
+            tracing::debug!("done wake-up not sent: {e:?}");
+        }
+        Ok(())
     }
 
     /// Adds a done notice to the batch sent when the releases waiting are served.
