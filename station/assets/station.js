@@ -117,10 +117,14 @@ function renderModules(s) {
     if (!tr) {
       tr = document.createElement("tr");
       tr.dataset.module = m.name;
-      tr.innerHTML = "<td></td>".repeat(12) + "<td><button data-action=\"toggle\"></button> <button data-action=\"stats\">stats</button></td>";
+      tr.innerHTML = "<td></td>".repeat(13) + "<td><button data-action=\"toggle\"></button> <button data-action=\"stats\">stats</button>" +
+        " <button data-action=\"upgrade\" title=\"a new process of its program takes it over, live\">upgrade</button></td>";
       tr.querySelector('[data-action="toggle"]').onclick = () =>
         call(m.name, tr.dataset.active === "false" ? "activate" : "deactivate", []);
       tr.querySelector('[data-action="stats"]').onclick = () => call(m.name, "stats", []);
+      // A live upgrade (docs/upgrade.md): the supervisor starts the module's program anew and
+      // the new process takes the running one over; the row shows the new pid and count.
+      tr.querySelector('[data-action="upgrade"]').onclick = () => call("supervisor", "upgrade", [m.name]);
       body.appendChild(tr);
     }
     const before = view.restarts[m.name];
@@ -134,7 +138,7 @@ function renderModules(s) {
     tr.dataset.active = m.active === null ? "" : String(m.active);
     const cells = tr.children;
     const values = [m.addr, m.name, m.state, m.active === null ? "?" : m.active ? "yes" : "no", m.pid || "–",
-      m.restarts, fmtAge(m.heartbeat_age_ms), m.last_exit || "–", m.counters.dropped, m.counters.rejected, m.calls,
+      m.restarts, m.upgrades, fmtAge(m.heartbeat_age_ms), m.last_exit || "–", m.counters.dropped, m.counters.rejected, m.calls,
       `${fmtUs(m.latency_p50_us)} / ${fmtUs(m.latency_p99_us)}`];
     values.forEach((v, i) => { if (cells[i].textContent !== String(v)) cells[i].textContent = v; });
     cells[2].className = `state-${m.state}`;
@@ -143,6 +147,9 @@ function renderModules(s) {
     toggle.dataset.module = m.name;
     toggle.disabled = !view.canCommand || m.state !== "running";
     tr.querySelector('[data-action="stats"]').disabled = !view.canCommand || m.state !== "running";
+    const upgrade = tr.querySelector('[data-action="upgrade"]');
+    upgrade.hidden = !s.supervised || m.name === "supervisor" || m.name === "coordinator";
+    upgrade.disabled = !view.canCommand || m.state !== "running";
   }
   for (const tr of [...body.children]) if (!seen.has(tr.dataset.module)) tr.remove();
   // The command form's suggestions.

@@ -5,6 +5,7 @@
 // URL is the station's page; TOKEN the one it was started with. Checks, in order: the page
 // lists the 7 modules running; the robot's marker moves on the map; the intruder alert
 // appears; clicking deactivate on near_ir changes its state (and activate brings it back);
+// clicking upgrade on near_ir replaces its process live (the row's pid and upgrade count);
 // a page with a wrong token is read-only and its commands are refused; a malformed message
 // closes that connection with a reason; "stop system" asks first and stops the system only
 // when confirmed. Writes a screenshot of each view. Exits 1 with the
@@ -34,7 +35,7 @@ try {
   await step("the page lists the 7 modules running, with their heartbeats' age", () =>
     page.waitForFunction(() =>
       document.querySelectorAll('#modules tbody tr[data-state="running"]').length === 7 &&
-      [...document.querySelectorAll('#modules tbody tr')].every((tr) => tr.children[6].textContent.endsWith(" ago")) &&
+      [...document.querySelectorAll('#modules tbody tr')].every((tr) => tr.children[7].textContent.endsWith(" ago")) &&
       document.querySelector("#module-count").textContent.includes("1 page watching") &&
       document.body.dataset.mode === "commanding", null, { timeout: 60_000 }));
 
@@ -70,6 +71,16 @@ try {
       document.querySelector('#modules tr[data-module="near_ir"]').dataset.active === "true",
       null, { timeout: 30_000 });
   });
+
+  await step("upgrade on near_ir: a new process takes it over, the row shows its pid and count", async () => {
+    const row = page.locator('#modules tr[data-module="near_ir"]');
+    const pid = await row.locator("td").nth(4).textContent();
+    await row.locator('button[data-action="upgrade"]').click();
+    await page.waitForFunction((pid) => {
+      const cells = document.querySelector('#modules tr[data-module="near_ir"]').children;
+      return cells[6].textContent === "1" && cells[4].textContent !== pid && cells[2].textContent === "running";
+    }, pid, { timeout: 60_000 });
+  });
   await screenshot(page, null, `${shots}/station-moser.png`);
 
   await step("a wrong token cannot command", async () => {
@@ -80,6 +91,8 @@ try {
       document.querySelectorAll('#modules tbody tr[data-state="running"]').length === 7, null, { timeout: 30_000 });
     const disabled = await other.locator('#modules tr[data-module="near_ir"] button[data-action="toggle"]').isDisabled();
     if (!disabled) fail("a read-only page offers deactivate");
+    const upgrade = await other.locator('#modules tr[data-module="near_ir"] button[data-action="upgrade"]').isDisabled();
+    if (!upgrade) fail("a read-only page offers upgrade");
     // Sent anyway, the command is refused.
     const m = await other.evaluate(() => new Promise((resolve, reject) => {
       const ws = window.station.ws;

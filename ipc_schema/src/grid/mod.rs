@@ -76,7 +76,8 @@ pub const READY: u16 = u16::MAX - 1;
 pub const STOPPING: u16 = u16::MAX - 2;
 
 /// Special component index of a release notice: a new process of the host takes its
-/// components over at tick `tick` (a live upgrade, `modbot upgrade`). The notice comes after
+/// components over at tick `tick` (a live upgrade, `modbot upgrade`; see [`SUCCESSOR`] and
+/// [`UPGRADE`] for what comes before). The notice comes after
 /// every release before that tick, as the last of its batch; `released_ns` carries the new
 /// process's pid. Both processes of the host read it: the running one hands the components'
 /// state over and serves no more (once the new one says it took it), the new one takes the
@@ -86,8 +87,15 @@ pub const HANDOVER: u16 = u16::MAX - 3;
 /// Special component index of a done notice: a new process of a host is ready to take its
 /// components over (subscribed, standing by). `tick` carries the index of one of the host's
 /// components (so the coordinator knows the host), `exec_ns` the new process's pid; the
-/// coordinator answers with a [`HANDOVER`] release.
+/// coordinator answers with an [`UPGRADE`] release.
 pub const SUCCESSOR: u16 = u16::MAX - 4;
+
+/// Special component index of a release notice and of its answer: a new process of the host
+/// stands by (`released_ns`: its pid). The running process opens its end of the handover off
+/// its serving thread and then answers with a done notice of this index (`tick`: one of its
+/// components, as [`SUCCESSOR`]); the coordinator then sends the [`HANDOVER`]. The new process
+/// ignores it.
+pub const UPGRADE: u16 = u16::MAX - 5;
 
 /// The most source components one component's inputs come from.
 pub const MAX_SOURCES: usize = 16;

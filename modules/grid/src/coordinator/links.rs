@@ -27,8 +27,9 @@ pub struct HostLink {
 /// never do it on the tick thread while the grid runs; hand it over with
 /// [`Coordinator::add_incoming_link`].
 pub fn link(node: &dyn Channels, spec: &GridSpec, host: &str) -> Result<HostLink, TransportError> {
-    // A tick's batch holds a release of each of its components, and a warm-up release.
-    let most = spec.components_of(host).len() + 1;
+    // A tick's batch holds a release of each of its components, and a warm-up release or a
+    // live upgrade's notice (UPGRADE, then HANDOVER).
+    let most = spec.components_of(host).len() + 2;
     Ok(HostLink {
         name: host.to_owned(),
         generation: spec.host_generation(host),

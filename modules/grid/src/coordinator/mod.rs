@@ -43,7 +43,7 @@
 use std::io::Write;
 
 use modbot_ipc_schema::grid::{
-    Done, Generation, Release, MAX_SOURCES, PING, READY, STOPPING, SUCCESSOR,
+    Done, Generation, Release, MAX_SOURCES, PING, READY, STOPPING, SUCCESSOR, UPGRADE,
 };
 use zerocopy::IntoBytes;
 
@@ -544,6 +544,9 @@ impl<W: Write> Coordinator<W> {
         let (c, g) = (done.component.get(), Generation(done.generation.get()));
         if c == SUCCESSOR {
             return self.successor_offered(done, current);
+        }
+        if c == UPGRADE {
+            return self.upgrade_answered(done);
         }
         let inc = self.incoming.as_mut().filter(|i| i.spec.generation() == g);
         if c == PING || c == READY {

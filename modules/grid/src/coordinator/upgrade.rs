@@ -1,6 +1,8 @@
 //! The tick thread's side of a live upgrade of a host (see `modbot_grid::host`'s `handover`):
 //! a new process of a host of the running generation offers itself (a SUCCESSOR done notice);
-//! the coordinator names the tick it takes over at with a HANDOVER release, the last notice of
+//! the running process is told (an UPGRADE release) and answers once its end of the handover
+//! is open; the coordinator then names the tick the new one takes over at with a HANDOVER
+//! release, the last notice of
 //! the host's batch — after the releases of the tick being run (it takes over at the next), or,
 //! in a lockstep grid held between ticks, at once once the host is idle (it takes over at the
 //! tick the grid holds before). Nothing else changes: the same components, generation and
@@ -9,7 +11,7 @@
 
 use std::io::Write;
 
-use modbot_ipc_schema::grid::{Done, Generation, Release, HANDOVER};
+use modbot_ipc_schema::grid::{Done, Generation, Release, HANDOVER, UPGRADE};
 
 use super::{send_release, Coordinator};
 use modbot_grid::GridClock;
@@ -20,6 +22,8 @@ pub(super) struct Successor {
     /// The host, as the coordinator's links count them.
     host: usize,
     pid: u32,
+    /// The running process answered the UPGRADE notice: its end of the handover is open.
+    ready: bool,
 }
 
 impl<W: Write> Coordinator<W> {
@@ -49,12 +53,42 @@ impl<W: Write> Coordinator<W> {
             return;
         }
         tracing::info!("a new process (pid {pid}) of host {name} stands by to take over");
-        self.successor = Some(Successor { host, pid });
+        let link = &mut self.hosts[host];
+        let Ok(notice) = Release::new(0, u64::from(pid), UPGRADE, &[]) else {
+            return;
+        };
+        if send_release(link, &notice.with(link.generation.0, 0)) {
+            self.successor = Some(Successor {
+                host,
+                pid,
+                ready: false,
+            });
+        }
+    }
+
+    /// The running process's answer to the UPGRADE notice (`tick`: one of its components).
+    pub(super) fn upgrade_answered(&mut self, done: &Done) {
+        let c = usize::try_from(done.tick.get()).unwrap_or(usize::MAX);
+        let host = self.comps.get(c).map(|comp| comp.host);
+        let Some(s) = self.successor.as_mut().filter(|s| Some(s.host) == host) else {
+            return;
+        };
+        if done.status.get() == Done::OK {
+            s.ready = true;
+        } else {
+            tracing::warn!(
+                "host {}: the running process cannot hand its components over (see its log): \
+                 process {} does not take over",
+                self.hosts[s.host].name,
+                s.pid
+            );
+            self.successor = None;
+        }
     }
 
     /// After the releases of tick `at − 1`: a new process waiting takes its host over at `at`.
     pub(super) fn hand_over_after_tick(&mut self, at: u64) {
-        if let Some(s) = self.successor.take() {
+        if let Some(s) = self.successor.take_if(|s| s.ready) {
             self.hand_over(s, at);
         }
     }
@@ -62,7 +96,7 @@ impl<W: Write> Coordinator<W> {
     /// A lockstep grid held between ticks: a new process waiting takes its host over at the
     /// tick the grid holds before, once the host's releases are done.
     pub(super) fn hand_over_between_ticks(&mut self) {
-        let Some(s) = self.successor else {
+        let Some(s) = self.successor.filter(|s| s.ready) else {
             return;
         };
         if self.spec.timing.clock != GridClock::Lockstep

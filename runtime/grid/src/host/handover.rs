@@ -7,9 +7,12 @@
 //!    refused here, before anything changed), subscribes to its sources and releases, and
 //!    offers itself to the coordinator (a [`SUCCESSOR`] done notice with its pid). It serves
 //!    no release.
-//! 2. The coordinator answers with a [`HANDOVER`](modbot_ipc_schema::grid::HANDOVER) release
-//!    for tick `at`, after every release before `at` (between ticks in a held lockstep grid,
-//!    else after the releases of `at − 1`). Both processes read it.
+//! 2. The coordinator tells the running process with an [`UPGRADE`] release: it opens its end
+//!    of the handover on a thread of its own (milliseconds the serving thread must not spend)
+//!    and answers. The coordinator then sends a
+//!    [`HANDOVER`](modbot_ipc_schema::grid::HANDOVER) release for tick `at`, after every
+//!    release before `at` (between ticks in a held lockstep grid, else after the releases of
+//!    `at − 1`). Both processes read it.
 //! 3. The running process — every release before `at` served, its done notices sent — saves
 //!    its components' state ([`Host::carry`]: each component's own state, its outputs, the
 //!    versions of its sources it keeps), sends it on the host's handover channel and waits for
@@ -20,9 +23,9 @@
 //!    component whose state's layout changed) is refused: the old process serves on, the new
 //!    one ends and says why ([`Host::refused`]).
 //!
-//! The handover allocates and opens its channels once, off the steady ticks; in a grid in real
-//! time the tick `at` is as late as the handover takes (a state of some kilobytes: well under a
-//! millisecond here, the channels' opening aside).
+//! The handover allocates the state's buffer once, off the steady ticks; in a grid in real
+//! time the releases of tick `at` wait for the handover (saving, sending and loading some
+//! kilobytes of state).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -31,12 +34,17 @@ use std::time::{Duration, Instant};
 use modbot_core::transport::channels::Channels;
 use modbot_core::transport::TransportError;
 use modbot_core::upgrade::GRID;
-use modbot_ipc_schema::grid::{Done, Release, SUCCESSOR};
+use modbot_ipc_schema::grid::{Done, Release, SUCCESSOR, UPGRADE};
 use zerocopy::IntoBytes;
 
 use super::{Host, HostError};
 use crate::carry::{Carry, CarryError};
 use crate::wire::{self, Pub, Sub};
+
+/// The first byte of a sample on either channel that carries nothing but a greeting: each end
+/// sends one as soon as it knows of the other, so that both connect (map the other's memory)
+/// before the handover, not at its tick. (A state says 1 or 0 first, a verdict 1 or 0.)
+const HELLO: u8 = 2;
 
 /// How long either side waits for the other before it gives up (the old process serves on; the
 /// new one ends with the reason).
@@ -50,6 +58,53 @@ pub(super) enum Upgrade {
     HandedOver { at: u64 },
 }
 
+/// What the opener thread opens: the running process's end of a handover.
+type Opened = Result<(Pub, Sub), TransportError>;
+
+/// A thread that opens the running process's end of a handover when asked: (channel, length).
+pub(super) struct Opener {
+    ask: std::sync::mpsc::Sender<(String, usize)>,
+    opened: std::sync::mpsc::Receiver<Opened>,
+}
+
+impl Opener {
+    fn start(node: Arc<dyn Channels>) -> std::io::Result<Opener> {
+        let (ask, asked) = std::sync::mpsc::channel::<(String, usize)>();
+        let (tell, opened) = std::sync::mpsc::channel();
+        std::thread::Builder::new()
+            .name("handover".into())
+            .spawn(move || {
+                for (service, len) in asked {
+                    let end =
+                        wire::handover_out(&*node, &service, len).and_then(|(out, verdict)| {
+                            // Connected now, not at the handover's tick: the greeting maps the new
+                            // process's end here, and it greets back (see HELLO).
+                            out.send_bytes(&[HELLO])?;
+                            verdict.connect();
+                            Ok((out, verdict))
+                        });
+                    if tell.send(end).is_err() {
+                        return;
+                    }
+                }
+            })?;
+        Ok(Opener { ask, opened })
+    }
+}
+
+/// The running process's end of the handover, once a new process stands by.
+pub(super) enum Handing {
+    /// Being opened by the opener thread, for a state of `len` bytes.
+    Opening { pid: u32, len: usize },
+    /// Open: the state goes out on `out`, the verdict comes in on `verdict`.
+    Open {
+        pid: u32,
+        len: usize,
+        out: Pub,
+        verdict: Sub,
+    },
+}
+
 /// A new process's end of the handover.
 pub(super) struct Standby {
     state: Sub,
@@ -58,11 +113,18 @@ pub(super) struct Standby {
     offered: bool,
     /// The upgrade's directory (the supervisor's), for [`GRID`].
     dir: Option<PathBuf>,
+    /// A state that came before this process read the HANDOVER notice.
+    early: Option<Vec<u8>>,
 }
 
 impl Host {
-    /// Keeps `node`: a HANDOVER notice opens the host's end of the handover there.
+    /// Keeps `node`: an UPGRADE notice opens the host's end of the handover there, on a thread
+    /// started now.
     pub fn keep_node(&mut self, node: Arc<dyn Channels>) {
+        match Opener::start(node.clone()) {
+            Ok(opener) => self.opener = Some(opener),
+            Err(e) => tracing::warn!("no thread to open a live upgrade's handover: {e}"),
+        }
         self.node = Some(node);
     }
 
@@ -98,6 +160,7 @@ impl Host {
             verdict,
             offered: false,
             dir,
+            early: None,
         }));
         Ok(())
     }
@@ -118,6 +181,16 @@ impl Host {
         let Some(Upgrade::Standby(standby)) = self.upgrade.as_mut() else {
             return Ok(());
         };
+        // The running process's greeting: greeted back, both ends are connected.
+        let mut greeted = false;
+        let early = &mut standby.early;
+        while standby.state.receive(&mut |b| match b.first() {
+            Some(&HELLO) => greeted = true,
+            _ => *early = Some(b.to_vec()),
+        })? {}
+        if greeted {
+            standby.verdict.send_bytes(&[HELLO])?;
+        }
         if standby.offered {
             return Ok(());
         }
@@ -135,6 +208,78 @@ impl Host {
             std::process::id()
         );
         Ok(())
+    }
+
+    /// An UPGRADE release (a new process, `released_ns` its pid, stands by): the running
+    /// process opens its end of the handover on a thread of its own; [`Host::poll_handing`]
+    /// answers once it is open. A new process ignores it.
+    pub(super) fn prepare_handover(&mut self, release: &Release) {
+        if self.upgrade.is_some() {
+            return;
+        }
+        let pid = u32::try_from(release.released_ns.get()).unwrap_or(0);
+        let mut measure = Carry::measure();
+        if let Err((name, e)) = self.carry(&mut measure) {
+            tracing::warn!(
+                "host {}: {}: its components cannot be handed over",
+                self.name,
+                named(&name, &e)
+            );
+            return self.answer_upgrade(Done::FAILED);
+        }
+        let (len, service) = (1 + measure.len(), self.spec.handover_service(&self.name));
+        let asked = self
+            .opener
+            .as_ref()
+            .is_some_and(|o| o.ask.send((service, len)).is_ok());
+        if !asked {
+            return self.answer_upgrade(Done::FAILED);
+        }
+        self.handing = Some(Handing::Opening { pid, len });
+    }
+
+    /// Between releases: answers the coordinator once the end of the handover is open.
+    pub(super) fn poll_handing(&mut self) {
+        let Some(Handing::Opening { pid, len }) = &self.handing else {
+            return;
+        };
+        let (pid, len) = (*pid, *len);
+        let Some(opener) = self.opener.as_ref() else {
+            return;
+        };
+        match opener.opened.try_recv() {
+            Err(std::sync::mpsc::TryRecvError::Empty) => {}
+            Ok(Ok((out, verdict))) => {
+                self.handing = Some(Handing::Open {
+                    pid,
+                    len,
+                    out,
+                    verdict,
+                });
+                self.answer_upgrade(Done::OK);
+            }
+            Ok(Err(e)) => {
+                tracing::warn!("host {}: the handover cannot be opened: {e}", self.name);
+                self.handing = None;
+                self.answer_upgrade(Done::FAILED);
+            }
+            Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                self.handing = None;
+                self.answer_upgrade(Done::FAILED);
+            }
+        }
+    }
+
+    /// The answer to an UPGRADE release (`tick`: one of the host's components).
+    fn answer_upgrade(&mut self, status: u16) {
+        let first = self.hosted.first().map_or(0, |h| h.index as u64);
+        let done = Done::new(first, UPGRADE, status, 0, 0).of_generation(self.generation.0);
+        if let Err(e) = self.done.send_bytes(done.as_bytes()) {
+            tracing::warn!("the answer to the upgrade notice is not sent: {e}");
+        }
+        if let Err(e) = self.done_wake.notify() {
+            tracing::debug!("done wake-up not sent: {e:?}");
+        }
     }
 
     /// A HANDOVER release: the running process hands over, the new one (the pid it names)
@@ -185,8 +330,16 @@ impl Host {
             }
             Err((name, e)) => refusal(&name, &e),
         };
-        let (out, verdict) =
-            wire::handover_out(&*node, &self.spec.handover_service(&self.name), state.len())?;
+        // The end opened for this new process, unless the state grew past it.
+        let (out, verdict) = match self.handing.take() {
+            Some(Handing::Open {
+                pid: p,
+                len,
+                out,
+                verdict,
+            }) if p == pid && len >= state.len() => (out, verdict),
+            _ => wire::handover_out(&*node, &self.spec.handover_service(&self.name), state.len())?,
+        };
         out.send_bytes(&state)?;
         if state[0] != 1 {
             tracing::warn!(
@@ -198,7 +351,7 @@ impl Host {
         let began = Instant::now();
         let taken = loop {
             let mut said = None;
-            while verdict.receive(&mut |b| said = b.first().copied())? {}
+            while verdict.receive(&mut |b| said = b.first().copied().filter(|v| *v != HELLO))? {}
             if let Some(v) = said {
                 break v == 1;
             }
@@ -226,13 +379,17 @@ impl Host {
 
     /// The new process: loads the state the running one sends, and serves from `at` on.
     fn take_over(&mut self, at: u64) -> Result<(), TransportError> {
-        let Some(Upgrade::Standby(standby)) = self.upgrade.take() else {
+        let Some(Upgrade::Standby(mut standby)) = self.upgrade.take() else {
             return Ok(());
         };
         let began = Instant::now();
-        let mut state: Option<Vec<u8>> = None;
+        let mut state: Option<Vec<u8>> = standby.early.take();
         while state.is_none() {
-            while standby.state.receive(&mut |b| state = Some(b.to_vec()))? {}
+            while standby.state.receive(&mut |b| {
+                if b.first() != Some(&HELLO) {
+                    state = Some(b.to_vec());
+                }
+            })? {}
             if state.is_none() {
                 if began.elapsed() > WAIT_LIMIT {
                     let _ = standby.verdict.send_bytes(&[0]);

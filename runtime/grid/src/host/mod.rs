@@ -24,7 +24,7 @@ use core::time::Duration;
 
 use modbot_ipc_schema::grid::{
     record_len, write_record, Done, OutHeader, PortValue, Prepare, Release, HANDOVER,
-    OUT_HEADER_LEN, PING, READY, STOPPING,
+    OUT_HEADER_LEN, PING, READY, STOPPING, UPGRADE,
 };
 use zerocopy::IntoBytes;
 
@@ -121,6 +121,11 @@ pub struct Host {
     upgrade: Option<handover::Upgrade>,
     /// Why this new process did not take the components over.
     refused: Option<String>,
+    /// The running process's end of a handover to a new process standing by.
+    handing: Option<handover::Handing>,
+    /// The thread that opens the end of a handover (started with the host: a thread started
+    /// by the serving thread later would take milliseconds to lock its stack into memory).
+    opener: Option<handover::Opener>,
 }
 
 /// A thread that drops what it is sent. It is started before the serving thread raises its
@@ -288,6 +293,8 @@ impl Host {
             node: None,
             upgrade: None,
             refused: None,
+            handing: None,
+            opener: None,
         })
     }
 
@@ -323,6 +330,8 @@ impl Host {
         // Taken before looking: a release sent after this wakes the next wait.
         self.wake.drain();
         self.offer()?;
+        self.poll_handing();
+
         let mut served = 0;
         loop {
             // Copied out of the sample (no allocation while the batch fits what a tick's
@@ -342,6 +351,8 @@ impl Host {
             for release in &batch {
                 if release.component.get() == HANDOVER {
                     self.handover(release)?;
+                } else if release.component.get() == UPGRADE {
+                    self.prepare_handover(release);
                 } else if self.serves() {
                     self.step(release, now)?;
                     served += 1;
