@@ -174,11 +174,21 @@ fn stop_station(mut child: std::process::Child) {
 }
 
 /// Removes what the system left in `domain`, unless a process of the domain still lives (a
-/// tool): its files stay, and the last process to leave removes them.
+/// tool): its files stay, and the last process to leave removes them. A process that is just
+/// leaving (a module or tool ending as the system stops; on a loaded machine its node takes a
+/// moment to go) is waited for, up to 2 s.
 fn sweep(domain: &Domain) {
     match IpcTransport::for_supervisor(domain) {
         Ok(t) => {
-            if !t.sweep_after_system() {
+            let mut swept = t.sweep_after_system();
+            for _ in 0..20 {
+                if swept {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(100));
+                swept = t.sweep_after_system();
+            }
+            if !swept {
                 tracing::info!(
                     "processes still in domain '{}' keep its files",
                     domain.name()

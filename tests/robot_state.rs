@@ -189,7 +189,7 @@ fn a_program_started_in_a_stop_is_refused_a_reset_waits_for_the_grid_and_the_kr1
     };
     let (status, out, err) = run(&sut);
     assert_eq!(status, Some(1), "{out}{err}");
-    let want = "kr16_ff.lua:61: move: the robot is in fault since tick";
+    let want = "kr16_ff.lua:69: move: the robot is in fault since tick";
     assert!(err.contains(want), "{err}");
     assert!(
         err.contains("(drive 1 fault 0x8611: following error")
