@@ -108,6 +108,14 @@ impl Supervisor {
                     if u.phase == Phase::Subscribing {
                         let _ = handover::write_file(&u.dir, ABORT, b"");
                     }
+                    // A grid host whose new process took the components over (`grid`) before
+                    // the module's handover failed: the running process steps nothing any more,
+                    // so it ends too, and the module's restart policy brings the host back.
+                    let grid_taken = handover::exists(&u.dir, GRID)
+                        && !matches!(u.phase, Phase::Switched { .. });
+                    if grid_taken {
+                        let _ = kill(Pid::from_raw(u.old_pid as i32), Signal::SIGKILL);
+                    }
                     if let Some(mut c) = u.child.take() {
                         let _ = c.kill();
                         let _ = c.wait();
@@ -117,6 +125,9 @@ impl Supervisor {
                     self.roster.reap();
                     let keeps = if matches!(u.phase, Phase::Switched { .. }) {
                         ""
+                    } else if grid_taken {
+                        "; the new process had taken the grid's components over: both ended, \
+                         and the restart policy brings the host back"
                     } else {
                         "; the running process serves on"
                     };
