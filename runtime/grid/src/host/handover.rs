@@ -62,16 +62,28 @@ pub(super) enum Upgrade {
 type Opened = Result<(Pub, Sub), TransportError>;
 
 /// A thread that opens the running process's end of a handover when asked: (channel, length).
+/// Dropped, it ends the thread and waits for it: the thread holds the node, which must be
+/// dropped (its files and directory removed) before the process exits.
 pub(super) struct Opener {
-    ask: std::sync::mpsc::Sender<(String, usize)>,
+    ask: Option<std::sync::mpsc::Sender<(String, usize)>>,
     opened: std::sync::mpsc::Receiver<Opened>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Opener {
+    fn drop(&mut self) {
+        self.ask.take();
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
 }
 
 impl Opener {
     fn start(node: Arc<dyn Channels>) -> std::io::Result<Opener> {
         let (ask, asked) = std::sync::mpsc::channel::<(String, usize)>();
         let (tell, opened) = std::sync::mpsc::channel();
-        std::thread::Builder::new()
+        let thread = std::thread::Builder::new()
             .name("handover".into())
             .spawn(move || {
                 for (service, len) in asked {
@@ -88,7 +100,11 @@ impl Opener {
                     }
                 }
             })?;
-        Ok(Opener { ask, opened })
+        Ok(Opener {
+            ask: Some(ask),
+            opened,
+            thread: Some(thread),
+        })
     }
 }
 
@@ -231,7 +247,8 @@ impl Host {
         let asked = self
             .opener
             .as_ref()
-            .is_some_and(|o| o.ask.send((service, len)).is_ok());
+            .and_then(|o| o.ask.as_ref())
+            .is_some_and(|ask| ask.send((service, len)).is_ok());
         if !asked {
             return self.answer_upgrade(Done::FAILED);
         }
