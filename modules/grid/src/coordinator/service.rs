@@ -197,20 +197,11 @@ fn owner_name(book: &modbot_core::phonebook::PhoneBook, owner: Owner) -> Option<
         return Some(format!("{} (pid {})", e.name, e.pid));
     }
     match owner.pid {
-        Some(pid) if process_runs(pid) => Some(format!("process {pid} (address {})", owner.addr.0)),
+        Some(pid) if modbot_grid::host::process_runs(pid) => {
+            Some(format!("process {pid} (address {})", owner.addr.0))
+        }
         Some(_) => None,
         None => Some(format!("the caller at address {}", owner.addr.0)),
-    }
-}
-
-/// Whether process `pid` still runs (a signal 0 reaches it, or it is another user's).
-fn process_runs(pid: u32) -> bool {
-    let Ok(pid) = i32::try_from(pid) else {
-        return false;
-    };
-    match nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), None) {
-        Ok(()) => true,
-        Err(e) => e == nix::errno::Errno::EPERM,
     }
 }
 

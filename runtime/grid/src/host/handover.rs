@@ -508,7 +508,7 @@ fn named(name: &str, e: &CarryError) -> String {
 }
 
 /// Whether process `pid` still runs (a signal 0 reaches it, or it is another user's).
-fn process_runs(pid: u32) -> bool {
+pub fn process_runs(pid: u32) -> bool {
     let Ok(pid) = i32::try_from(pid) else {
         return false;
     };

@@ -38,6 +38,8 @@ use modbot_core::transport::TransportError;
 
 mod handover;
 
+pub use handover::process_runs;
+
 type Source = Versions;
 
 /// Loads assembly `name` as generation `generation` for the running grid `system` (the
