@@ -56,6 +56,12 @@ const WORDS: usize = (BROADCAST + 1 + GROUP_WORDS + NAMED_WORDS) as usize;
 const COUNT: u32 = !SLEEPING;
 /// The table's size in bytes.
 pub(crate) const TABLE_LEN: usize = WORDS * LINE;
+/// `FUTEX_WAKE`'s count for "every sleeper": the kernel reads the count as a signed `int`, so
+/// `u32::MAX` is −1 there, and its loop stops after the *first* sleeper woken (`++woken >=
+/// count`). A word with two listeners (a bus's, or a grid host's during a live upgrade, when
+/// the running and the new process both wait on it) then wakes one of them; the other sleeps
+/// until its timeout.
+const EVERY_SLEEPER: u32 = i32::MAX as u32;
 /// The most words one wait looks at (`futex_waitv` takes at most 128).
 pub(crate) const MAX_WAIT_WORDS: usize = 2 + GROUP_WORDS as usize;
 /// The table's file name after the domain's prefix.
@@ -158,7 +164,7 @@ impl WakeTable {
         }
         word.store(seen.wrapping_add(1) & !SLEEPING, Ordering::SeqCst);
         // Every listener of a bus word, the one module of an address's word.
-        if let Err(e) = futex::wake(word, futex::Flags::empty(), u32::MAX) {
+        if let Err(e) = futex::wake(word, futex::Flags::empty(), EVERY_SLEEPER) {
             tracing::debug!("futex wake of {}: {e}", self.path.display());
         }
     }
@@ -176,7 +182,7 @@ impl WakeTable {
             }
         }
         if seen & SLEEPING != 0 {
-            if let Err(e) = futex::wake(word, futex::Flags::empty(), u32::MAX) {
+            if let Err(e) = futex::wake(word, futex::Flags::empty(), EVERY_SLEEPER) {
                 tracing::debug!("futex wake of {}: {e}", self.path.display());
             }
         }
@@ -416,6 +422,68 @@ mod tests {
             "the wake-up ended the wait"
         );
         waker.join().unwrap();
+    }
+
+    /// Whether thread `tid` of this process is asleep (state `S` in its `stat`).
+    fn asleep(tid: i32) -> bool {
+        let stat =
+            std::fs::read_to_string(format!("/proc/self/task/{tid}/stat")).unwrap_or_default();
+        // The state follows the command's closing parenthesis.
+        stat.rsplit_once(')')
+            .is_some_and(|(_, rest)| rest.trim_start().starts_with('S'))
+    }
+
+    #[test]
+    fn one_notification_wakes_every_listener_asleep_on_a_word() {
+        let domain = Domain::new(&format!("wakeall{}", std::process::id())).unwrap();
+        /// Removes the test's table however the test ends.
+        struct Removed(String);
+        impl Drop for Removed {
+            fn drop(&mut self) {
+                let _ = std::fs::remove_file(&self.0);
+            }
+        }
+        let _file = Removed(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()));
+        let table = std::sync::Arc::new(WakeTable::open(&domain).unwrap());
+        let word = Word::named("grid.wake.host.ctrl");
+        let (tx, woken) = std::sync::mpsc::channel();
+        let (tids_tx, tids) = std::sync::mpsc::channel();
+        let taken = table.count(word);
+        // Three listeners of one word (a host's running process and its new one, say), asleep
+        // without a timeout: only the notification ends their waits.
+        for listener in 0..3 {
+            let (t, tx, tids_tx) = (table.clone(), tx.clone(), tids_tx.clone());
+            std::thread::spawn(move || {
+                tids_tx
+                    .send(rustix::thread::gettid().as_raw_nonzero().get())
+                    .unwrap();
+                let changed = t.wait_for_count(word, taken, None);
+                let _ = tx.send((listener, changed));
+            });
+        }
+        let tids: Vec<i32> = tids.iter().take(3).collect();
+        let deadline = std::time::Instant::now() + Duration::from_secs(30);
+        while !tids.iter().all(|&tid| asleep(tid)) {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the listeners never slept"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        table.notify_counted(word);
+        let mut seen = Vec::new();
+        for _ in 0..3 {
+            match woken.recv_timeout(Duration::from_secs(30)) {
+                Ok((listener, changed)) => {
+                    assert!(
+                        changed,
+                        "listener {listener} woke without the count changing"
+                    );
+                    seen.push(listener);
+                }
+                Err(_) => panic!("one notification woke only listeners {seen:?} of 3"),
+            }
+        }
     }
 
     #[test]
