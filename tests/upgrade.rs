@@ -6,7 +6,7 @@
 mod common;
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -370,9 +370,11 @@ fn recorded(
 /// and its host `ctrl` is replaced by a new process at tick 900 mid-motion and again at 1400
 /// (braking into B). The components' state is carried to the bit, so the lockstep recording
 /// is identical to a run without the upgrades — every signal and the grid's state hash in every
-/// row — and no tick is missed. A host whose components cannot carry their state (the KR 16's
-/// `ptp_ff`: its cascade keeps integrators that do not yet) is refused: the running process
-/// serves on and the run is again the same as one without.
+/// row — and no tick is missed. The KR 16's `ptp_ff` host (a setpoint, ptp, Bessel filters,
+/// the elastic joints' feed-forward, the cascade's integrators, the monitor, the settle
+/// measurement) is upgraded mid-motion the same way, to the same effect. A host whose
+/// components cannot carry their state (a type of the user's own without `carry`) is refused:
+/// the running process serves on and the run is again the same as one without.
 #[test]
 fn a_grid_host_upgraded_twice_during_a_ptp_motion_in_lockstep_records_the_same_as_a_run_without() {
     let _arm = common::arm::one_arm_at_a_time();
@@ -409,24 +411,73 @@ fn a_grid_host_upgraded_twice_during_a_ptp_motion_in_lockstep_records_the_same_a
     );
     assert_eq!(moving.trim(), "True True", "{moving}");
 
-    // A host that cannot carry its components' state is refused; the run goes on unchanged.
-    let kr16 = arm.with_file_name("kr16.lua");
+    // The KR 16's feed-forward assembly, every one of its control types carried, moving to a
+    // goal of its own (a copy of the example whose `ptp_ff.q` default is not where it stands).
+    let examples = arm.parent().unwrap();
+    let copy = std::env::temp_dir().join(format!("{}.kr16", sut.name()));
+    std::fs::create_dir_all(copy.join("kr16")).unwrap();
+    std::fs::copy(examples.join("kr16.lua"), copy.join("kr16.lua")).unwrap();
+    for entry in std::fs::read_dir(examples.join("kr16")).unwrap() {
+        let path = entry.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let moved = text.replace(
+            "data(\"ptp_ff.q\") or { 0, 0, 0, 0, 0, 0 }",
+            "data(\"ptp_ff.q\") or { 0.3, -0.2, 0.25, 0, 0, 0 }",
+        );
+        std::fs::write(copy.join("kr16").join(path.file_name().unwrap()), moved).unwrap();
+    }
+    let kr16 = copy.join("kr16.lua");
     let plan = ["--switch", "300:ptp_ff"];
     let (c, _) = recorded(&mut sut, &kr16, "kr16", &plan);
-    let mut refused: Vec<&str> = plan.to_vec();
-    refused.extend_from_slice(&["--upgrade", "900:ctrl"]);
-    let (d, out) = recorded(&mut sut, &kr16, "kr16refused", &refused);
+    let mut upgraded: Vec<&str> = plan.to_vec();
+    upgraded.extend_from_slice(&["--upgrade", "900:ctrl"]);
+    let (d, out) = recorded(&mut sut, &kr16, "kr16upgraded", &upgraded);
     assert!(
-        out.contains("cannot carry its state to a new process"),
+        out.contains("host ctrl: took the components over at tick 900 ("),
+        "{out}"
+    );
+    assert!(!out.contains("refused"), "{out}");
+    let (code, said) = sut.record_compare(&c, &d);
+    assert_eq!(code, Some(0), "{said}\n{out}");
+    let moving = common::python::python(
+        "import sys, h5py\nf = h5py.File(sys.argv[1], 'r')\nq = f['robot.demand_position']\n\
+         t = list(f['tick'])\nprint(q[t.index(899)][0] != q[t.index(901)][0])",
+        &[c.to_str().unwrap()],
+    );
+    assert_eq!(
+        moving.trim(),
+        "True",
+        "the KR 16 moved through the handover: {moving}"
+    );
+    let _ = std::fs::remove_dir_all(&copy);
+
+    // A host that cannot carry its components' state is refused; the run goes on unchanged.
+    let limited =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/first_component/limited.lua");
+    let (plain, _) = sut.traced_up(&limited, 1000, &["--lockstep"], "limited");
+    let (refused, out) = sut.traced_up(
+        &limited,
+        1000,
+        &["--lockstep", "--upgrade", "500:h_limit"],
+        "limitedrefused",
+    );
+    assert!(
+        out.contains("component 'limit' cannot carry its state to a new process"),
         "{out}"
     );
     assert!(
-        out.contains("upgrade of host_ctrl_g2 refused: the new program ended before it took over"),
+        out.contains("upgrade of host_h_limit refused: the new program ended before it took over"),
         "{out}"
     );
     assert!(out.contains("the running process serves on"), "{out}");
-    let (code, said) = sut.record_compare(&c, &d);
-    assert_eq!(code, Some(0), "{said}\n{out}");
+    let rows = |t: &str| {
+        t.lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(str::to_owned)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(rows(&refused).len(), 1000, "{refused}");
+    assert_eq!(rows(&refused), rows(&plain));
     for f in [a, b, c, d] {
         let _ = std::fs::remove_file(f);
     }

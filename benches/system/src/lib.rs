@@ -23,7 +23,7 @@
 //!   recorded it.
 //! - [`remote`] (13): a call through two Zenoh bridges against a raw Zenoh query.
 //! - [`upgrade`] (14): live upgrades of a module under a stream of calls: the latency they add
-//!   and the handover.
+//!   and the handover; a host of the time grid upgraded while the arm moves ([`upgrade_grid`]).
 //!
 //! The systems they start, the report and the samples are `modbot-bench-kit`'s; the call paths
 //! the lockstep run and the station use are `modbot-bench-ipc`'s.
@@ -40,3 +40,4 @@ pub mod scale;
 pub mod station;
 pub mod swaps;
 pub mod upgrade;
+pub mod upgrade_grid;

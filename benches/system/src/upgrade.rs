@@ -14,6 +14,9 @@
 //! - `upgrade.total`: per upgrade, the supervisor's time from the request to the new process's
 //!   first heartbeat (the new process's start included), against the handover.
 //!
+//! - the grid part (`upgrade_grid`): a host of the time grid upgraded while the arm moves, its
+//!   components' overruns and the missed ticks per upgrade against windows without.
+//!
 //! Every call must be answered exactly once: a call answered twice, not at all, or with an error
 //! fails the benchmark.
 
@@ -62,7 +65,7 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         median.1 as f64 / 1e6,
         m.held_back
     ));
-    Ok(())
+    crate::upgrade_grid::run(opts, report)
 }
 
 /// No child roles: the module is `modbot-faulty`.

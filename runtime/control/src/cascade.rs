@@ -99,6 +99,14 @@ impl Component for Cascade {
             };
         }
     }
+
+    /// The integral of each axis's velocity error (the gains come from the parameters).
+    fn carry(
+        &mut self,
+        c: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        c.f64s("integral", &mut self.integral)
+    }
 }
 
 #[cfg(test)]
@@ -124,6 +132,17 @@ mod tests {
             &[&two(q_ref), &two(qd_ref), &two(ff), &two(q), &two(0.0)],
         );
         sut.out(0)[0]
+    }
+
+    #[test]
+    fn its_integral_carried_into_another_instance_mid_motion_goes_on_to_the_bit() {
+        let inputs = |tick: u64| {
+            let t = tick as f64 * 0.001;
+            let two = |x: f64| vec![x, -x];
+            vec![two(t), two(1.0), two(0.5), two(0.9 * t), two(0.8)]
+        };
+        let make = || cascade(7.0);
+        super::super::harness::carried_steps_as_the_original(&make, &inputs, 200, 600);
     }
 
     #[test]

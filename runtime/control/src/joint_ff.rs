@@ -189,6 +189,15 @@ impl Component for JointFf {
     fn track(&mut self, _: &Released, inputs: &[PortValue], outputs: &mut [PortValue]) {
         self.compute(inputs, outputs, true);
     }
+
+    /// The last acceleration and jerk of each axis (its differences' memory).
+    fn carry(
+        &mut self,
+        c: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        c.f64s("last_qdd", &mut self.last_qdd)?;
+        c.f64s("last_jerk", &mut self.last_jerk)
+    }
 }
 
 #[cfg(test)]
@@ -207,6 +216,20 @@ mod tests {
             .with("viscous", list(&[0.0]))
             .with("coulomb", list(&[0.0]));
         Harness::new("joint_ff", params, 1)
+    }
+
+    #[test]
+    fn its_differences_carried_into_another_instance_mid_motion_go_on_to_the_bit() {
+        let inputs = |tick: u64| {
+            let t = tick as f64 * 0.001;
+            vec![
+                vec![(3.0 * t).sin()],
+                vec![3.0 * (3.0 * t).cos()],
+                vec![-9.0 * (3.0 * t).sin()],
+            ]
+        };
+        let make = || joint_ff("elastic");
+        super::super::harness::carried_steps_as_the_original(&make, &inputs, 100, 300);
     }
 
     #[test]

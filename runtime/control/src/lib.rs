@@ -251,6 +251,40 @@ mod harness {
         modbot_grid::component::carry_state(from, to).unwrap();
     }
 
+    /// Steps three instances made by `make` with `inputs(tick)`: the original through ticks
+    /// `0..at` and on to `end`; a second one, its state carried from the original at `at`,
+    /// from `at` to `end`; a third, made fresh at `at`, as well. The carried one's outputs are
+    /// the original's at every tick, to the bit; the fresh one's differ at some tick (the state
+    /// carried matters).
+    pub fn carried_steps_as_the_original(
+        make: &dyn Fn() -> Harness,
+        inputs: &dyn Fn(u64) -> Vec<Vec<f64>>,
+        at: u64,
+        end: u64,
+    ) {
+        let (mut old, mut new, mut fresh) = (make(), make(), make());
+        let step = |h: &mut Harness, tick: u64| {
+            let inputs = inputs(tick);
+            let inputs: Vec<&[f64]> = inputs.iter().map(Vec::as_slice).collect();
+            h.step(tick, &inputs);
+            format!("{:?}", h.outputs)
+        };
+        for tick in 0..at {
+            step(&mut old, tick);
+        }
+        carry_into(old.sut.as_mut(), new.sut.as_mut());
+        let mut fresh_differed = false;
+        for tick in at..end {
+            let original = step(&mut old, tick);
+            assert_eq!(step(&mut new, tick), original, "tick {tick}");
+            fresh_differed |= step(&mut fresh, tick) != original;
+        }
+        assert!(
+            fresh_differed,
+            "an instance that was not carried steps as the original too: the test shows nothing"
+        );
+    }
+
     /// Why `type_name` refuses `params`, as a description's author reads it.
     pub fn refusal(type_name: &str, params: Params) -> String {
         let mut registry = Registry::new();

@@ -87,6 +87,19 @@ impl Component for LowPass {
         self.started = true;
         self.step(rel, inputs, outputs);
     }
+
+    /// Every filter's state, and whether they were put at rest (the coefficients come from
+    /// the parameters).
+    fn carry(
+        &mut self,
+        c: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        c.length("axes", self.filters.len())?;
+        for filter in self.filters.iter_mut().flatten() {
+            filter.carry(c)?;
+        }
+        c.bool("started", &mut self.started)
+    }
 }
 
 #[cfg(test)]
@@ -99,6 +112,15 @@ mod tests {
             .with("axes", ParamValue::I64(2))
             .with("bessel_hz", ParamValue::F64(8.0));
         Harness::new("bessel", params, 1)
+    }
+
+    #[test]
+    fn its_filters_carried_into_another_instance_mid_step_go_on_to_the_bit() {
+        let inputs = |tick: u64| {
+            let q = if tick < 50 { 0.2 } else { 1.0 };
+            vec![vec![q, -q], vec![0.1 * q, 0.0], vec![0.0, 0.3 * q]]
+        };
+        super::super::harness::carried_steps_as_the_original(&low_pass, &inputs, 60, 400);
     }
 
     #[test]

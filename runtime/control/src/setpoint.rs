@@ -44,6 +44,14 @@ impl Component for Setpoint {
     fn step(&mut self, _: &Released, _: &[PortValue], outputs: &mut [PortValue]) {
         array_mut(&mut outputs[0]).copy_from_slice(&self.value);
     }
+
+    /// Its value comes from its parameters: nothing to carry.
+    fn carry(
+        &mut self,
+        _: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -61,6 +69,19 @@ mod tests {
             sut.step(tick, &[]);
             assert_eq!(sut.out(0), [0.1, -0.2, 0.3]);
         }
+    }
+
+    #[test]
+    fn a_setpoint_carries_nothing_and_a_carried_one_puts_out_the_same_value() {
+        let params = Params::new()
+            .with("axes", ParamValue::I64(2))
+            .with("value", list(&[0.5, -0.25]));
+        let mut old = Harness::new("setpoint", params.clone(), 1);
+        let mut new = Harness::new("setpoint", params, 1);
+        old.step(0, &[]);
+        super::super::harness::carry_into(old.sut.as_mut(), new.sut.as_mut());
+        new.step(1, &[]);
+        assert_eq!(new.out(0), [0.5, -0.25]);
     }
 
     #[test]

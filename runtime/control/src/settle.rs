@@ -209,6 +209,28 @@ impl Component for Settle {
         // The history starts afresh too: at rest, every past reference is the current one.
         self.fill(array(&inputs[1]));
     }
+
+    /// The references of its lag, where the ring stands, and the motion measured so far.
+    fn carry(
+        &mut self,
+        c: &mut modbot_grid::carry::Carry<'_>,
+    ) -> Result<(), modbot_grid::carry::CarryError> {
+        c.length("lag", self.refs.len())?;
+        for refs in &mut self.refs {
+            c.f64s("references", refs)?;
+        }
+        let mut next = self.next as u64;
+        c.u64("next", &mut next)?;
+        self.next = usize::try_from(next).unwrap_or(0) % self.refs.len().max(1);
+        c.bool("filled", &mut self.filled)?;
+        let m = &mut self.motion;
+        c.optional_u64("first", &mut m.first)?;
+        c.bool("moved", &mut m.moved)?;
+        c.optional_u64("arrival", &mut m.arrival)?;
+        c.f64("peak", &mut m.peak)?;
+        c.f64("residual", &mut m.residual)?;
+        c.optional_u64("last_outside", &mut m.last_outside)
+    }
 }
 
 #[cfg(test)]
@@ -242,6 +264,34 @@ mod tests {
 
     fn f(v: &PortValue) -> f64 {
         v.as_f64()
+    }
+
+    #[test]
+    fn a_motion_carried_into_another_instance_after_its_arrival_is_measured_on_to_the_bit() {
+        let error = |t: u64| match t {
+            0 => 0.0,
+            1..=20 => 0.02 * t as f64,
+            _ => 0.4 * (-(t as f64 - 20.0) / 10.0).exp() * ((t as f64) * 0.7).cos(),
+        };
+        let run = |sut: &mut dyn Component, out: &mut Vec<PortValue>, t: u64| {
+            step(sut, out, t, error(t), t > 20);
+            format!("{out:?}")
+        };
+        let (mut old, mut old_out) = settle(0.01, 0.01);
+        let (mut new, mut new_out) = settle(0.01, 0.01);
+        let (mut fresh, mut fresh_out) = settle(0.01, 0.01);
+        for t in 0..30 {
+            run(&mut *old, &mut old_out, t);
+        }
+        modbot_grid::component::carry_state(&mut *old, &mut *new).unwrap();
+        let mut fresh_differed = false;
+        for t in 30..200 {
+            let original = run(&mut *old, &mut old_out, t);
+            assert_eq!(run(&mut *new, &mut new_out, t), original, "tick {t}");
+            fresh_differed |= run(&mut *fresh, &mut fresh_out, t) != original;
+        }
+        assert!(fresh_differed, "the motion carried matters");
+        assert_eq!(new_out[1], PortValue::Bool(true), "arrived");
     }
 
     #[test]

@@ -393,6 +393,11 @@ impl Component for VecGain {
             }
         }
     }
+
+    /// A function of its input: nothing to carry.
+    fn carry(&mut self, _: &mut Carry<'_>) -> Result<(), CarryError> {
+        Ok(())
+    }
 }
 
 fn pack_info(_: &Params) -> Result<ComponentInfo, ComponentError> {
@@ -409,6 +414,11 @@ impl Component for Pack {
             v[0] = inputs[0].as_f64();
             v[1] = inputs[1].as_f64();
         }
+    }
+
+    /// A function of its inputs: nothing to carry.
+    fn carry(&mut self, _: &mut Carry<'_>) -> Result<(), CarryError> {
+        Ok(())
     }
 }
 

@@ -150,6 +150,20 @@ impl<'a> Carry<'a> {
         Ok(())
     }
 
+    /// A tick or count that may not be there yet: whether it is, then its value.
+    pub fn optional_u64(
+        &mut self,
+        what: &'static str,
+        v: &mut Option<u64>,
+    ) -> Result<(), CarryError> {
+        let mut there = v.is_some();
+        let mut value = v.unwrap_or(0);
+        self.bool(what, &mut there)?;
+        self.u64(what, &mut value)?;
+        *v = there.then_some(value);
+        Ok(())
+    }
+
     /// Flags of the instance's number: their number goes first, and must match on load.
     pub fn bools(&mut self, what: &'static str, v: &mut [bool]) -> Result<(), CarryError> {
         self.length(what, v.len())?;
