@@ -91,6 +91,17 @@ pub fn up(
             return Ok(ExitCode::from(1));
         }
     };
+    // A node of this process while the run ends and the recording takes the checked grids in:
+    // a tool leaving the domain meanwhile (`modbot down` itself) sees a live process and does
+    // not remove the domain's last files, the grids' images among them.
+    let keeping = replayable.as_ref().and_then(|_| {
+        IpcTransport::for_supervisor(&domain)
+            .and_then(|t| t.channels(&format!("up.keep.{}", std::process::id())))
+            .map_err(|e| {
+                tracing::warn!("no node to keep the domain's files for the recording: {e}")
+            })
+            .ok()
+    });
     let station = station.and_then(|listen| start_station(&domain, listen));
     let summary = sup.run(&RunOptions {
         run_for,
@@ -113,6 +124,7 @@ pub fn up(
             }
         }
     }
+    drop(keeping);
     sweep(&domain);
     println!(
         "modbot up: ran {:.1} s in domain '{}'",

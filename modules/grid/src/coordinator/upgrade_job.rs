@@ -8,8 +8,8 @@ use std::sync::mpsc::Sender;
 use std::time::{Duration, Instant};
 
 use modbot_core::calls::CallOptions;
-use modbot_core::Module;
-use modbot_ipc_schema::{OwnedValue, Value};
+use modbot_core::{CallError, Module};
+use modbot_ipc_schema::{NakCode, OwnedValue, Value};
 
 use super::shared::Shared;
 use super::tick_thread::ToTick;
@@ -17,10 +17,16 @@ use super::tick_thread::ToTick;
 /// How often the supervisor is asked how the upgrade goes.
 const LOOK_EVERY: Duration = Duration::from_millis(100);
 
+/// How long an upgrade due while the supervisor is busy with another of the same module (the
+/// previous one's module handover, which follows the grid's) is asked for again.
+const BUSY_LIMIT: Duration = Duration::from_secs(60);
+
 /// A scripted upgrade under way: the host's module, and when its status was last asked.
 #[derive(Default)]
 pub struct UpgradeJob {
     under_way: Option<(String, Instant)>,
+    /// Due, but the supervisor was busy: (host, module, first asked, last asked).
+    busy: Option<(String, String, Instant, Instant)>,
 }
 
 impl UpgradeJob {
@@ -43,6 +49,19 @@ impl UpgradeJob {
             let _ = to_tick.send(ToTick::UpgradeRefused);
             return;
         };
+        let now = Instant::now();
+        self.ask(module, host, name, now, to_tick);
+    }
+
+    /// Asks the supervisor for the upgrade of `host`'s module `name`, first asked at `first`.
+    fn ask(
+        &mut self,
+        module: &mut Module<Shared>,
+        host: &str,
+        name: &str,
+        first: Instant,
+        to_tick: &Sender<ToTick>,
+    ) {
         let asked = module.call_owned(
             "supervisor",
             "upgrade",
@@ -52,7 +71,14 @@ impl UpgradeJob {
         match asked {
             Ok(_) => {
                 tracing::info!("scripted upgrade of host {host} ({name}) asked for");
-                self.under_way = Some((name.clone(), Instant::now()));
+                self.under_way = Some((name.to_owned(), Instant::now()));
+            }
+            // The previous upgrade's module handover is not over yet: asked again soon.
+            Err(CallError::Nak { code, .. })
+                if code == NakCode::BUSY && first.elapsed() < BUSY_LIMIT =>
+            {
+                tracing::debug!("the supervisor is busy with {name}: the upgrade is asked again");
+                self.busy = Some((host.to_owned(), name.to_owned(), first, Instant::now()));
             }
             Err(e) => {
                 tracing::error!("the scripted upgrade of {name} cannot be made: {e}");
@@ -63,6 +89,11 @@ impl UpgradeJob {
 
     /// Follows the upgrade under way: a refusal is logged and lets the grid go on.
     pub fn step(&mut self, module: &mut Module<Shared>, to_tick: &Sender<ToTick>) {
+        if let Some((host, name, first, _)) =
+            self.busy.take_if(|(.., last)| last.elapsed() >= LOOK_EVERY)
+        {
+            self.ask(module, &host, &name, first, to_tick);
+        }
         let Some((name, looked)) = self.under_way.as_mut() else {
             return;
         };
