@@ -353,6 +353,7 @@ fn recorded(
 ) -> (PathBuf, String) {
     let recording = std::env::temp_dir().join(format!("{}.{tag}.h5", sut.name()));
     let _ = std::fs::remove_file(&recording);
+    sut.remove_at_end(recording.clone());
     let domain = format!("domain={}", sut.name());
     let mut args = vec!["up", file.to_str().unwrap(), "--var", &domain, "--record"];
     args.push(recording.to_str().unwrap());
@@ -415,6 +416,7 @@ fn a_grid_host_upgraded_twice_during_a_ptp_motion_in_lockstep_records_the_same_a
     // goal of its own (a copy of the example whose `ptp_ff.q` default is not where it stands).
     let examples = arm.parent().unwrap();
     let copy = std::env::temp_dir().join(format!("{}.kr16", sut.name()));
+    sut.remove_at_end(copy.clone());
     std::fs::create_dir_all(copy.join("kr16")).unwrap();
     std::fs::copy(examples.join("kr16.lua"), copy.join("kr16.lua")).unwrap();
     for entry in std::fs::read_dir(examples.join("kr16")).unwrap() {
@@ -449,7 +451,6 @@ fn a_grid_host_upgraded_twice_during_a_ptp_motion_in_lockstep_records_the_same_a
         "True",
         "the KR 16 moved through the handover: {moving}"
     );
-    let _ = std::fs::remove_dir_all(&copy);
 
     // A host that cannot carry its components' state is refused; the run goes on unchanged.
     let limited =
@@ -478,7 +479,5 @@ fn a_grid_host_upgraded_twice_during_a_ptp_motion_in_lockstep_records_the_same_a
     };
     assert_eq!(rows(&refused).len(), 1000, "{refused}");
     assert_eq!(rows(&refused), rows(&plain));
-    for f in [a, b, c, d] {
-        let _ = std::fs::remove_file(f);
-    }
+    // The recordings and the copy go with `sut`, whether the test passed or not.
 }

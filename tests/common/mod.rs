@@ -88,6 +88,12 @@ impl TestDomain {
         self.env.push((key.to_owned(), value.to_owned()));
     }
 
+    /// Removes `path` (a file, or a directory with what it holds) when the test ends, passed
+    /// or failed.
+    pub fn remove_at_end(&mut self, path: PathBuf) {
+        self.files.push(path);
+    }
+
     /// Writes a system description for this domain (`domain "..."` followed by `body`).
     pub fn write_system(&mut self, body: &str) -> PathBuf {
         let path = std::env::temp_dir().join(format!("{}.lua", self.name()));
@@ -365,7 +371,11 @@ impl Drop for TestDomain {
         }
         // The domain's files go when `domain` is dropped, after this.
         for f in &self.files {
-            let _ = std::fs::remove_file(f);
+            if f.is_dir() {
+                let _ = std::fs::remove_dir_all(f);
+            } else {
+                let _ = std::fs::remove_file(f);
+            }
         }
     }
 }
