@@ -34,6 +34,25 @@ struct Counts {
     missed: u64,
 }
 
+/// One count of a window.
+type Field = fn(&Counts) -> u64;
+
+/// The rows, and which count of a window each one shows.
+const FIELDS: [(&str, Field); 2] = [
+    ("upgrade.grid_overruns", |c| c.overruns),
+    ("upgrade.grid_missed", |c| c.missed),
+];
+
+/// The histogram of one count over `windows`.
+fn histogram(windows: &[Counts], field: Field) -> hdrhistogram::Histogram<u64> {
+    let mut h = modbot_bench_kit::sample::histogram();
+    windows
+        .iter()
+        .map(field)
+        .for_each(|v| h.saturating_record(v));
+    h
+}
+
 /// Runs the grid part of the upgrade benchmark.
 pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
     let upgrades = opts.samples(5, 20) as usize;
@@ -81,32 +100,20 @@ pub fn run(opts: &Opts, report: &mut Report) -> anyhow::Result<()> {
         idle.push(difference(before, counts(&mut sys, &host)?));
     }
     let left = sys.stop()?;
-    let histogram = |values: &mut dyn Iterator<Item = u64>| {
-        let mut h = modbot_bench_kit::sample::histogram();
-        values.for_each(|v| h.saturating_record(v));
-        h
-    };
-    let count_rows = [
-        (
-            "upgrade.grid_overruns",
-            (|c: &Counts| c.overruns) as fn(&Counts) -> u64,
-        ),
-        ("upgrade.grid_missed", |c: &Counts| c.missed),
-    ];
-    for (name, field) in count_rows {
+    for (name, field) in FIELDS {
         let base = format!("{name}_idle");
         report.push(
-            Row::from_histogram(&base, &histogram(&mut idle.iter().map(field)))
+            Row::from_histogram(&base, &histogram(&idle, field))
                 .unit("count")
                 .is_baseline(),
         );
         report.push(
-            Row::from_histogram(name, &histogram(&mut during.iter().map(field)))
+            Row::from_histogram(name, &histogram(&during, field))
                 .unit("count")
                 .against(&base, &[]),
         );
     }
-    let total = |v: &[Counts], field: fn(&Counts) -> u64| v.iter().map(field).sum::<u64>();
+    let total = |v: &[Counts], field: Field| v.iter().map(field).sum::<u64>();
     report.note(format!(
         "upgrade (grid): {upgrades} live upgrades of {module} (host {host}, the arm's ptp \
          assembly at 1 kHz, moving): {} overrun(s) of its components and {} missed tick(s) or \

@@ -324,6 +324,21 @@ fn wake_err(path: &std::path::Path, e: std::io::Error) -> TransportError {
 mod tests {
     use super::*;
 
+    /// Removes a test's table however the test ends.
+    struct Removed(String);
+
+    impl Removed {
+        fn table_of(domain: &Domain) -> Removed {
+            Removed(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()))
+        }
+    }
+
+    impl Drop for Removed {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+
     #[test]
     fn the_table_is_laid_out_as_ipc_schema_readme_says() {
         assert_eq!(TABLE_LEN, 36_928);
@@ -342,17 +357,9 @@ mod tests {
     #[test]
     fn threads_of_one_process_opening_the_table_at_once_all_map_it() {
         let domain = Domain::new(&format!("wakerace{}", std::process::id())).unwrap();
-        let path = format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix());
-        /// Removes the test's table however the test ends.
-        struct Removed(String);
-        impl Drop for Removed {
-            fn drop(&mut self) {
-                let _ = std::fs::remove_file(&self.0);
-            }
-        }
-        let _file = Removed(path.clone());
+        let file = Removed::table_of(&domain);
         for _ in 0..20 {
-            let _ = std::fs::remove_file(&path);
+            let _ = std::fs::remove_file(&file.0);
             let barrier = std::sync::Arc::new(std::sync::Barrier::new(8));
             let opened: Vec<_> = (0..8)
                 .map(|_| {
@@ -372,14 +379,7 @@ mod tests {
     #[test]
     fn a_waiter_returns_when_woken_and_at_once_when_the_word_changed_before_it_slept() {
         let domain = Domain::new(&format!("waketest{}", std::process::id())).unwrap();
-        /// Removes the test's table however the test ends.
-        struct Removed(String);
-        impl Drop for Removed {
-            fn drop(&mut self) {
-                let _ = std::fs::remove_file(&self.0);
-            }
-        }
-        let _file = Removed(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()));
+        let _file = Removed::table_of(&domain);
         let table = std::sync::Arc::new(WakeTable::open(&domain).unwrap());
         let me = [Word::module(Addr(7))];
         let mut waits = [futex::Wait::new(); 1];
@@ -436,14 +436,7 @@ mod tests {
     #[test]
     fn one_notification_wakes_every_listener_asleep_on_a_word() {
         let domain = Domain::new(&format!("wakeall{}", std::process::id())).unwrap();
-        /// Removes the test's table however the test ends.
-        struct Removed(String);
-        impl Drop for Removed {
-            fn drop(&mut self) {
-                let _ = std::fs::remove_file(&self.0);
-            }
-        }
-        let _file = Removed(format!("/dev/shm/{}{FILE_SUFFIX}", domain.prefix()));
+        let _file = Removed::table_of(&domain);
         let table = std::sync::Arc::new(WakeTable::open(&domain).unwrap());
         let word = Word::named("grid.wake.host.ctrl");
         let (tx, woken) = std::sync::mpsc::channel();
